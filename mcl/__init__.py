@@ -1,3 +1,45 @@
-"""mcl: Monte Carlo Localization (particle filter) for racecar_sim."""
+"""mcl: Monte Carlo Localization (particle filter) for racecar_sim.
 
+Depends on ``racecar_sim.maps`` and ``racecar_sim.raycast``; ``racecar_sim`` never imports ``mcl``.
+"""
+
+from mcl.angles import circular_mean, wrap_angle
+from mcl.motion_model import (
+    MotionModel,
+    MotionModelParams,
+    gaussian_to_uniform,
+    twist_to_odometry,
+    uniform_to_gaussian,
+)
+from mcl.particle_filter import ParticleFilter, ParticleFilterParams
+from mcl.resampling import (
+    RESAMPLERS,
+    effective_sample_size,
+    multinomial,
+    resample,
+    stratified,
+    systematic,
+)
+from mcl.sensor_model import SensorModel, SensorModelParams, beam_table
+
+__all__ = [
+    "RESAMPLERS",
+    "MotionModel",
+    "MotionModelParams",
+    "ParticleFilter",
+    "ParticleFilterParams",
+    "SensorModel",
+    "SensorModelParams",
+    "beam_table",
+    "circular_mean",
+    "effective_sample_size",
+    "gaussian_to_uniform",
+    "multinomial",
+    "resample",
+    "stratified",
+    "systematic",
+    "twist_to_odometry",
+    "uniform_to_gaussian",
+    "wrap_angle",
+]
 __version__ = "0.1.0"

@@ -1,0 +1,181 @@
+"""Odometry motion model: compose each particle with a (noisy) car-frame displacement.
+
+Frames: particles are ``[x, y, theta]`` in the world frame (metres, radians) at the rear axle; the
+odometry ``[dx, dy, dtheta]`` is the displacement in the car frame of the *previous* pose (metres,
+radians). Composition is the SE(2) product of the pose matrices, vectorised over particles:
+
+    x' = x + cos(theta) dx - sin(theta) dy,   y' = y + sin(theta) dx + cos(theta) dy,
+    theta' = theta + dtheta   (wrapped to [-pi, pi)).
+
+Noise is added to each particle's copy of the odometry before composing (the MIT RSS lab's scheme):
+``"uniform"`` draws each component from [-c, c], ``"gaussian"`` from N(0, sigma^2), ``"none"`` adds
+nothing. The coefficients are per update, not per second.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from mcl.angles import wrap_angle
+
+__all__ = [
+    "SCHEMES",
+    "MotionModel",
+    "MotionModelParams",
+    "compose",
+    "gaussian_to_uniform",
+    "twist_to_odometry",
+    "uniform_to_gaussian",
+]
+
+SCHEMES: tuple[str, ...] = ("uniform", "gaussian", "none")
+"""Noise schemes accepted by :class:`MotionModelParams`."""
+
+_SQRT3 = math.sqrt(3.0)
+
+
+def uniform_to_gaussian(half_width: float | np.ndarray) -> float | np.ndarray:
+    """Standard deviation with the variance of uniform noise on [-c, c]: sigma = c / sqrt(3)."""
+    out = np.asarray(half_width, dtype=np.float64) / _SQRT3
+    return float(out) if out.ndim == 0 else out
+
+
+def gaussian_to_uniform(sigma: float | np.ndarray) -> float | np.ndarray:
+    """Half-width c of uniform noise with the variance of N(0, sigma^2): c = sigma * sqrt(3)."""
+    out = np.asarray(sigma, dtype=np.float64) * _SQRT3
+    return float(out) if out.ndim == 0 else out
+
+
+def _three(name: str, value: float | tuple[float, ...] | list[float]) -> tuple[float, float, float]:
+    """One number or three (x, y, theta) as a tuple of three non-negative finite floats."""
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        values = (float(value),) * 3
+    else:
+        try:
+            values = tuple(float(v) for v in value)  # type: ignore[union-attr]
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"MotionModelParams.{name} must be a number or three numbers, got {value!r}"
+            ) from None
+    if len(values) != 3 or not all(math.isfinite(v) and v >= 0 for v in values):
+        raise ValueError(
+            f"MotionModelParams.{name} must be one or three non-negative finite numbers "
+            f"(x, y, theta), got {value!r}"
+        )
+    return values  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class MotionModelParams:
+    """Noise of the odometry motion model.
+
+    Attributes:
+        scheme: ``"uniform"``, ``"gaussian"`` or ``"none"``.
+        coefficients: per-update noise of the car-frame odometry (dx metres, dy metres, dtheta
+            radians): the half-width c for ``"uniform"``, the standard deviation for ``"gaussian"``,
+            ignored for ``"none"``. One number applies to all three components.
+    """
+
+    scheme: str = "gaussian"
+    coefficients: float | tuple[float, float, float] = (0.02, 0.01, 0.02)
+
+    def __post_init__(self) -> None:
+        if self.scheme not in SCHEMES:
+            raise ValueError(
+                f"MotionModelParams.scheme = {self.scheme!r}; choose one of {list(SCHEMES)}"
+            )
+        object.__setattr__(self, "coefficients", _three("coefficients", self.coefficients))
+
+    def with_scheme(self, scheme: str) -> MotionModelParams:
+        """The same noise variance under another scheme (uniform c <-> Gaussian sigma = c/sqrt(3)).
+
+        Converting to or from ``"none"`` keeps the coefficients unchanged.
+        """
+        coeffs = np.asarray(self.coefficients, dtype=np.float64)
+        if self.scheme == "uniform" and scheme == "gaussian":
+            coeffs = coeffs / _SQRT3
+        elif self.scheme == "gaussian" and scheme == "uniform":
+            coeffs = coeffs * _SQRT3
+        return replace(self, scheme=scheme, coefficients=tuple(float(c) for c in coeffs))
+
+
+def compose(particles: np.ndarray, odometry: np.ndarray) -> np.ndarray:
+    """Poses (N, 3) world frame moved by car-frame displacements (3,) or (N, 3); new array.
+
+    Theta of the result is wrapped to [-pi, pi).
+    """
+    th = particles[:, 2]
+    c, s = np.cos(th), np.sin(th)
+    odo = np.broadcast_to(odometry, particles.shape)
+    out = np.empty_like(particles, dtype=np.float64)
+    out[:, 0] = particles[:, 0] + c * odo[:, 0] - s * odo[:, 1]
+    out[:, 1] = particles[:, 1] + s * odo[:, 0] + c * odo[:, 1]
+    out[:, 2] = wrap_angle(th + odo[:, 2])
+    return out
+
+
+def twist_to_odometry(twist: np.ndarray, dt: float) -> np.ndarray:
+    """Car-frame displacement [dx, dy, dtheta] after holding a twist for ``dt`` seconds.
+
+    The twist ``[vx, vy, omega]`` (m/s, m/s, rad/s) is in the car frame. Integrated exactly as a
+    constant twist (an arc of the SE(2) exponential map), which reduces to ``twist * dt`` when
+    omega * dt is small.
+    """
+    vx, vy, om = (float(v) for v in twist)
+    dth = om * dt
+    if abs(dth) < 1e-6:
+        # Second-order series of sin(a)/a and (1 - cos(a))/a.
+        a, b = 1.0 - dth * dth / 6.0, dth / 2.0
+    else:
+        a, b = math.sin(dth) / dth, (1.0 - math.cos(dth)) / dth
+    return np.array([(a * vx - b * vy) * dt, (b * vx + a * vy) * dt, dth])
+
+
+class MotionModel:
+    """Samples particle motion from odometry (see the module docstring for frames and schemes).
+
+    Args:
+        params: noise scheme and coefficients; defaults to :class:`MotionModelParams`.
+    """
+
+    def __init__(self, params: MotionModelParams | None = None) -> None:
+        self.params = params if params is not None else MotionModelParams()
+
+    def sample_noise(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """(n, 3) car-frame odometry perturbations (metres, metres, radians) for ``n`` particles."""
+        scheme = self.params.scheme
+        coeffs = np.asarray(self.params.coefficients, dtype=np.float64)
+        if scheme == "none":
+            return np.zeros((n, 3))
+        if scheme == "uniform":
+            return rng.uniform(-1.0, 1.0, size=(n, 3)) * coeffs
+        return rng.standard_normal(size=(n, 3)) * coeffs
+
+    def evaluate(
+        self, particles: np.ndarray, odometry: np.ndarray, rng: np.random.Generator
+    ) -> np.ndarray:
+        """Particles (N, 3) moved by ``odometry`` [dx, dy, dtheta] with per-particle noise.
+
+        Args:
+            particles: (N, 3) world [x, y, theta] (metres, radians).
+            odometry: (3,) car-frame displacement of the previous pose (metres, radians).
+            rng: source of the noise (not used by ``"none"``).
+
+        Returns:
+            A new (N, 3) array; theta wrapped to [-pi, pi).
+
+        Raises:
+            ValueError: particles are not (N, 3) or odometry is not three finite numbers.
+        """
+        particles = np.asarray(particles, dtype=np.float64)
+        if particles.ndim != 2 or particles.shape[1] != 3:
+            raise ValueError(f"particles must have shape (N, 3), got {particles.shape}")
+        odo = np.asarray(odometry, dtype=np.float64)
+        if odo.shape != (3,) or not np.isfinite(odo).all():
+            raise ValueError(f"odometry must be three finite numbers [dx, dy, dtheta], got {odo}")
+        if self.params.scheme == "none":
+            return compose(particles, odo)
+        return compose(particles, odo + self.sample_noise(len(particles), rng))

@@ -1,0 +1,313 @@
+"""Beam sensor model: a lidar scan -> one likelihood per particle (the MIT RSS lab's table model).
+
+Units: ranges in metres outside, in *pixels* inside the table: a range r becomes
+``round(clip(r / (resolution * lidar_scale_to_map_scale), 0, z_max))`` with ``z_max = table_width - 1``.
+
+Frames: particles are world ``[x, y, theta]`` of the rear axle; rays are cast from the lidar, mounted
+``mount_offset`` metres ahead of the rear axle along the car's x axis; beam angles are in the car
+frame (radians, 0 = straight ahead, positive to the left).
+
+The table ``table[z_measured_px, d_expected_px]`` (Probabilistic Robotics, 6.3) mixes:
+
+- ``p_hit``: the Gaussian N(z; d, sigma_hit^2), normalised over z within each column d;
+- ``p_short``: ``(2 / d) (1 - z / d)`` for 0 <= z <= d and d != 0, else 0;
+- ``p_max``: 1 at z = z_max, else 0;
+- ``p_rand``: ``1 / z_max`` for 0 <= z <= z_max;
+
+weighted by the alphas, then every column is normalised to sum to 1. A particle's likelihood is the
+product over beams of ``table[z, d]``, raised to ``squash_exponent`` to soften the peak; it is computed
+as a sum of logs (numba, parallel over particles), so products far below 1e-300 keep their order.
+
+Scan treatment: the scan is down-sampled to ``num_beams_per_particle`` evenly spaced beams (all beams
+when it has fewer); beams of the down-sampled set that are NaN or +-inf are *dropped* (they carry no
+information about the pose); a negative range, a scan that is not 1-D, or a scan whose length differs
+from ``beam_angles`` raises ``ValueError``. With every beam dropped, all particles score log 0 = 0.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from racecar_sim.maps import OccupancyMap
+from racecar_sim.params import LidarParams
+from racecar_sim.raycast import METHODS, RayCaster
+
+__all__ = ["SensorModel", "SensorModelParams", "beam_table"]
+
+_LIDAR = LidarParams()
+
+
+@dataclass(frozen=True)
+class SensorModelParams:
+    """Parameters of the beam sensor model (defaults: the MIT RSS localization lab).
+
+    Attributes:
+        alpha_hit: weight of the Gaussian hit around the expected range.
+        alpha_short: weight of short returns (unmapped obstacles).
+        alpha_max: weight of max-range drop-outs.
+        alpha_rand: weight of uniformly random returns.
+        sigma_hit: standard deviation of the hit Gaussian, in pixels (table cells).
+        table_width: number of table rows and columns; z_max = table_width - 1 pixels.
+        squash_exponent: the product over beams is raised to this power (1/2.2 in the lab).
+        lidar_scale_to_map_scale: lidar metres per map metre (ranges are divided by it, with the
+            resolution, to get pixels).
+        num_beams_per_particle: beams used per particle, evenly spaced over the scan.
+        raycast_method: :class:`racecar_sim.raycast.RayCaster` method for the expected ranges
+            (an approximate one is fine: the simulated lidar stays exact).
+        mount_offset: metres from the rear axle (the particle pose) forward to the lidar.
+        fov: radians spanned by the scan when the beam angles are not given (first beam at -fov/2).
+    """
+
+    alpha_hit: float = 0.74
+    alpha_short: float = 0.07
+    alpha_max: float = 0.07
+    alpha_rand: float = 0.12
+    sigma_hit: float = 8.0
+    table_width: int = 201
+    squash_exponent: float = 1.0 / 2.2
+    lidar_scale_to_map_scale: float = 1.0
+    num_beams_per_particle: int = 100
+    raycast_method: str = "lut"
+    mount_offset: float = _LIDAR.mount_offset
+    fov: float = _LIDAR.fov
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ValueError:
+            return ValueError(f"SensorModelParams.{name} = {getattr(self, name)!r}: {why}")
+
+        alphas = ("alpha_hit", "alpha_short", "alpha_max", "alpha_rand")
+        for name in (
+            *alphas,
+            "sigma_hit",
+            "squash_exponent",
+            "lidar_scale_to_map_scale",
+            "mount_offset",
+            "fov",
+        ):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise bad(name, "must be a number")
+            if not math.isfinite(value):
+                raise bad(name, "must be finite")
+        for name in alphas:
+            if getattr(self, name) < 0:
+                raise bad(name, "must be >= 0")
+        if sum(getattr(self, n) for n in alphas) <= 0:
+            raise ValueError("SensorModelParams: the alphas must not all be zero")
+        for name in ("sigma_hit", "squash_exponent", "lidar_scale_to_map_scale", "fov"):
+            if getattr(self, name) <= 0:
+                raise bad(name, "must be > 0")
+        for name, low in (("table_width", 2), ("num_beams_per_particle", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise bad(name, f"must be an integer >= {low}")
+        if not isinstance(self.raycast_method, str):
+            raise bad("raycast_method", "must be a method name")
+
+    @property
+    def z_max(self) -> int:
+        """Largest range in pixels (the last table row / column)."""
+        return self.table_width - 1
+
+
+def beam_table(params: SensorModelParams) -> np.ndarray:
+    """The (W, W) float64 table ``[z_measured_px, d_expected_px]``; every column sums to 1.
+
+    See the module docstring for the four components.
+    """
+    z_max = params.z_max
+    z = np.arange(params.table_width, dtype=np.float64)[:, None]  # rows: measured
+    d = np.arange(params.table_width, dtype=np.float64)[None, :]  # columns: expected
+
+    hit = np.exp(-0.5 * ((z - d) / params.sigma_hit) ** 2)
+    hit /= hit.sum(axis=0, keepdims=True)
+
+    d_safe = np.where(d > 0, d, 1.0)
+    short = np.where((d > 0) & (z <= d), (2.0 / d_safe) * (1.0 - z / d_safe), 0.0)
+    max_ = (z == z_max).astype(np.float64) * np.ones_like(d)
+    rand = np.full_like(hit, 1.0 / z_max)
+
+    table = (
+        params.alpha_hit * hit
+        + params.alpha_short * short
+        + params.alpha_max * max_
+        + params.alpha_rand * rand
+    )
+    return table / table.sum(axis=0, keepdims=True)
+
+
+@nb.njit(cache=True, parallel=True)
+def _score_kernel(ranges, z_obs, log_table, px_per_m, z_max, out):
+    """out[i] = sum_b log_table[z_obs[b], round(clip(ranges[i, b] * px_per_m, 0, z_max))]."""
+    n, m = ranges.shape
+    for i in nb.prange(n):
+        acc = 0.0
+        for b in range(m):
+            d = ranges[i, b] * px_per_m
+            if d > z_max:
+                d = z_max
+            elif d < 0.0:
+                d = 0.0
+            acc += log_table[z_obs[b], int(d + 0.5)]
+        out[i] = acc
+
+
+class SensorModel:
+    """Weights particles by how well a lidar scan matches the map from their poses.
+
+    Args:
+        occupancy_map: the map the expected ranges are cast on.
+        params: :class:`SensorModelParams` (defaults: the MIT RSS lab).
+        beam_angles: (L,) car-frame angles (radians) of the scan's beams; None spreads any scan's
+            beams evenly over ``params.fov`` (first beam at -fov/2, last at +fov/2).
+
+    Attributes:
+        table: the (W, W) beam-model table (see :func:`beam_table`), read-only.
+        caster: the :class:`~racecar_sim.raycast.RayCaster` for the expected ranges.
+        max_range: metres, z_max pixels x resolution x lidar_scale_to_map_scale.
+    """
+
+    def __init__(
+        self,
+        occupancy_map: OccupancyMap,
+        params: SensorModelParams | None = None,
+        beam_angles: np.ndarray | None = None,
+    ) -> None:
+        self.params = params if params is not None else SensorModelParams()
+        self.map = occupancy_map
+        p = self.params
+        self.z_max = p.z_max
+        self.m_per_px = occupancy_map.resolution * p.lidar_scale_to_map_scale
+        self.max_range = self.z_max * self.m_per_px
+        self.table = beam_table(p)
+        self.table.setflags(write=False)
+        with np.errstate(divide="ignore"):
+            log_table = p.squash_exponent * np.log(self.table)
+        self._log_table = np.ascontiguousarray(log_table)
+        if beam_angles is not None:
+            beam_angles = np.asarray(beam_angles, dtype=np.float64)
+            if beam_angles.ndim != 1 or beam_angles.size == 0:
+                raise ValueError(
+                    f"beam_angles must be a non-empty 1-D array, got {beam_angles.shape}"
+                )
+            if not np.isfinite(beam_angles).all():
+                raise ValueError("beam_angles must be finite")
+        self.beam_angles = beam_angles
+        self.caster = RayCaster(
+            occupancy_map, self.max_range, method=self._method(p.raycast_method)
+        )
+        self._subsample_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    @staticmethod
+    def _method(method: str) -> str:
+        """The caster method, falling back to "exact" while an approximate one is not available."""
+        if method in METHODS or method not in ("lut", "march"):
+            return method  # an unknown name is rejected by RayCaster with the list of methods
+        warnings.warn(
+            f"ray casting method {method!r} is not available in racecar_sim.raycast yet; "
+            "the sensor model uses 'exact'",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+        return "exact"
+
+    # ------------------------------------------------------------------ stages
+    def _subsample(self, n_ranges: int) -> tuple[np.ndarray, np.ndarray]:
+        """(indexes (K,), car-frame angles (K,)) of the beams used from a scan of n_ranges."""
+        cached = self._subsample_cache.get(n_ranges)
+        if cached is not None:
+            return cached
+        k = min(self.params.num_beams_per_particle, n_ranges)
+        idx = np.unique(np.floor(np.linspace(0, n_ranges - 1, k) + 0.5).astype(np.int64))
+        if self.beam_angles is not None:
+            angles = self.beam_angles
+        elif n_ranges == 1:
+            angles = np.zeros(1)
+        else:
+            angles = np.linspace(-self.params.fov / 2, self.params.fov / 2, n_ranges)
+        out = (idx, np.ascontiguousarray(angles[idx]))
+        self._subsample_cache[n_ranges] = out
+        return out
+
+    def observe(self, scan: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The beams of ``scan`` that are used: (car-frame angles (K,) radians, ranges (K,) pixels).
+
+        Raises:
+            ValueError: the scan is not 1-D and non-empty, its length differs from ``beam_angles``,
+                or a range is negative.
+        """
+        scan = np.asarray(scan, dtype=np.float64)
+        if scan.ndim != 1 or scan.size == 0:
+            raise ValueError(
+                f"scan must be a non-empty 1-D array of ranges, got shape {scan.shape}"
+            )
+        if self.beam_angles is not None and scan.size != self.beam_angles.size:
+            raise ValueError(
+                f"scan has {scan.size} ranges but the sensor model has {self.beam_angles.size} "
+                "beam angles"
+            )
+        if (scan < 0).any():  # NaN compares False, so only real negative numbers land here
+            raise ValueError(f"scan has negative ranges (min {np.nanmin(scan)} m)")
+        idx, angles = self._subsample(scan.size)
+        ranges = scan[idx]
+        keep = np.isfinite(ranges)
+        if not keep.all():
+            angles, ranges = angles[keep], ranges[keep]
+        z = np.floor(np.clip(ranges / self.m_per_px, 0.0, self.z_max) + 0.5).astype(np.int64)
+        return np.ascontiguousarray(angles), z
+
+    def expected_ranges(self, particles: np.ndarray, angles: np.ndarray) -> np.ndarray:
+        """(N, K) ranges in metres the map predicts for each particle's lidar at car-frame angles."""
+        particles = np.asarray(particles, dtype=np.float64)
+        if particles.ndim != 2 or particles.shape[1] != 3:
+            raise ValueError(f"particles must have shape (N, 3), got {particles.shape}")
+        off = self.params.mount_offset
+        if off != 0.0:
+            th = particles[:, 2]
+            lidar = np.empty_like(particles)
+            lidar[:, 0] = particles[:, 0] + off * np.cos(th)
+            lidar[:, 1] = particles[:, 1] + off * np.sin(th)
+            lidar[:, 2] = th
+        else:
+            lidar = particles
+        return self.caster.cast(lidar, angles)
+
+    def score(self, expected: np.ndarray, z_px: np.ndarray) -> np.ndarray:
+        """(N,) log-likelihoods: squash x sum over beams of log table[z_px, expected in pixels].
+
+        Args:
+            expected: (N, K) expected ranges in metres.
+            z_px: (K,) measured ranges in pixels (integers in [0, z_max]).
+        """
+        expected = np.ascontiguousarray(expected, dtype=np.float64)
+        z_px = np.ascontiguousarray(z_px, dtype=np.int64)
+        if expected.ndim != 2 or expected.shape[1] != z_px.shape[0]:
+            raise ValueError(
+                f"expected ranges {expected.shape} do not match {z_px.shape[0]} measured beams"
+            )
+        out = np.empty(expected.shape[0], dtype=np.float64)
+        if z_px.size == 0:
+            out[:] = 0.0
+            return out
+        if z_px.min() < 0 or z_px.max() > self.z_max:
+            raise ValueError(f"measured pixels must lie in [0, {self.z_max}]")
+        _score_kernel(expected, z_px, self._log_table, 1.0 / self.m_per_px, float(self.z_max), out)
+        return out
+
+    # ------------------------------------------------------------------ API
+    def log_evaluate(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
+        """(N,) natural-log likelihoods of ``scan`` (metres) from each particle (see module doc)."""
+        angles, z_px = self.observe(scan)
+        if z_px.size == 0:
+            return np.zeros(np.asarray(particles).shape[0])
+        return self.score(self.expected_ranges(particles, angles), z_px)
+
+    def evaluate(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
+        """(N,) unnormalised likelihoods ``prod_b table[z_b, d_b] ** squash`` (may underflow to 0;
+        use :meth:`log_evaluate` to compare very unlikely particles)."""
+        return np.exp(self.log_evaluate(particles, scan))
