@@ -1,0 +1,349 @@
+"""Car physics: a pymunk world with the map's walls and a kinematic-bicycle racecar.
+
+Frames: ``world`` (the map's frame, metres, radians) and ``car`` (x forward, y left, origin at the
+rear axle). The car's pose is the world pose [x, y, theta] of the *rear axle*.
+
+Walls
+    Every edge between a free cell and an occupied (or unknown) cell becomes a static pymunk
+    segment lying exactly on that cell edge; collinear neighbouring edges are merged into one
+    segment. The map border counts as a wall (cells beyond the image are occupied), so the walls
+    are exactly where the grid says, with no thickness added. Static shapes are kept in pymunk's
+    spatial hash, so a step only looks at the segments near the car.
+
+Car
+    A dynamic body whose origin (and centre of gravity) is the rear axle, with a box footprint of
+    ``length x width`` starting ``rear_overhang`` behind the axle. A command [steer, speed] first
+    goes through the steering-rate and acceleration / braking limits, then through the angle and
+    speed limits. Each substep the body's velocity is set from the kinematic bicycle model about
+    the rear axle: speed along the heading, ``omega = speed * tan(steer) / wheelbase``.
+
+    The velocity is set in the body's ``velocity_func``, which pymunk calls *before* its contact
+    solver. The solver then removes whatever part of that velocity drives into a wall (plus a
+    small push-out of any overlap) before the positions are integrated at the next substep, so the
+    car cannot pass through walls and wall contact is a real pymunk collision. The linear velocity
+    points along the mid-substep heading ``theta + omega * h / 2`` so that each free substep moves
+    the axle along the exact chord of its arc.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pymunk
+
+from racecar_sim.maps import OccupancyMap
+from racecar_sim.params import CarParams
+
+__all__ = ["CAR_COLLISION_TYPE", "WALL_COLLISION_TYPE", "RacecarPhysics", "wall_segments"]
+
+CAR_COLLISION_TYPE = 1
+"""pymunk collision type of the car's shape."""
+WALL_COLLISION_TYPE = 2
+"""pymunk collision type of the wall segments."""
+
+_TWO_PI = 2.0 * math.pi
+_COLLISION_SLOP = 1e-3  # metres of overlap pymunk tolerates before pushing shapes apart
+_WALL_FRICTION = 0.2  # the car scrapes along a wall rather than sticking to it
+_HASH_COUNT = 1000  # spatial hash buckets; pymunk clears them all every step, so keep it small
+_CAR_CATEGORY = 0b10  # pymunk shape-filter category bit of the car  # spatial hash buckets (pymunk advises about 10 x the number of shapes)
+
+
+def _wrap(angle: float) -> float:
+    """Angle in radians wrapped to [-pi, pi)."""
+    return (angle + math.pi) % _TWO_PI - math.pi
+
+
+def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Runs of True along each row of a bool (R, C) array: (row, first col, end col exclusive)."""
+    padded = np.zeros((mask.shape[0], mask.shape[1] + 2), dtype=np.int8)
+    padded[:, 1:-1] = mask
+    step = np.diff(padded, axis=1)
+    rows, starts = np.nonzero(step == 1)
+    _, ends = np.nonzero(step == -1)  # row-major order pairs each start with its end
+    return rows, starts, ends
+
+
+def wall_segments(occupancy_map: OccupancyMap) -> np.ndarray:
+    """The free/occupied cell edges of a map as world-frame segments.
+
+    Cells beyond the image count as occupied, so the border of the free space at the image edge is
+    included. Collinear touching edges are merged.
+
+    Returns:
+        float64 (K, 2, 2): segment k runs from ``[k, 0]`` to ``[k, 1]``, world metres.
+    """
+    occ = np.pad(occupancy_map.occupied, 1, constant_values=True)
+    height = occupancy_map.height
+    res = occupancy_map.resolution
+    # Horizontal edges: index i lies between padded rows i and i+1, the top edge of grid row i, at
+    # v = (H - i) * res; padded column j is grid column j - 1.
+    rows, c0, c1 = _runs(occ[1:] != occ[:-1])
+    v = (height - rows).astype(np.float64) * res
+    u0 = (c0 - 1).astype(np.float64) * res
+    u1 = (c1 - 1).astype(np.float64) * res
+    h_uv = np.stack([np.stack([u0, v], axis=-1), np.stack([u1, v], axis=-1)], axis=1)
+    # Vertical edges: index j lies between padded columns j and j+1, the left edge of grid column
+    # j, at u = j * res; padded rows [r0, r1) are grid rows r0-1 .. r1-2.
+    cols, r0, r1 = _runs((occ[:, 1:] != occ[:, :-1]).T)
+    u = cols.astype(np.float64) * res
+    v_top = (height - r0 + 1).astype(np.float64) * res
+    v_bottom = (height - r1 + 1).astype(np.float64) * res
+    v_uv = np.stack([np.stack([u, v_top], axis=-1), np.stack([u, v_bottom], axis=-1)], axis=1)
+    uv = np.concatenate([h_uv, v_uv], axis=0)
+    return occupancy_map.map_to_world(uv)
+
+
+class RacecarPhysics:
+    """A racecar driving among the walls of an occupancy map (see the module docstring).
+
+    Args:
+        occupancy_map: the map; its free/occupied cell edges become the walls.
+        car: the car's geometry and limits.
+        substep: longest physics substep in seconds; :meth:`step` splits ``dt`` into equal
+            substeps no longer than this. At the default 5 ms a car at 7 m/s moves 3.5 cm (less
+            than a typical 5 cm cell) per substep, which bounds how far it can overlap a wall.
+
+    The car starts at rest at the first free cell with room for it; call :meth:`reset`.
+    """
+
+    def __init__(
+        self, occupancy_map: OccupancyMap, car: CarParams | None = None, substep: float = 0.005
+    ) -> None:
+        if not (isinstance(substep, int | float) and math.isfinite(substep) and substep > 0):
+            raise ValueError(f"substep must be a positive number of seconds, got {substep!r}")
+        self.map = occupancy_map
+        self.car = car if car is not None else CarParams()
+        if not isinstance(self.car, CarParams):
+            raise TypeError(f"car must be a CarParams, got {type(self.car).__name__}")
+        self.substep = float(substep)
+
+        self.space = pymunk.Space()
+        self.space.collision_slop = _COLLISION_SLOP
+        self.space.use_spatial_hash(self._hash_dim(), _HASH_COUNT)
+        segments = wall_segments(occupancy_map)
+        self.n_segments = len(segments)
+        walls = []
+        for a, b in segments.tolist():
+            wall = pymunk.Segment(self.space.static_body, a, b, 0.0)
+            wall.collision_type = WALL_COLLISION_TYPE
+            wall.friction = _WALL_FRICTION
+            wall.elasticity = 0.0
+            walls.append(wall)
+        self.space.add(*walls)
+
+        c = self.car
+        self._local_corners = np.array(
+            [
+                [-c.rear_overhang, -c.width / 2],
+                [c.length - c.rear_overhang, -c.width / 2],
+                [c.length - c.rear_overhang, c.width / 2],
+                [-c.rear_overhang, c.width / 2],
+            ]
+        )
+        corners = [tuple(p) for p in self._local_corners.tolist()]
+        centroid = self._local_corners.mean(axis=0)
+        moment = pymunk.moment_for_poly(c.mass, corners) + c.mass * float(centroid @ centroid)
+        self.body = pymunk.Body(c.mass, moment, body_type=pymunk.Body.DYNAMIC)
+        self.body.velocity_func = self._set_velocity
+        self.shape = pymunk.Poly(self.body, corners)
+        self.shape.collision_type = CAR_COLLISION_TYPE
+        self.shape.friction = _WALL_FRICTION
+        self.shape.elasticity = 0.0
+        self.space.add(self.body, self.shape)
+        self.space.on_collision(CAR_COLLISION_TYPE, WALL_COLLISION_TYPE, pre_solve=self._on_contact)
+
+        # A detached copy of the footprint for overlap queries at arbitrary poses.
+        self._query_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+        self._query_shape = pymunk.Poly(self._query_body, corners)
+        # The query shape sees the walls but not the car itself.
+        self.shape.filter = pymunk.ShapeFilter(categories=_CAR_CATEGORY)
+        self._query_shape.filter = pymunk.ShapeFilter(
+            mask=pymunk.ShapeFilter.ALL_MASKS() ^ _CAR_CATEGORY
+        )
+
+        self._steer = 0.0  # radians, front wheel angle
+        self._speed = 0.0  # m/s along the heading, rear axle
+        self._omega = 0.0  # rad/s commanded by the bicycle model this substep
+        self._half_h = 0.0  # seconds, half the current substep
+        self._contact = False
+        self._twist = np.zeros(3)
+        self._place(self._first_free_pose(), 0.0, 0.0)
+
+    # ------------------------------------------------------------------ setup helpers
+    def _hash_dim(self) -> float:
+        """Spatial hash cell size in metres: about the car's size, at least a few map cells."""
+        return max(self.car.length, 4 * self.map.resolution)
+
+    def _first_free_pose(self) -> np.ndarray:
+        """Some pose where the car fits, for the state before the first reset."""
+        need = math.hypot(self.car.length, self.car.width)
+        cells = np.argwhere(self.map.distance >= need)
+        if len(cells) == 0:
+            cells = np.argwhere(self.map.distance == self.map.distance.max())
+        xy = self.map.grid_to_world(cells[0])
+        return np.array([xy[0], xy[1], 0.0])
+
+    # ------------------------------------------------------------------ pymunk callbacks
+    def _set_velocity(self, body: pymunk.Body, gravity, damping, dt) -> None:
+        """Velocity integration replaced by the kinematic bicycle command (see module doc)."""
+        heading = body.angle + self._omega * self._half_h
+        body.velocity = (self._speed * math.cos(heading), self._speed * math.sin(heading))
+        body.angular_velocity = self._omega
+
+    def _on_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> None:
+        self._contact = True
+
+    # ------------------------------------------------------------------ state
+    @property
+    def pose(self) -> np.ndarray:
+        """(3,) world [x, y, theta] of the rear axle; metres, radians wrapped to [-pi, pi)."""
+        x, y = self.body.position
+        return np.array([x, y, _wrap(self.body.angle)])
+
+    @property
+    def twist(self) -> np.ndarray:
+        """(3,) true car-frame [vx, vy, omega] (m/s, m/s, rad/s) of the rear axle.
+
+        Averaged over the last :meth:`step`: the pose change expressed in the car frame at the
+        mid-step heading, divided by ``dt``. Driving freely on a constant command it equals
+        ``[speed, 0, speed * tan(steer) / wheelbase]``; against a wall it is the motion that
+        actually happened. After :meth:`reset` it is the commanded bicycle twist.
+        """
+        return self._twist.copy()
+
+    @property
+    def steer(self) -> float:
+        """Current front wheel angle, radians (positive turns left)."""
+        return self._steer
+
+    @property
+    def speed(self) -> float:
+        """Current commanded wheel speed of the rear axle, m/s (negative when reversing)."""
+        return self._speed
+
+    def footprint(self, pose: np.ndarray | None = None) -> np.ndarray:
+        """(4, 2) world corners of the car's box (rear right, front right, front left, rear left).
+
+        Args:
+            pose: rear-axle world pose [x, y, theta]; the car's current pose when None.
+        """
+        x, y, theta = self.pose if pose is None else np.asarray(pose, dtype=np.float64)
+        c, s = math.cos(theta), math.sin(theta)
+        rot = np.array([[c, s], [-s, c]])
+        return self._local_corners @ rot + np.array([x, y])
+
+    def pose_is_free(self, pose: np.ndarray) -> bool:
+        """Whether the car's footprint at ``pose`` overlaps no wall and lies on the map.
+
+        Exact to the wall segments: no segment may touch the footprint, and the footprint's centre
+        must be in a free cell (so a footprint buried inside a thick wall counts as blocked).
+        """
+        x, y, theta = self._check_pose(pose, "pose")
+        centre = self.footprint((x, y, theta)).mean(axis=0)
+        if not bool(self.map.is_free(centre)):
+            return False
+        self._query_body.position = (x, y)
+        self._query_body.angle = theta
+        self._query_shape.cache_bb()
+        return not self.space.shape_query(self._query_shape)
+
+    @staticmethod
+    def _check_pose(pose, name: str) -> tuple[float, float, float]:
+        arr = np.asarray(pose, dtype=np.float64)
+        if arr.shape != (3,) or not np.isfinite(arr).all():
+            raise ValueError(f"{name} must be three finite numbers [x, y, theta], got {pose!r}")
+        return float(arr[0]), float(arr[1]), float(arr[2])
+
+    # ------------------------------------------------------------------ commands
+    def _place(self, pose: np.ndarray, speed: float, steer: float) -> None:
+        x, y, theta = pose
+        self._steer = float(np.clip(steer, -self.car.max_steer, self.car.max_steer))
+        self._speed = float(np.clip(speed, -self.car.max_reverse_speed, self.car.max_speed))
+        self._omega = self._speed * math.tan(self._steer) / self.car.wheelbase
+        body = self.body
+        body.position = (float(x), float(y))
+        body.angle = _wrap(float(theta))
+        body.velocity = (self._speed * math.cos(body.angle), self._speed * math.sin(body.angle))
+        body.angular_velocity = self._omega
+        body.force = (0.0, 0.0)
+        body.torque = 0.0
+        self.space.reindex_shapes_for_body(body)
+        self._contact = False
+        self._twist = np.array([self._speed, 0.0, self._omega])
+
+    def reset(self, pose: np.ndarray, speed: float = 0.0, steer: float = 0.0) -> None:
+        """Put the car at ``pose`` (rear-axle world [x, y, theta]) driving at ``speed`` (m/s) with
+        the wheels at ``steer`` (radians); both are clipped to the car's limits.
+
+        Raises:
+            ValueError: the pose is not three finite numbers, or the car would overlap a wall or
+                leave the map there.
+        """
+        checked = self._check_pose(pose, "pose")
+        for name, value in (("speed", speed), ("steer", steer)):
+            if not math.isfinite(value):
+                raise ValueError(f"{name} must be finite, got {value!r}")
+        if not self.pose_is_free(np.array(checked)):
+            raise ValueError(
+                f"pose {list(checked)} puts the car inside a wall or off map {self.map.name!r}"
+            )
+        self._place(np.array(checked), speed, steer)
+
+    def teleport(self, pose: np.ndarray) -> None:
+        """Move the car to ``pose`` at rest (speed 0, wheels straight), keeping no old motion.
+
+        Raises:
+            ValueError: as :meth:`reset`.
+        """
+        self.reset(pose, 0.0, 0.0)
+
+    def step(self, command, dt: float) -> bool:
+        """Drive for ``dt`` seconds towards ``command`` = [steer (rad), speed (m/s)].
+
+        The command is clipped to the car's limits; steering follows it at ``max_steer_rate``,
+        speed at ``max_accel`` when speeding up and ``max_decel`` when slowing down (a sign change
+        brakes to a stop first).
+
+        Returns:
+            Whether the car touched a wall during the step.
+        """
+        car = self.car
+        target_steer = min(max(float(command[0]), -car.max_steer), car.max_steer)
+        target_speed = min(max(float(command[1]), -car.max_reverse_speed), car.max_speed)
+        n_sub = max(1, math.ceil(dt / self.substep - 1e-9))
+        h = dt / n_sub
+        max_dsteer = car.max_steer_rate * h
+        accel = car.max_accel * h
+        decel = car.max_decel * h
+        inv_wheelbase = 1.0 / car.wheelbase
+        body = self.body
+        x0, y0 = body.position
+        a0 = body.angle
+        self._half_h = 0.5 * h
+        self._contact = False
+        steer = self._steer
+        speed = self._speed
+        for _ in range(n_sub):
+            steer += min(max(target_steer - steer, -max_dsteer), max_dsteer)
+            if speed > 0.0 and target_speed < speed:  # braking forwards: stop before reversing
+                speed = max(speed - decel, target_speed, 0.0)
+            elif speed < 0.0 and target_speed > speed:  # braking backwards
+                speed = min(speed + decel, target_speed, 0.0)
+            else:  # at rest, or speeding up in the direction of motion
+                speed += min(max(target_speed - speed, -accel), accel)
+            self._steer = steer
+            self._speed = speed
+            self._omega = speed * math.tan(steer) * inv_wheelbase
+            self.space.step(h)
+        x1, y1 = body.position
+        a1 = body.angle
+        dtheta = a1 - a0
+        mid = a0 + 0.5 * dtheta
+        c, s = math.cos(mid), math.sin(mid)
+        dx, dy = x1 - x0, y1 - y0
+        tw = self._twist
+        tw[0] = (c * dx + s * dy) / dt
+        tw[1] = (c * dy - s * dx) / dt
+        tw[2] = dtheta / dt
+        return self._contact
