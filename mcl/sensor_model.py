@@ -97,8 +97,11 @@ class SensorModelParams:
         for name in alphas:
             if getattr(self, name) < 0:
                 raise bad(name, "must be >= 0")
-        if sum(getattr(self, n) for n in alphas) <= 0:
-            raise ValueError("SensorModelParams: the alphas must not all be zero")
+        if self.alpha_hit + self.alpha_max + self.alpha_rand <= 0:
+            raise ValueError(
+                "SensorModelParams: alpha_hit, alpha_max and alpha_rand must not all be zero "
+                "(the d = 0 column of the table would be empty)"
+            )
         for name in ("sigma_hit", "squash_exponent", "lidar_scale_to_map_scale", "fov"):
             if getattr(self, name) <= 0:
                 raise bad(name, "must be > 0")
