@@ -22,7 +22,9 @@ Car
     small push-out of any overlap) before the positions are integrated at the next substep, so the
     car cannot pass through walls and wall contact is a real pymunk collision. The linear velocity
     points along the mid-substep heading ``theta + omega * h / 2`` so that each free substep moves
-    the axle along the exact chord of its arc.
+    the axle along the exact chord of its arc. While a wall blocks the car its speed is cut to
+    what it actually makes along its heading (the wheels do not spin), so backing away from a
+    wall starts at once.
 """
 
 from __future__ import annotations
@@ -52,6 +54,19 @@ _CAR_CATEGORY = 0b10  # pymunk shape-filter category bit of the car  # spatial h
 def _wrap(angle: float) -> float:
     """Angle in radians wrapped to [-pi, pi)."""
     return (angle + math.pi) % _TWO_PI - math.pi
+
+
+def _se2_log_twist(dx: float, dy: float, theta0: float, dtheta: float, dt: float) -> tuple:
+    """The constant car-frame twist (vx, vy, omega) that moves a pose at heading ``theta0`` by the
+    world displacement (dx, dy) and turn ``dtheta`` in ``dt`` seconds (SE(2) logarithm / dt)."""
+    c, s = math.cos(theta0), math.sin(theta0)
+    lx, ly = c * dx + s * dy, c * dy - s * dx  # displacement in the start car frame
+    if abs(dtheta) < 1e-6:  # second-order series of sin(a)/a and (1 - cos(a))/a
+        a, b = 1.0 - dtheta * dtheta / 6.0, 0.5 * dtheta
+    else:
+        a, b = math.sin(dtheta) / dtheta, (1.0 - math.cos(dtheta)) / dtheta
+    k = 1.0 / ((a * a + b * b) * dt)
+    return ((a * lx + b * ly) * k, (a * ly - b * lx) * k, dtheta / dt)
 
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -205,10 +220,12 @@ class RacecarPhysics:
     def twist(self) -> np.ndarray:
         """(3,) true car-frame [vx, vy, omega] (m/s, m/s, rad/s) of the rear axle.
 
-        Averaged over the last :meth:`step`: the pose change expressed in the car frame at the
-        mid-step heading, divided by ``dt``. Driving freely on a constant command it equals
-        ``[speed, 0, speed * tan(steer) / wheelbase]``; against a wall it is the motion that
-        actually happened. After :meth:`reset` it is the commanded bicycle twist.
+        Over the last :meth:`step`: the constant car-frame twist that takes the pose before the
+        step to the pose after it in ``dt`` (the SE(2) logarithm of the relative pose over
+        ``dt``), so integrating it as an arc reproduces the step's motion exactly. Driving freely on
+        a constant command it equals ``[speed, 0, speed * tan(steer) / wheelbase]``; against a
+        wall it is the motion that actually happened. After :meth:`reset` it is the commanded
+        bicycle twist.
         """
         return self._twist.copy()
 
@@ -219,7 +236,11 @@ class RacecarPhysics:
 
     @property
     def speed(self) -> float:
-        """Current commanded wheel speed of the rear axle, m/s (negative when reversing)."""
+        """Current wheel speed at the rear axle, m/s (negative when reversing).
+
+        It follows the command within the acceleration limits; while a wall blocks the car it is
+        cut to the speed the car actually makes along its heading.
+        """
         return self._speed
 
     def footprint(self, pose: np.ndarray | None = None) -> np.ndarray:
@@ -262,13 +283,16 @@ class RacecarPhysics:
         self._speed = float(np.clip(speed, -self.car.max_reverse_speed, self.car.max_speed))
         self._omega = self._speed * math.tan(self._steer) / self.car.wheelbase
         body = self.body
+        # Re-adding the car drops pymunk's cached contacts, so a reset starts from a clean state
+        # (the same reset gives the same motion whatever happened before).
+        self.space.remove(body, self.shape)
         body.position = (float(x), float(y))
         body.angle = _wrap(float(theta))
         body.velocity = (self._speed * math.cos(body.angle), self._speed * math.sin(body.angle))
         body.angular_velocity = self._omega
         body.force = (0.0, 0.0)
         body.torque = 0.0
-        self.space.reindex_shapes_for_body(body)
+        self.space.add(body, self.shape)
         self._contact = False
         self._twist = np.array([self._speed, 0.0, self._omega])
 
@@ -322,6 +346,7 @@ class RacecarPhysics:
         a0 = body.angle
         self._half_h = 0.5 * h
         self._contact = False
+        collided = False
         steer = self._steer
         speed = self._speed
         for _ in range(n_sub):
@@ -336,14 +361,16 @@ class RacecarPhysics:
             self._speed = speed
             self._omega = speed * math.tan(steer) * inv_wheelbase
             self.space.step(h)
+            if self._contact:
+                # Blocked by a wall: the wheels turn no faster than the car can move (no wheel
+                # spin), so the speed becomes the solved velocity along the heading.
+                collided = True
+                self._contact = False
+                vx, vy = body.velocity
+                heading = body.angle
+                speed = vx * math.cos(heading) + vy * math.sin(heading)
+                speed = min(max(speed, -car.max_reverse_speed), car.max_speed)
+                self._speed = speed
         x1, y1 = body.position
-        a1 = body.angle
-        dtheta = a1 - a0
-        mid = a0 + 0.5 * dtheta
-        c, s = math.cos(mid), math.sin(mid)
-        dx, dy = x1 - x0, y1 - y0
-        tw = self._twist
-        tw[0] = (c * dx + s * dy) / dt
-        tw[1] = (c * dy - s * dx) / dt
-        tw[2] = dtheta / dt
-        return self._contact
+        self._twist[:] = _se2_log_twist(x1 - x0, y1 - y0, a0, body.angle - a0, dt)
+        return collided
