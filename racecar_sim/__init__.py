@@ -1,6 +1,14 @@
 """racecar_sim: a fast headless 2D racecar simulator on ROS occupancy grid maps."""
 
+from gymnasium.envs.registration import register, registry
+
 from racecar_sim.maps import DEFAULT_MAP, MapError, OccupancyMap, bundled, load_map
 
-__all__ = ["DEFAULT_MAP", "MapError", "OccupancyMap", "bundled", "load_map"]
+__all__ = ["DEFAULT_MAP", "ENV_ID", "MapError", "OccupancyMap", "bundled", "load_map"]
 __version__ = "0.1.0"
+
+ENV_ID = "RacecarSim-v0"
+"""Gymnasium id of :class:`racecar_sim.env.RacecarEnv`: ``gymnasium.make(ENV_ID, map=...)``."""
+
+if ENV_ID not in registry:  # importing the package twice (or reloading it) must not fail
+    register(id=ENV_ID, entry_point="racecar_sim.env:RacecarEnv")

@@ -1,0 +1,495 @@
+"""The Gymnasium environment: a racecar with a lidar and wheel odometry on an occupancy map."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import yaml
+from gymnasium import spaces
+
+from racecar_sim.maps import MapError, OccupancyMap, resolve_map
+from racecar_sim.params import CarParams, LidarParams, OdometryNoise, from_mapping
+from racecar_sim.physics import RacecarPhysics
+from racecar_sim.render import MapRenderer
+from racecar_sim.sensors import Lidar, Odometry
+
+__all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
+
+_LIDAR = LidarParams()
+_ODOM = OdometryNoise()
+_EPS_TIME = 1e-9  # seconds; tolerance when comparing the clock with the next scan's due time
+_START_TRIES = 1000  # random start poses tried before giving up
+
+RenderHook = Callable[[np.ndarray, MapRenderer], None]
+"""``fn(img, renderer) -> None``: draws overlays in place on the RGB frame being rendered."""
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Every setting of :class:`RacecarEnv` (SI units), with defaults.
+
+    Attributes:
+        map: bundled map name, map YAML path or :class:`OccupancyMap`; None = the default map.
+        n_beams: lidar beams per scan.
+        fov: radians covered by the scan, centred on the heading.
+        max_range: metres, longest lidar range (and the value of a drop-out).
+        mount_offset: metres from the rear axle forwards to the lidar.
+        lidar_rate: scans per second.
+        dt: seconds of control per :meth:`RacecarEnv.step`.
+        substep: longest physics substep, seconds.
+        terminate_on_collision: end the episode when the car touches a wall.
+        collision_penalty: reward subtracted on a step with wall contact.
+        start_clearance: metres of free space kept around the car's footprint at a random start.
+        range_sigma: metres, Gaussian range noise of the lidar.
+        p_short: probability per beam of a short return.
+        short_lambda: 1/metres, rate of the short-return distance.
+        p_max: probability per beam of a max-range drop-out.
+        p_rand: probability per beam of a uniformly random return.
+        odom_proportional: odometry (vx, vy, omega) noise as a fraction of the true value.
+        odom_additive: odometry (vx, vy, omega) additive noise, m/s, m/s, rad/s.
+        car: the car's geometry and limits, a :class:`CarParams` or a mapping of its fields.
+    """
+
+    map: str | os.PathLike[str] | OccupancyMap | None = None
+    n_beams: int = _LIDAR.n_beams
+    fov: float = _LIDAR.fov
+    max_range: float = _LIDAR.max_range
+    mount_offset: float = _LIDAR.mount_offset
+    lidar_rate: float = _LIDAR.rate
+    dt: float = 0.025
+    substep: float = 0.005
+    terminate_on_collision: bool = True
+    collision_penalty: float = 1.0
+    start_clearance: float = 0.1
+    range_sigma: float = _LIDAR.sigma
+    p_short: float = _LIDAR.p_short
+    short_lambda: float = _LIDAR.short_lambda
+    p_max: float = _LIDAR.p_max
+    p_rand: float = _LIDAR.p_rand
+    odom_proportional: tuple[float, float, float] = _ODOM.proportional
+    odom_additive: tuple[float, float, float] = _ODOM.additive
+    car: CarParams = field(default_factory=CarParams)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.car, Mapping):
+            object.__setattr__(self, "car", from_mapping(CarParams, dict(self.car)))
+        elif not isinstance(self.car, CarParams):
+            raise ValueError(f"car must be a CarParams or a mapping, got {self.car!r}")
+        for name in ("dt", "substep"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
+        for name in ("collision_penalty", "start_clearance"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+        if not isinstance(self.terminate_on_collision, bool):
+            raise ValueError(
+                f"terminate_on_collision must be true or false, got {self.terminate_on_collision!r}"
+            )
+        # Build the sensor parameters once so that bad values fail here, naming the setting.
+        self.lidar_params()
+        self.odometry_noise()
+
+    def lidar_params(self) -> LidarParams:
+        """The lidar settings as :class:`LidarParams`."""
+        try:
+            return LidarParams(
+                n_beams=self.n_beams,
+                fov=self.fov,
+                max_range=self.max_range,
+                mount_offset=self.mount_offset,
+                rate=self.lidar_rate,
+                sigma=self.range_sigma,
+                p_short=self.p_short,
+                short_lambda=self.short_lambda,
+                p_max=self.p_max,
+                p_rand=self.p_rand,
+            )
+        except (TypeError, ValueError) as exc:
+            raise ValueError(
+                f"lidar settings (n_beams, fov, max_range, mount_offset, lidar_rate, range_sigma, "
+                f"p_short, short_lambda, p_max, p_rand): {exc}"
+            ) from exc
+
+    def odometry_noise(self) -> OdometryNoise:
+        """The odometry settings as :class:`OdometryNoise`."""
+        try:
+            return OdometryNoise(
+                proportional=tuple(self.odom_proportional),  # type: ignore[arg-type]
+                additive=tuple(self.odom_additive),  # type: ignore[arg-type]
+            )
+        except (TypeError, ValueError) as exc:
+            raise ValueError(
+                f"odometry settings (odom_proportional, odom_additive): {exc}"
+            ) from exc
+
+
+_SETTINGS = frozenset(f.name for f in dataclasses.fields(EnvConfig))
+
+
+def load_config(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read env settings from a YAML mapping whose keys are :class:`EnvConfig` field names.
+
+    A relative ``map`` path is taken relative to the YAML file when such a file exists there.
+
+    Raises:
+        ValueError: the file is missing, not a mapping, or has a key that is not a setting (named).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"env config file {path} not found")
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        raise ValueError(f"env config file {path}: not valid YAML ({exc})") from exc
+    if not isinstance(data, dict):
+        raise ValueError(f"env config file {path}: expected a mapping of settings")
+    unknown = sorted(set(data) - _SETTINGS)
+    if unknown:
+        raise ValueError(
+            f"env config file {path}: unknown setting(s) {unknown}; known: {sorted(_SETTINGS)}"
+        )
+    spec = data.get("map")
+    if isinstance(spec, str) and not Path(spec).is_absolute() and (path.parent / spec).is_file():
+        data["map"] = str(path.parent / spec)
+    return data
+
+
+def _merge_settings(
+    config: str | os.PathLike[str] | Mapping[str, Any] | EnvConfig | None,
+    overrides: dict[str, Any],
+) -> EnvConfig:
+    """EnvConfig from defaults < ``config`` (file, mapping or EnvConfig) < keyword ``overrides``."""
+    if config is None:
+        values: dict[str, Any] = {}
+    elif isinstance(config, EnvConfig):
+        values = {f.name: getattr(config, f.name) for f in dataclasses.fields(EnvConfig)}
+    elif isinstance(config, Mapping):
+        values = dict(config)
+    else:
+        values = load_config(config)
+    # A keyword left at None means "not given": the config file or the default applies.
+    values.update({k: v for k, v in overrides.items() if v is not None})
+    unknown = sorted(set(values) - _SETTINGS)
+    if unknown:
+        raise ValueError(
+            f"unknown RacecarEnv setting(s) {unknown}; known: {sorted(_SETTINGS | {'config'})}"
+        )
+    return EnvConfig(**values)
+
+
+class RacecarEnv(gym.Env):
+    """A 1/10-scale racecar with a planar lidar and wheel odometry on a 2D occupancy-grid map.
+
+    ## Description
+    A headless simulator of an F1TENTH / MIT RSS style racecar. The car is a kinematic bicycle
+    about its rear axle with steering-rate and acceleration limits, driving in a pymunk world
+    whose walls are the map's occupied-cell edges, so it cannot pass through walls and every wall
+    contact is reported. A lidar ``mount_offset`` ahead of the rear axle casts exact rays on the
+    grid and adds beam-model noise; the odometry reports the car-frame twist with Gaussian noise.
+    Frames: ``world`` (the map's frame), ``car`` (x forward, y left, origin at the rear axle).
+
+    ## Action Space
+    ``Box([-max_steer, -max_reverse_speed], [max_steer, max_speed], (2,), float32)``: the front
+    wheel angle to steer to (radians, positive turns left) and the speed to reach (m/s, negative
+    reverses). Actions outside the box are clipped to it; an action with NaN or infinity raises
+    ``ValueError``. The car follows the command within ``max_steer_rate``, ``max_accel`` and
+    ``max_decel`` of its :class:`~racecar_sim.params.CarParams`.
+
+    ## Observation Space
+    ``Dict``:
+
+    * ``scan``: ``Box(0, max_range, (n_beams,), float32)``, lidar ranges in metres, beam ``i`` at
+      ``-fov/2 + i * fov/(n_beams-1)`` radians from the heading (right to left). A new scan is
+      taken at ``lidar_rate``: at reset, then at the end of the first step whose end time reaches
+      each next multiple of ``1 / lidar_rate``. Between scans the last scan is repeated
+      (``info["new_scan"]`` tells which steps carry a fresh one).
+    * ``odom``: ``Box(-inf, inf, (3,), float32)``, noisy car-frame twist ``[vx, vy, omega]``
+      (m/s, m/s, rad/s) averaged over the step, new every step.
+
+    ## Rewards
+    The reward is the sum of the named terms in ``info["rewards"]``: ``progress``, metres driven
+    forwards along the car's heading this step (negative when reversing), and ``collision``,
+    ``-collision_penalty`` on a step with wall contact (else 0).
+
+    ## Starting State
+    ``reset(options={"pose": [x, y, theta]})`` puts the car at rest at that world pose of its rear
+    axle (``ValueError`` naming the pose if the car would overlap a wall or leave the map).
+    Without a pose, the car starts at rest at a random position and heading drawn from
+    ``self.np_random``, with ``start_clearance`` metres of free space around its footprint.
+
+    ## Episode End
+    ``terminated`` when the car touches a wall, unless ``terminate_on_collision=False`` (then the
+    car stays against the wall and the contact is still reported in ``info["collision"]``).
+    Never truncated by the env itself; pass ``max_episode_steps`` to ``gymnasium.make``.
+
+    ## Info
+    ``pose`` true rear-axle world pose ``[x, y, theta]`` (float64, theta in [-pi, pi)); ``twist``
+    true car-frame twist averaged over the step; ``collision`` (bool); ``time`` (s since reset);
+    ``new_scan`` (bool); ``rewards`` (dict of named terms).
+
+    ## Arguments
+    ``gymnasium.make("RacecarSim-v0", map=..., render_mode="rgb_array", **settings)`` where
+    ``map`` is a bundled map name (``racecar_sim.maps.bundled_names()``), a map YAML path or an
+    :class:`~racecar_sim.maps.OccupancyMap`, and ``settings`` are the fields of
+    :class:`EnvConfig`: ``n_beams``, ``fov``, ``max_range``, ``mount_offset``, ``lidar_rate``,
+    ``dt``, ``substep``, ``terminate_on_collision``, ``collision_penalty``, ``start_clearance``,
+    ``range_sigma``, ``p_short``, ``short_lambda``, ``p_max``, ``p_rand``,
+    ``odom_proportional``, ``odom_additive``, ``car`` (a ``CarParams`` or a mapping of its
+    fields). ``config`` names a YAML file (or is a mapping / :class:`EnvConfig`) with the same
+    keys; keyword arguments override it. Unknown keys raise ``ValueError`` naming them.
+    ``render_mode="rgb_array"`` makes :meth:`render` return an RGB ``uint8`` frame (H, W, 3) of
+    the map, the car and the last scan's hits, plus whatever hooks added with
+    :meth:`add_render_hook` draw.
+    """
+
+    metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 40}  # noqa: RUF012
+
+    def __init__(
+        self,
+        map: str | os.PathLike[str] | OccupancyMap | None = None,
+        *,
+        config: str | os.PathLike[str] | Mapping[str, Any] | EnvConfig | None = None,
+        render_mode: str | None = None,
+        **settings: Any,
+    ) -> None:
+        super().__init__()
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode {render_mode!r} is not supported; use one of "
+                f"{self.metadata['render_modes']} or None"
+            )
+        self.config = _merge_settings(config, {"map": map, **settings})
+        self.render_mode = render_mode
+        cfg = self.config
+        self.map: OccupancyMap = resolve_map(cfg.map)
+        self.car_params: CarParams = cfg.car
+        self.lidar_params: LidarParams = cfg.lidar_params()
+        self.odometry_noise: OdometryNoise = cfg.odometry_noise()
+        self.dt = float(cfg.dt)
+        self.metadata = {**self.metadata, "render_fps": max(1, round(1.0 / self.dt))}
+
+        self.physics = RacecarPhysics(self.map, self.car_params, substep=cfg.substep)
+        self.lidar = Lidar(self.map, self.lidar_params)
+        self.odometry = Odometry(self.odometry_noise)
+
+        car = self.car_params
+        self.action_space = spaces.Box(
+            low=np.array([-car.max_steer, -car.max_reverse_speed], dtype=np.float32),
+            high=np.array([car.max_steer, car.max_speed], dtype=np.float32),
+            dtype=np.float32,
+        )
+        self.observation_space = spaces.Dict(
+            {
+                "scan": spaces.Box(
+                    0.0, self.lidar_params.max_range, (self.lidar_params.n_beams,), np.float32
+                ),
+                "odom": spaces.Box(-np.inf, np.inf, (3,), np.float32),
+            }
+        )
+        # Plain floats of the action box for the per-step clipping.
+        low, high = self.action_space.low, self.action_space.high
+        self._steer_lo, self._speed_lo = float(low[0]), float(low[1])
+        self._steer_hi, self._speed_hi = float(high[0]), float(high[1])
+        self._penalty = float(cfg.collision_penalty)
+        self._terminate = cfg.terminate_on_collision
+        self._period = self.lidar.period
+
+        self._start_centres: np.ndarray | None = None  # world (K, 2) centres for random starts
+        self._render_hooks: list[RenderHook] = []
+        self._renderer: MapRenderer | None = None
+        self._n_steps = 0
+        self._next_scan = 0.0
+        self.time = 0.0
+        self._scan = np.zeros(self.lidar_params.n_beams, dtype=np.float32)
+        self._scan_pose = np.zeros(3)
+
+    # ------------------------------------------------------------------ state
+    @property
+    def pose(self) -> np.ndarray:
+        """True rear-axle world pose [x, y, theta] (metres, radians in [-pi, pi))."""
+        return self.physics.pose
+
+    def teleport(self, pose: np.ndarray) -> None:
+        """Move the car to ``pose`` at rest without telling anyone (kidnapped-robot tests).
+
+        The clock, the scan schedule and the last scan are kept; the next observation simply comes
+        from the new place.
+
+        Raises:
+            ValueError: the car would overlap a wall or leave the map at ``pose``.
+        """
+        self.physics.teleport(pose)
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """Start an episode; ``options={"pose": [x, y, theta]}`` fixes the start pose.
+
+        Raises:
+            ValueError: an unknown option, or a pose that is not finite, inside a wall or off map.
+        """
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = sorted(set(options) - {"pose"})
+        if unknown:
+            raise ValueError(f"unknown reset option(s) {unknown}; known: ['pose']")
+        if options.get("pose") is None:
+            self.physics.reset(self._random_start())
+        else:
+            pose = options["pose"]
+            try:
+                self.physics.reset(pose)
+            except ValueError as exc:
+                raise ValueError(f"reset options['pose'] = {pose!r} is not usable: {exc}") from exc
+        self._n_steps = 0
+        self.time = 0.0
+        self._take_scan()
+        twist = self.physics.twist
+        obs = {"scan": self._scan.copy(), "odom": self.odometry.measure(twist, self.np_random)}
+        info = self._info(twist, False, True, 0.0, 0.0)
+        return obs, info
+
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        """Drive ``dt`` seconds towards ``action`` = [steer (rad), speed (m/s)] (clipped to the box).
+
+        Raises:
+            ValueError: the action is not two finite numbers.
+        """
+        try:
+            steer, speed = action
+            steer = float(steer)
+            speed = float(speed)
+        except (TypeError, ValueError):
+            raise ValueError(f"action must be two numbers [steer, speed], got {action!r}") from None
+        if not (math.isfinite(steer) and math.isfinite(speed)):
+            raise ValueError(f"action must be finite [steer, speed], got {action!r}")
+        steer = min(max(steer, self._steer_lo), self._steer_hi)
+        speed = min(max(speed, self._speed_lo), self._speed_hi)
+
+        physics = self.physics
+        collided = physics.step((steer, speed), self.dt)
+        self._n_steps += 1
+        self.time = self._n_steps * self.dt
+        fresh = self.time + _EPS_TIME >= self._next_scan
+        if fresh:
+            self._take_scan()
+        twist = physics.twist
+        progress = float(twist[0]) * self.dt
+        penalty = -self._penalty if collided else 0.0
+        obs = {"scan": self._scan.copy(), "odom": self.odometry.measure(twist, self.np_random)}
+        info = self._info(twist, collided, fresh, progress, penalty)
+        terminated = collided and self._terminate
+        return obs, progress + penalty, terminated, False, info
+
+    def render(self) -> np.ndarray | None:
+        """RGB uint8 (H, W, 3) frame: map, last scan's hits, car footprint, then the render hooks.
+
+        Returns None (with a warning) when the env was made without ``render_mode="rgb_array"``.
+        """
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without a render_mode; make the env with render_mode='rgb_array'"
+            )
+            return None
+        renderer = self.renderer
+        img = renderer.base()
+        renderer.draw_scan(
+            img,
+            self._scan_pose,
+            self._scan,
+            self.lidar.angles,
+            max_range=self.lidar_params.max_range,
+        )
+        renderer.draw_car(img, self.physics.footprint())
+        for hook in self._render_hooks:
+            hook(img, renderer)
+        return img
+
+    def close(self) -> None:
+        """Release the renderer (the env stays usable)."""
+        self._renderer = None
+
+    # ------------------------------------------------------------------ rendering hooks
+    @property
+    def renderer(self) -> MapRenderer:
+        """The :class:`MapRenderer` of this env's map (made on first use)."""
+        if self._renderer is None:
+            self._renderer = MapRenderer(self.map)
+        return self._renderer
+
+    def add_render_hook(self, fn: RenderHook) -> None:
+        """Call ``fn(img, renderer)`` at the end of every :meth:`render` to draw overlays."""
+        if not callable(fn):
+            raise TypeError(f"render hook must be callable fn(img, renderer), got {fn!r}")
+        self._render_hooks.append(fn)
+
+    def remove_render_hook(self, fn: RenderHook) -> None:
+        """Stop calling a hook added with :meth:`add_render_hook`."""
+        self._render_hooks.remove(fn)
+
+    # ------------------------------------------------------------------ internals
+    def _take_scan(self) -> None:
+        """Scan from the current pose and schedule the next scan one lidar period later."""
+        pose = self.physics.pose
+        self._scan = self.lidar.measure(pose, self.np_random)
+        self._scan_pose = self.lidar.mount_pose(pose)
+        n_done = math.floor((self.time + _EPS_TIME) / self._period) + 1
+        self._next_scan = n_done * self._period
+
+    def _info(
+        self, twist: np.ndarray, collided: bool, fresh: bool, progress: float, penalty: float
+    ) -> dict[str, Any]:
+        return {
+            "pose": self.physics.pose,
+            "twist": twist,
+            "collision": collided,
+            "time": self.time,
+            "new_scan": fresh,
+            "rewards": {"progress": progress, "collision": penalty},
+        }
+
+    def _random_start(self) -> np.ndarray:
+        """A collision-free rear-axle pose with ``start_clearance`` of room, from ``np_random``."""
+        if self._start_centres is None:
+            self._start_centres = self._start_cells()
+        car = self.car_params
+        ahead = car.length / 2 - car.rear_overhang  # metres from the rear axle to the box centre
+        rng = self.np_random
+        centres = self._start_centres
+        res = self.map.resolution
+        for _ in range(_START_TRIES):
+            cx, cy = centres[rng.integers(len(centres))] + (rng.random(2) - 0.5) * res
+            theta = rng.uniform(-math.pi, math.pi)
+            pose = np.array([cx - ahead * math.cos(theta), cy - ahead * math.sin(theta), theta])
+            if self.physics.pose_is_free(pose):
+                return pose
+        raise MapError(
+            f"map {self.map.name!r}: found no free start pose for the car in {_START_TRIES} tries"
+        )
+
+    def _start_cells(self) -> np.ndarray:
+        """World (K, 2) centres of the cells where the car's box fits at any heading."""
+        car = self.car_params
+        half_diagonal = 0.5 * math.hypot(car.length, car.width)
+        slack = math.sqrt(2.0) * self.map.resolution  # cell-centre distances vs points in cells
+        need = half_diagonal + slack
+        for clearance in (need + self.config.start_clearance, need):
+            cells = np.argwhere(self.map.distance >= clearance)
+            if len(cells):
+                return self.map.grid_to_world(cells)
+        raise MapError(
+            f"map {self.map.name!r} has no place {2 * need:.2f} m wide where the car fits"
+        )
