@@ -331,10 +331,18 @@ class RacecarPhysics:
 
         Returns:
             Whether the car touched a wall during the step.
+
+        Raises:
+            ValueError: the command is not two finite numbers, or ``dt`` is not positive.
         """
         car = self.car
-        target_steer = min(max(float(command[0]), -car.max_steer), car.max_steer)
-        target_speed = min(max(float(command[1]), -car.max_reverse_speed), car.max_speed)
+        steer_cmd, speed_cmd = float(command[0]), float(command[1])
+        if not (math.isfinite(steer_cmd) and math.isfinite(speed_cmd)) or len(command) != 2:
+            raise ValueError(f"command must be two finite numbers [steer, speed], got {command!r}")
+        if not (dt > 0 and math.isfinite(dt)):
+            raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+        target_steer = min(max(steer_cmd, -car.max_steer), car.max_steer)
+        target_speed = min(max(speed_cmd, -car.max_reverse_speed), car.max_speed)
         n_sub = max(1, math.ceil(dt / self.substep - 1e-9))
         h = dt / n_sub
         max_dsteer = car.max_steer_rate * h

@@ -315,3 +315,12 @@ def test_bad_arguments_raise(room: OccupancyMap) -> None:
         RacecarPhysics(room, substep=0.0)
     with pytest.raises(TypeError, match="car"):
         RacecarPhysics(room, car={"wheelbase": 0.3})  # type: ignore[arg-type]
+    phys = RacecarPhysics(room)
+    phys.reset(np.array([0.0, 0.0, 0.0]))
+    with pytest.raises(ValueError, match="command"):
+        phys.step((math.nan, 1.0), 0.025)
+    with pytest.raises(ValueError, match="command"):
+        phys.step((0.0, 1.0, 2.0), 0.025)
+    with pytest.raises(ValueError, match="dt"):
+        phys.step((0.0, 1.0), 0.0)
+    assert phys.pose == pytest.approx([0.0, 0.0, 0.0])  # nothing moved
