@@ -268,3 +268,18 @@ def test_params_validation_and_yaml(tmp_path) -> None:
     path.write_text("sensor_model:\n  num_beams_per_particle: 60\n  raycast_method: exact\n")
     p = from_yaml(SensorModelParams, path, section="sensor_model")
     assert p.num_beams_per_particle == 60 and p.raycast_method == "exact"
+
+
+def test_parallel_and_serial_scoring_agree(model: SensorModel) -> None:
+    from mcl.sensor_model import PARALLEL_MIN_LOOKUPS
+
+    rng = np.random.default_rng(8)
+    n = PARALLEL_MIN_LOOKUPS // 50 + 1
+    expected = rng.uniform(-1.0, 12.0, size=(n, 50))  # out-of-range values get clipped
+    z = rng.integers(0, 201, size=50)
+    big = model.score(expected, z)  # one call over the threshold: parallel kernel
+    parts = np.concatenate([model.score(expected[i : i + 1000], z) for i in range(0, n, 1000)])
+    np.testing.assert_array_equal(big, parts)
+    d = np.floor(np.clip(expected / 0.05, 0, 200) + 0.5).astype(int)
+    manual = P.squash_exponent * np.log(beam_table(P))[z[None, :], d].sum(axis=1)
+    np.testing.assert_allclose(big, manual, rtol=1e-9)
