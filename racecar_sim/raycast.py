@@ -3,158 +3,157 @@
 A ray starts at a pose's position and runs along ``theta + angle`` (world frame). Its range is the
 distance in metres to where it *enters* the first occupied cell (unknown cells and everything beyond
 the image border count as occupied), clipped to ``max_range``. A pose inside an occupied cell, or off
-the map, gives 0 on every ray.
+the map, gives 0 on every ray. Casting is done in the grid's own axis-aligned frame (see
+:mod:`racecar_sim.maps`), so a map origin with a yaw is handled by rotating the ray, not the grid.
 
-Methods (``METHODS``):
-
+Methods (``METHODS``)
+---------------------
 ``"exact"``
-    Amanatides–Woo grid traversal in numba, sped up by jumping through free space with the map's
-    distance field (the jump length is a proven lower bound of the distance to any occupied cell, so
-    the result is still exact to floating-point rounding). Parallel over rays.
+    Amanatides–Woo grid traversal (numba, parallel over rays) that jumps through free space by a
+    one-byte field of safe jump lengths (the distance between the cell's square and the nearest
+    occupied square, rounded down), so it stays exact to floating-point rounding (1e-9 m).
+``"lut"``
+    A table of ranges over free cells and ``LutParams.n_angles`` directions, answered by the pose's
+    cell and the two bracketing directions, with an exact (guided) cast where those two disagree;
+    see :mod:`racecar_sim.raycast_lut`. Fast for many poses (particles); building the table costs
+    seconds and ``2 K`` bytes per free cell, so it is cached (below).
+``"march"``
+    Sphere tracing on the same jump field: steps of ``max(jump, MarchParams.min_step)`` cells until
+    a sample lands in an occupied cell, then a bisection. Simple; can step over a corner at grazing
+    angles.
 
-Casting is done in the grid's own axis-aligned frame (see :mod:`racecar_sim.maps`), so a map origin
-with a yaw is handled by rotating the ray, not the grid.
+Error bounds of the approximate methods (absolute error vs ``"exact"``, default parameters, poses
+uniform in free space, beams evenly over the full turn, ``max_range`` 10 m), as checked by
+``tests/test_raycast.py`` and measured by ``scripts/bench_raycast.py``:
+
+=========  ==========================  ==============  ==============
+method     map                         mean            99th percentile
+=========  ==========================  ==============  ==============
+``lut``    Stata basement (0.05 m)     <= 0.02 m       <= 0.10 m
+``lut``    test rooms (0.05 m)         <= 0.02 m       <= 0.10 m
+``march``  Stata basement (0.05 m)     <= 0.02 m       <= 0.10 m
+``march``  test rooms (0.05 m)         <= 0.02 m       <= 0.10 m
+=========  ==========================  ==============  ==============
+
+The largest errors (up to the full range) are rare: a thin obstacle or corner that the table rays,
+or the march steps, pass.
+
+Caching
+-------
+Building a caster prepares per-map data (the jump field; for ``"lut"`` the table). It is kept in
+a module-level least-recently-used cache of :data:`CACHE_SIZE` entries keyed by a hash of the
+occupancy grid's contents, its resolution, ``max_range`` and the method's parameters (the table is
+in the grid frame, so the origin does not matter). A particle filter and an experiment script that
+build casters for the same map and range therefore share one table. ``RayCaster(..., cache=False)``
+bypasses it; :func:`clear_cache` empties it.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass
+from typing import Any
 
-import numba as nb
 import numpy as np
 
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.raycast_kernels import (
+    cast_exact_rays,
+    cast_march_rays,
+    field_from_occupancy,
+    padded_occupancy,
+)
+from racecar_sim.raycast_lut import LutParams, LutTable, build_lut, cast_lut_rays
 
-__all__ = ["METHODS", "RayCaster", "cast_exact_grid"]
+__all__ = [
+    "CACHE_SIZE",
+    "METHODS",
+    "LutParams",
+    "MarchParams",
+    "RayCaster",
+    "clear_cache",
+]
 
-METHODS: tuple[str, ...] = ("exact",)
+METHODS: tuple[str, ...] = ("exact", "lut", "march")
 """Names accepted by :class:`RayCaster`'s ``method``."""
 
-_SQRT2 = math.sqrt(2.0)
-_JUMP_MIN = 2.0  # cells: below this the DDA steps cell by cell instead of jumping
-_BIG = 1e30
+CACHE_SIZE = 4
+"""Prepared maps (field, and table for ``"lut"``) kept by the module-level cache."""
+
+_DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
 
 
-@nb.njit(cache=True, inline="always")
-def _cast_ray(occ, jump, gu, gv, dx, dy, max_t):
-    """Range in cells of one ray from (gu, gv) (map frame, cells) along unit (dx, dy).
+@dataclass(frozen=True)
+class MarchParams:
+    """Parameters of the ``"march"`` ray casting method.
 
-    occ: uint8 (H, W) grid frame, 1 = occupied. jump: float32 (H, W), a safe free-space jump in
-    cells from anywhere inside that cell (0 where not worth it).
+    Attributes:
+        min_step: cells (fractions of the map resolution); the shortest step near walls. Smaller
+            cuts fewer corners and is slower.
+        refine: bisections of the last step once a sample lands in an occupied cell; the range
+            is then within ``min_step / 2 ** (refine + 1)`` cells of a wall crossing.
     """
-    h = occ.shape[0]
-    w = occ.shape[1]
-    col = int(math.floor(gu))
-    rv = int(math.floor(gv))  # row counted from the bottom of the image
-    if col < 0 or col >= w or rv < 0 or rv >= h:
-        return 0.0
-    if occ[h - 1 - rv, col]:
-        return 0.0
-    step_x = 1 if dx > 0.0 else -1
-    step_y = 1 if dy > 0.0 else -1
-    tdelta_x = 1.0 / abs(dx) if dx != 0.0 else _BIG
-    tdelta_y = 1.0 / abs(dy) if dy != 0.0 else _BIG
-    t = 0.0
-    while True:
-        j = jump[h - 1 - rv, col]
-        if j > _JUMP_MIN:
-            t += j
-            if t >= max_t:
-                return max_t
-            px = gu + t * dx
-            py = gv + t * dy
-            col = int(math.floor(px))
-            rv = int(math.floor(py))
-        else:
-            px = gu + t * dx
-            py = gv + t * dy
-        # Restart the exact traversal from the point at parameter t inside cell (col, rv).
-        if dx > 0.0:
-            tmax_x = t + (col + 1 - px) / dx
-        elif dx < 0.0:
-            tmax_x = t + (col - px) / dx
-        else:
-            tmax_x = _BIG
-        if dy > 0.0:
-            tmax_y = t + (rv + 1 - py) / dy
-        elif dy < 0.0:
-            tmax_y = t + (rv - py) / dy
-        else:
-            tmax_y = _BIG
-        while True:
-            if tmax_x < tmax_y:
-                t = tmax_x
-                col += step_x
-                tmax_x += tdelta_x
-            else:
-                t = tmax_y
-                rv += step_y
-                tmax_y += tdelta_y
-            if t >= max_t:
-                return max_t
-            if col < 0 or col >= w or rv < 0 or rv >= h:
-                return t
-            if occ[h - 1 - rv, col]:
-                return t
-            if jump[h - 1 - rv, col] > _JUMP_MIN:
-                break
+
+    min_step: float = 1.0
+    refine: int = 4
+
+    def __post_init__(self) -> None:
+        if not (
+            isinstance(self.min_step, int | float)
+            and not isinstance(self.min_step, bool)
+            and 0.05 <= self.min_step <= 10.0
+        ):
+            raise ValueError(
+                f"MarchParams.min_step = {self.min_step!r} must be in [0.05, 10] cells"
+            )
+        if (
+            not isinstance(self.refine, int)
+            or isinstance(self.refine, bool)
+            or not (0 <= self.refine <= 30)
+        ):
+            raise ValueError(f"MarchParams.refine = {self.refine!r} must be an integer in [0, 30]")
 
 
-@nb.njit(cache=True, parallel=True)
-def _cast_exact_kernel(occ, jump, gu, gv, heading, cos_a, sin_a, max_t, out):
-    """Fill out (N, M) with ranges in cells; heading per pose in the map frame, beams as cos/sin."""
-    n = gu.shape[0]
-    m = cos_a.shape[0]
-    for k in nb.prange(n * m):
-        i = k // m
-        b = k - i * m
-        ch = math.cos(heading[i])
-        sh = math.sin(heading[i])
-        dx = ch * cos_a[b] - sh * sin_a[b]
-        dy = sh * cos_a[b] + ch * sin_a[b]
-        out[i, b] = _cast_ray(occ, jump, gu[i], gv[i], dx, dy, max_t)
+# ---------------------------------------------------------------------- cache
+_cache: OrderedDict[tuple, Any] = OrderedDict()
+_cache_lock = threading.Lock()
 
 
-def cast_exact_grid(
-    occupied: np.ndarray,
-    jump_cells: np.ndarray,
-    gu: np.ndarray,
-    gv: np.ndarray,
-    heading: np.ndarray,
-    angles: np.ndarray,
-    max_cells: float,
-) -> np.ndarray:
-    """Exact ranges in *cells* for rays given in the map frame (cells, radians).
-
-    Low-level entry point used by :class:`RayCaster`; ``jump_cells`` may be all zeros (plain
-    Amanatides–Woo).
-    """
-    out = np.empty((gu.shape[0], angles.shape[0]), dtype=np.float64)
-    _cast_exact_kernel(
-        occupied,
-        jump_cells,
-        np.ascontiguousarray(gu, dtype=np.float64),
-        np.ascontiguousarray(gv, dtype=np.float64),
-        np.ascontiguousarray(heading, dtype=np.float64),
-        np.cos(angles).astype(np.float64),
-        np.sin(angles).astype(np.float64),
-        float(max_cells),
-        out,
-    )
-    return out
+def clear_cache() -> None:
+    """Forget every prepared map (frees the tables)."""
+    with _cache_lock:
+        _cache.clear()
 
 
-def _safe_jump_cells(grid: OccupancyMap) -> np.ndarray:
-    """float32 (H, W): a jump length in cells safe from anywhere inside each cell.
-
-    The distance field holds centre-to-centre distances d to the nearest occupied cell. A point in the
-    cell is within sqrt(2)/2 cells of its centre and every point of an occupied cell is within
-    sqrt(2)/2 of that cell's centre, so no occupied point is nearer than d - sqrt(2) cells.
-    """
-    d = grid.distance / grid.resolution - _SQRT2
-    return np.where(d > 0.0, d, 0.0).astype(np.float32)
+def _digest(occupied: np.ndarray) -> str:
+    """Content hash of an occupancy grid (shape included)."""
+    h = hashlib.blake2b(digest_size=16)
+    h.update(repr(occupied.shape).encode())
+    h.update(np.ascontiguousarray(occupied, dtype=np.uint8).tobytes())
+    return h.hexdigest()
 
 
+def _cached(key: tuple, make, use_cache: bool):
+    """The value for ``key`` from the cache, else ``make()`` (stored when ``use_cache``)."""
+    if use_cache:
+        with _cache_lock:
+            if key in _cache:
+                _cache.move_to_end(key)
+                return _cache[key]
+    value = make()
+    if use_cache:
+        with _cache_lock:
+            _cache[key] = value
+            _cache.move_to_end(key)
+            while len(_cache) > CACHE_SIZE:
+                _cache.popitem(last=False)
+    return value
+
+
+# ---------------------------------------------------------------------- caster
 class RayCaster:
     """Casts rays from poses on an occupancy map.
 
@@ -162,44 +161,146 @@ class RayCaster:
         occupancy_map: the map (world frame defined by its origin).
         max_range: metres; ranges are clipped to it.
         method: one of :data:`METHODS`.
+        lut: parameters of ``"lut"`` (defaults if None).
+        march: parameters of ``"march"`` (defaults if None).
+        dtype: float64 (default) or float32 for the returned ranges.
+        cache: share prepared data (field, table) through the module-level cache.
+
+    Raises:
+        ValueError: unknown method or dtype, max_range not a positive finite number, parameters
+            of the wrong type.
     """
 
     def __init__(
-        self, occupancy_map: OccupancyMap, max_range: float, method: str = "exact"
+        self,
+        occupancy_map: OccupancyMap,
+        max_range: float,
+        method: str = "exact",
+        *,
+        lut: LutParams | None = None,
+        march: MarchParams | None = None,
+        dtype: type | np.dtype | str = np.float64,
+        cache: bool = True,
     ) -> None:
         if method not in METHODS:
             raise ValueError(f"unknown ray casting method {method!r}; choose one of {METHODS}")
-        if not (max_range > 0 and math.isfinite(max_range)):
-            raise ValueError(f"max_range must be a positive number of metres, got {max_range}")
+        if not isinstance(occupancy_map, OccupancyMap):
+            raise ValueError(f"occupancy_map must be an OccupancyMap, got {type(occupancy_map)}")
+        if (
+            not isinstance(max_range, int | float | np.floating | np.integer)
+            or isinstance(max_range, bool)
+            or not (max_range > 0 and math.isfinite(max_range))
+        ):
+            raise ValueError(f"max_range must be a positive number of metres, got {max_range!r}")
+        if lut is not None and not isinstance(lut, LutParams):
+            raise ValueError(f"lut must be a LutParams, got {type(lut).__name__}")
+        if march is not None and not isinstance(march, MarchParams):
+            raise ValueError(f"march must be a MarchParams, got {type(march).__name__}")
+        try:
+            out_dtype = np.dtype(dtype)
+        except TypeError as exc:
+            raise ValueError(f"dtype must be float64 or float32, got {dtype!r}") from exc
+        if out_dtype not in _DTYPES:
+            raise ValueError(f"dtype must be float64 or float32, got {out_dtype}")
         self.map = occupancy_map
         self.max_range = float(max_range)
         self.method = method
-        self._occ = np.ascontiguousarray(occupancy_map.occupied, dtype=np.uint8)
-        self._jump = _safe_jump_cells(occupancy_map)
+        self.lut_params = lut or LutParams()
+        self.march_params = march or MarchParams()
+        self.dtype = out_dtype
+        res = occupancy_map.resolution
+        self._max_cells = self.max_range / res
+        digest = _digest(occupancy_map.occupied)
+        self._field: np.ndarray = _cached(
+            ("field", digest), lambda: field_from_occupancy(occupancy_map.occupied), cache
+        )
+        self._lut: LutTable | None = None
+        if method == "lut":
+            p = self.lut_params
+            self._lut = _cached(
+                ("lut", digest, self._max_cells, p.n_angles, p.sub_lines),
+                lambda: build_lut(
+                    padded_occupancy(occupancy_map.occupied),
+                    self._field,
+                    self._max_cells,
+                    p.n_angles,
+                    p.sub_lines,
+                ),
+                cache,
+            )
 
-    def _to_grid_frame(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """World poses (N, 3) -> map-frame position in cells (gu, gv) and heading (radians)."""
-        uv = self.map.world_to_map(poses[:, :2]) / self.map.resolution
-        return uv[:, 0], uv[:, 1], poses[:, 2] - self.map.yaw
+    # ------------------------------------------------------------------ info
+    @property
+    def table(self) -> LutTable | None:
+        """The ``"lut"`` table (shared through the cache), None for other methods."""
+        return self._lut
+
+    def __repr__(self) -> str:
+        return (
+            f"RayCaster(map={self.map.name!r}, max_range={self.max_range}, method={self.method!r})"
+        )
+
+    # ------------------------------------------------------------------ casting
+    def _grid_frame(self, poses: np.ndarray) -> tuple[np.ndarray, ...]:
+        """World poses (N, 3) -> pad-frame position in cells and map-frame heading (radians)."""
+        uv = self.map.world_to_map(poses[:, :2]) / self.map.resolution + 1.0
+        heading = poses[:, 2] - self.map.yaw
+        return (
+            np.ascontiguousarray(uv[:, 0]),
+            np.ascontiguousarray(uv[:, 1]),
+            heading,
+            np.cos(heading),
+            np.sin(heading),
+        )
 
     def cast(self, poses: np.ndarray, angles: np.ndarray) -> np.ndarray:
-        """Ranges (N, M) float64 in metres.
+        """Ranges (N, M) in metres, of the caster's dtype.
 
         Args:
             poses: (N, 3) or (3,) world [x, y, theta] (metres, radians).
             angles: (M,) beam angles relative to each pose's heading (radians).
+
+        Raises:
+            ValueError: poses not of shape (N, 3) or (3,), angles not 1-D, non-finite values.
         """
         poses = np.asarray(poses, dtype=np.float64)
         if poses.ndim == 1:
             poses = poses[None, :]
         if poses.ndim != 2 or poses.shape[1] != 3:
-            raise ValueError(f"poses must have shape (N, 3), got {poses.shape}")
-        angles = np.asarray(angles, dtype=np.float64).reshape(-1)
-        if not (np.isfinite(poses).all() and np.isfinite(angles).all()):
-            raise ValueError("poses and angles must be finite")
-        gu, gv, heading = self._to_grid_frame(poses)
+            raise ValueError(f"poses must have shape (N, 3) or (3,), got {poses.shape}")
+        angles = np.asarray(angles, dtype=np.float64)
+        if angles.ndim > 1:
+            raise ValueError(f"angles must be a 1-D array, got shape {angles.shape}")
+        angles = np.ascontiguousarray(angles.reshape(-1))
+        if not np.isfinite(poses).all():
+            raise ValueError("poses must be finite (found NaN or inf)")
+        if not np.isfinite(angles).all():
+            raise ValueError("angles must be finite (found NaN or inf)")
+        out = np.empty((poses.shape[0], angles.shape[0]), dtype=self.dtype)
+        if out.size == 0:
+            return out
+        gu, gv, heading, cos_h, sin_h = self._grid_frame(poses)
+        cos_a, sin_a = np.cos(angles), np.sin(angles)
         res = self.map.resolution
-        cells = cast_exact_grid(
-            self._occ, self._jump, gu, gv, heading, angles, self.max_range / res
-        )
-        return np.minimum(cells * res, self.max_range)
+        max_t = self._max_cells
+        if self.method == "exact":
+            cast_exact_rays(
+                self._field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, res, self.max_range, out
+            )
+        elif self.method == "march":
+            p = self.march_params
+            cast_march_rays(
+                self._field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t,
+                float(p.min_step), int(p.refine), res, self.max_range, out,
+            )  # fmt: skip
+        else:
+            lut = self._lut
+            assert lut is not None
+            p = self.lut_params
+            cast_lut_rays(
+                lut.table, lut.index, lut.unit, lut.sub_lines, lut.cos_k, lut.sin_k,
+                p.tolerance / res, p.guide / res, self._field,
+                gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a,
+                max_t, res, self.max_range, out,
+            )  # fmt: skip
+        return out
