@@ -21,9 +21,12 @@ from mcl.resampling import (
     systematic,
 )
 from mcl.sensor_model import SensorModel, SensorModelParams, beam_table
+from mcl.wrapper import LocalizationConfig, LocalizationWrapper
 
 __all__ = [
     "RESAMPLERS",
+    "LocalizationConfig",
+    "LocalizationWrapper",
     "MotionModel",
     "MotionModelParams",
     "ParticleFilter",
