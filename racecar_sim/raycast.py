@@ -61,12 +61,13 @@ import numpy as np
 
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast_kernels import (
-    cast_exact_rays,
-    cast_march_rays,
+    PARALLEL_MIN_RAYS,
+    exact_rays,
     field_from_occupancy,
+    march_rays,
     padded_occupancy,
 )
-from racecar_sim.raycast_lut import LutParams, LutTable, build_lut, cast_lut_rays
+from racecar_sim.raycast_lut import LutParams, LutTable, build_lut, lut_rays
 
 __all__ = [
     "CACHE_SIZE",
@@ -91,24 +92,22 @@ class MarchParams:
     """Parameters of the ``"march"`` ray casting method.
 
     Attributes:
-        min_step: cells (fractions of the map resolution); the shortest step near walls. Smaller
-            cuts fewer corners and is slower.
+        min_step: cells (fractions of the map resolution), at most 1; the shortest step near
+            walls. Smaller cuts fewer corners and is slower.
         refine: bisections of the last step once a sample lands in an occupied cell; the range
             is then within ``min_step / 2 ** (refine + 1)`` cells of a wall crossing.
     """
 
-    min_step: float = 1.0
-    refine: int = 4
+    min_step: float = 0.5
+    refine: int = 3
 
     def __post_init__(self) -> None:
         if not (
             isinstance(self.min_step, int | float)
             and not isinstance(self.min_step, bool)
-            and 0.05 <= self.min_step <= 10.0
+            and 0.05 <= self.min_step <= 1.0
         ):
-            raise ValueError(
-                f"MarchParams.min_step = {self.min_step!r} must be in [0.05, 10] cells"
-            )
+            raise ValueError(f"MarchParams.min_step = {self.min_step!r} must be in [0.05, 1] cells")
         if (
             not isinstance(self.refine, int)
             or isinstance(self.refine, bool)
@@ -165,6 +164,8 @@ class RayCaster:
         march: parameters of ``"march"`` (defaults if None).
         dtype: float64 (default) or float32 for the returned ranges.
         cache: share prepared data (field, table) through the module-level cache.
+        parallel: spread rays over numba's threads; None (default) does so from
+            :data:`~racecar_sim.raycast_kernels.PARALLEL_MIN_RAYS` rays per cast.
 
     Raises:
         ValueError: unknown method or dtype, max_range not a positive finite number, parameters
@@ -181,6 +182,7 @@ class RayCaster:
         march: MarchParams | None = None,
         dtype: type | np.dtype | str = np.float64,
         cache: bool = True,
+        parallel: bool | None = None,
     ) -> None:
         if method not in METHODS:
             raise ValueError(f"unknown ray casting method {method!r}; choose one of {METHODS}")
@@ -208,6 +210,7 @@ class RayCaster:
         self.lut_params = lut or LutParams()
         self.march_params = march or MarchParams()
         self.dtype = out_dtype
+        self.parallel = parallel
         res = occupancy_map.resolution
         self._max_cells = self.max_range / res
         digest = _digest(occupancy_map.occupied)
@@ -283,24 +286,24 @@ class RayCaster:
         cos_a, sin_a = np.cos(angles), np.sin(angles)
         res = self.map.resolution
         max_t = self._max_cells
+        parallel = self.parallel if self.parallel is not None else out.size >= PARALLEL_MIN_RAYS
         if self.method == "exact":
-            cast_exact_rays(
-                self._field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, res, self.max_range, out
-            )
+            exact_rays(
+                self._field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, res, self.max_range, out,
+                parallel,
+            )  # fmt: skip
         elif self.method == "march":
             p = self.march_params
-            cast_march_rays(
+            march_rays(
                 self._field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t,
-                float(p.min_step), int(p.refine), res, self.max_range, out,
+                float(p.min_step), int(p.refine), res, self.max_range, out, parallel,
             )  # fmt: skip
         else:
-            lut = self._lut
-            assert lut is not None
+            assert self._lut is not None
             p = self.lut_params
-            cast_lut_rays(
-                lut.table, lut.index, lut.unit, lut.sub_lines, lut.cos_k, lut.sin_k,
-                p.tolerance / res, p.guide / res, self._field,
+            lut_rays(
+                self._lut, p.tolerance / res, p.guide / res, self._field,
                 gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a,
-                max_t, res, self.max_range, out,
+                max_t, res, self.max_range, out, parallel,
             )  # fmt: skip
         return out

@@ -21,13 +21,16 @@ import numba as nb
 import numpy as np
 
 __all__ = [
+    "CHUNK",
     "JUMP_MIN",
     "OCCUPIED",
-    "cast_exact_rays",
-    "cast_march_rays",
+    "PARALLEL_MIN_RAYS",
     "cast_ray",
     "cast_ray_from",
+    "exact_rays",
     "field_from_occupancy",
+    "march_ray",
+    "march_rays",
     "padded_occupancy",
     "to_metres",
 ]
@@ -37,6 +40,13 @@ JUMP_MIN = 2
 
 OCCUPIED = 255
 """Field value of an occupied cell."""
+
+CHUNK = 1024
+"""Rays per work item of the parallel kernels."""
+
+PARALLEL_MIN_RAYS = 16384
+"""Below this many rays a cast runs on the calling thread: waking numba's threads costs more, and
+on a busy machine a parallel region can stall for milliseconds."""
 
 _JUMP_MARGIN = 1e-3  # cells, absorbs float32 rounding of the distance transform
 _BIG = 1e30
@@ -155,39 +165,34 @@ def cast_ray(field, gu, gv, dx, dy, max_t):
 
 
 @nb.njit(cache=True, inline="always")
-def _is_blocked(field, x, y):
-    """Whether the pad-frame point (x, y) is in an occupied cell or off the padded grid."""
-    if not (x >= 0.0 and x < field.shape[1] and y >= 0.0 and y < field.shape[0]):
-        return True
-    return field[int(y), int(x)] == OCCUPIED
-
-
-@nb.njit(cache=True, inline="always")
 def march_ray(field, gu, gv, dx, dy, max_t, min_step, n_refine):
     """Approximate range in cells by sphere tracing on the field, then bisection.
 
-    Steps by ``max(safe jump, min_step)`` cells until a sample lands in an occupied cell, then
-    bisects the last step ``n_refine`` times. Walls thinner than ``min_step`` along the ray (corners
-    cut at grazing angles) can be stepped over.
+    Steps by ``max(safe jump, min_step)`` cells (``min_step <= 1``, so a step from a free cell
+    stays on the padded grid) until a sample lands in an occupied cell, then bisects the last step
+    ``n_refine`` times. A corner cut by less than ``min_step`` at a grazing angle can be missed.
     """
-    if _is_blocked(field, gu, gv):
+    if not (gu >= 0.0 and gu < field.shape[1] and gv >= 0.0 and gv < field.shape[0]):
         return 0.0
-    t_lo = 0.0
+    v = field[int(gv), int(gu)]
+    if v == OCCUPIED:
+        return 0.0
     t = 0.0
+    t_lo = 0.0
     while True:
-        v = field[int(gv + t * dy), int(gu + t * dx)]
         t_lo = t
         t += v if v > min_step else min_step
         if t >= max_t:
-            if not _is_blocked(field, gu + max_t * dx, gv + max_t * dy):
-                return max_t
             t = max_t
-        if _is_blocked(field, gu + t * dx, gv + t * dy):
+        v = field[int(gv + t * dy), int(gu + t * dx)]
+        if v == OCCUPIED:
             break
+        if t == max_t:
+            return max_t
     t_hi = t
     for _ in range(n_refine):
         mid = 0.5 * (t_lo + t_hi)
-        if _is_blocked(field, gu + mid * dx, gv + mid * dy):
+        if field[int(gv + mid * dy), int(gu + mid * dx)] == OCCUPIED:
             t_hi = mid
         else:
             t_lo = mid
@@ -200,18 +205,13 @@ def to_metres(r, max_t, scale, max_out):
     return max_out if r >= max_t else r * scale
 
 
-@nb.njit(cache=True, parallel=True)
-def cast_exact_rays(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out):
-    """Fill ``out`` (N, M) with exact ranges (cells times ``scale``, clipped to ``max_out``).
-
-    Poses as pad-frame (gu, gv) in cells and heading cos/sin in the map frame, beams as cos/sin
-    relative to the heading; ``max_t`` in cells. Parallel over rays.
-    """
-    n = gu.shape[0]
+@nb.njit(cache=True)
+def _exact_span(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, q0, q1):
+    """Rays ``q0 <= q < q1`` (ray ``q`` is pose ``q // M``, beam ``q % M``) of :func:`exact_rays`."""
     m = cos_a.shape[0]
-    for k in nb.prange(n * m):
-        i = k // m
-        b = k - i * m
+    for q in range(q0, q1):
+        i = q // m
+        b = q - i * m
         dx = cos_h[i] * cos_a[b] - sin_h[i] * sin_a[b]
         dy = sin_h[i] * cos_a[b] + cos_h[i] * sin_a[b]
         r = cast_ray(field, gu[i], gv[i], dx, dy, max_t)
@@ -219,16 +219,66 @@ def cast_exact_rays(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max
 
 
 @nb.njit(cache=True, parallel=True)
-def cast_march_rays(
-    field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out, out
-):
-    """Like :func:`cast_exact_rays` with :func:`march_ray` (approximate)."""
-    n = gu.shape[0]
+def _exact_parallel(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out):
+    total = gu.shape[0] * cos_a.shape[0]
+    for c in nb.prange((total + CHUNK - 1) // CHUNK):
+        q1 = min(total, (c + 1) * CHUNK)
+        _exact_span(
+            field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, c * CHUNK, q1
+        )
+
+
+@nb.njit(cache=True)
+def _march_span(
+    field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out, out,
+    q0, q1,
+):  # fmt: skip
+    """Rays ``q0 <= q < q1`` of :func:`march_rays`."""
     m = cos_a.shape[0]
-    for k in nb.prange(n * m):
-        i = k // m
-        b = k - i * m
+    for q in range(q0, q1):
+        i = q // m
+        b = q - i * m
         dx = cos_h[i] * cos_a[b] - sin_h[i] * sin_a[b]
         dy = sin_h[i] * cos_a[b] + cos_h[i] * sin_a[b]
         r = march_ray(field, gu[i], gv[i], dx, dy, max_t, min_step, n_refine)
         out[i, b] = to_metres(r, max_t, scale, max_out)
+
+
+@nb.njit(cache=True, parallel=True)
+def _march_parallel(
+    field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out, out
+):
+    total = gu.shape[0] * cos_a.shape[0]
+    for c in nb.prange((total + CHUNK - 1) // CHUNK):
+        q1 = min(total, (c + 1) * CHUNK)
+        _march_span(
+            field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out,
+            out, c * CHUNK, q1,
+        )  # fmt: skip
+
+
+def exact_rays(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, parallel):
+    """Fill ``out`` (N, M) with exact ranges: cells times ``scale``, exactly ``max_out`` if clipped.
+
+    Poses as pad-frame (gu, gv) in cells and heading cos/sin in the map frame; beams as cos/sin
+    relative to the heading; ``max_t`` in cells. ``parallel``: spread chunks of rays over numba's
+    threads (worth it from about :data:`PARALLEL_MIN_RAYS` rays).
+    """
+    if parallel:
+        _exact_parallel(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out)
+    else:
+        _exact_span(
+            field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, 0, out.size
+        )
+
+
+def march_rays(
+    field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out, out,
+    parallel,
+):  # fmt: skip
+    """Like :func:`exact_rays` with :func:`march_ray` (approximate)."""
+    args = (field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out)
+    if parallel:
+        _march_parallel(*args, out)
+    else:
+        _march_span(*args, out, 0, out.size)

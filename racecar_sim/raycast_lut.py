@@ -36,13 +36,13 @@ import cv2
 import numba as nb
 import numpy as np
 
-from racecar_sim.raycast_kernels import cast_ray, cast_ray_from, to_metres
+from racecar_sim.raycast_kernels import CHUNK, cast_ray, cast_ray_from, to_metres
 
-__all__ = ["LutParams", "LutTable", "build_lut", "cast_lut_rays"]
+__all__ = ["LutParams", "LutTable", "build_lut", "lut_rays"]
 
 _CODE_MAX = 65000  # uint16 code of the cap range; 65535 marks an unset entry during the build
 _UNSET = 65535
-_SANE = 2.0  # cells an interpolated range may lie outside the two table ranges
+_SANE = 1.5  # cells an interpolated range may lie outside the two table ranges
 _CAP_MARGIN = 2.0  # cells stored beyond max_range, so a pose offset inside its cell stays right
 
 
@@ -349,24 +349,18 @@ def _foot_hit(cx, cy, c, s, r, sub):
     return cx - dl * s + r * c, cy + dl * c + r * s
 
 
-@nb.njit(cache=True, parallel=True)
-def cast_lut_rays(
+@nb.njit(cache=True)
+def _lut_span(
     table, index, unit, sub, cos_k, sin_k, tol, guide, field, gu, gv, heading, cos_h, sin_h,
-    angles, cos_a, sin_a, max_t, scale, max_out, out,
+    angles, cos_a, sin_a, max_t, scale, max_out, out, q0, q1,
 ):  # fmt: skip
-    """Fill ``out`` (N, M) with LUT ranges (cells times ``scale``, clipped to ``max_out``).
-
-    Poses as pad-frame (gu, gv) in cells and heading (radians, map frame) with its cos/sin; beams
-    as angles relative to the heading with their cos/sin. ``tol``, ``guide``, ``max_t`` in cells.
-    ``field`` is the exact kernel's field, for the fallback. Parallel over rays.
-    """
-    n = gu.shape[0]
+    """Rays ``q0 <= q < q1`` (pose ``q // M``, beam ``q % M``) of :func:`lut_rays`."""
     m = cos_a.shape[0]
     n_angles = table.shape[1]
     per_radian = n_angles / (2.0 * math.pi)
     h = index.shape[0]
     w = index.shape[1]
-    for q in nb.prange(n * m):
+    for q in range(q0, q1):
         i = q // m
         b = q - i * m
         x = gu[i]
@@ -389,7 +383,7 @@ def cast_lut_rays(
         r0 = table[fi, k0] * unit
         r1 = table[fi, k1] * unit
         t = -1.0
-        if r0 >= max_t and r1 >= max_t:
+        if min(r0, r1) >= max_t + _SANE:  # both saturated (the cap is max_t + _CAP_MARGIN)
             t = max_t
         elif abs(r0 - r1) <= tol:
             # Where the true ray meets the line through the two table rays' hit points.
@@ -415,3 +409,52 @@ def cast_lut_rays(
             if t < 0.0:
                 t = cast_ray(field, x, y, dx, dy, max_t)
         out[i, b] = to_metres(t, max_t, scale, max_out)
+
+
+@nb.njit(cache=True, parallel=True)
+def _lut_parallel(
+    table, index, unit, sub, cos_k, sin_k, tol, guide, field, gu, gv, heading, cos_h, sin_h,
+    angles, cos_a, sin_a, max_t, scale, max_out, out,
+):  # fmt: skip
+    total = gu.shape[0] * cos_a.shape[0]
+    for c in nb.prange((total + CHUNK - 1) // CHUNK):
+        _lut_span(
+            table, index, unit, sub, cos_k, sin_k, tol, guide, field, gu, gv, heading, cos_h,
+            sin_h, angles, cos_a, sin_a, max_t, scale, max_out, out, c * CHUNK,
+            min(total, (c + 1) * CHUNK),
+        )  # fmt: skip
+
+
+def lut_rays(
+    lut: LutTable,
+    tol: float,
+    guide: float,
+    field: np.ndarray,
+    gu: np.ndarray,
+    gv: np.ndarray,
+    heading: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    angles: np.ndarray,
+    cos_a: np.ndarray,
+    sin_a: np.ndarray,
+    max_t: float,
+    scale: float,
+    max_out: float,
+    out: np.ndarray,
+    parallel: bool,
+) -> None:
+    """Fill ``out`` (N, M) with table ranges: cells times ``scale``, exactly ``max_out`` if clipped.
+
+    Poses as pad-frame (gu, gv) in cells and heading (radians, map frame) with its cos/sin; beams
+    as angles relative to the heading with their cos/sin. ``tol``, ``guide``, ``max_t`` in cells.
+    ``field`` is the exact kernel's field, for the fallback casts.
+    """
+    args = (
+        lut.table, lut.index, lut.unit, lut.sub_lines, lut.cos_k, lut.sin_k, tol, guide, field,
+        gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a, max_t, scale, max_out,
+    )  # fmt: skip
+    if parallel:
+        _lut_parallel(*args, out)
+    else:
+        _lut_span(*args, out, 0, out.size)
