@@ -41,9 +41,11 @@ or the march steps, pass.
 Caching
 -------
 Building a caster prepares per-map data (the jump field; for ``"lut"`` the table). It is kept in
-a module-level least-recently-used cache of :data:`CACHE_SIZE` entries keyed by a hash of the
-occupancy grid's contents, its resolution, ``max_range`` and the method's parameters (the table is
-in the grid frame, so the origin does not matter). A particle filter and an experiment script that
+a module-level least-recently-used cache, keyed by a hash of the occupancy grid's contents, and for
+tables also the range in cells (``max_range / resolution``) and the table parameters (tables are in
+the grid frame, so the origin and the query parameters ``tolerance`` and ``guide`` do not matter).
+Least recently used entries are dropped while the cache holds more than :data:`CACHE_BYTES` (the
+newest entry always stays). A particle filter and an experiment script that
 build casters for the same map and range therefore share one table. ``RayCaster(..., cache=False)``
 bypasses it; :func:`clear_cache` empties it.
 """
@@ -70,7 +72,7 @@ from racecar_sim.raycast_kernels import (
 from racecar_sim.raycast_lut import LutParams, LutTable, build_lut, lut_rays
 
 __all__ = [
-    "CACHE_SIZE",
+    "CACHE_BYTES",
     "METHODS",
     "LutParams",
     "MarchParams",
@@ -81,8 +83,8 @@ __all__ = [
 METHODS: tuple[str, ...] = ("exact", "lut", "march")
 """Names accepted by :class:`RayCaster`'s ``method``."""
 
-CACHE_SIZE = 4
-"""Prepared maps (field, and table for ``"lut"``) kept by the module-level cache."""
+CACHE_BYTES = 1_000_000_000
+"""Bytes of prepared data (fields, tables) the module-level cache may hold."""
 
 _DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
 
@@ -147,7 +149,7 @@ def _cached(key: tuple, make, use_cache: bool):
         with _cache_lock:
             _cache[key] = value
             _cache.move_to_end(key)
-            while len(_cache) > CACHE_SIZE:
+            while len(_cache) > 1 and sum(v.nbytes for v in _cache.values()) > CACHE_BYTES:
                 _cache.popitem(last=False)
     return value
 

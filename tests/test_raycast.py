@@ -340,7 +340,7 @@ def test_methods_list():
 
 
 # ---------------------------------------------------------------------- cache, dtype, shapes
-def test_cache_shares_tables_between_casters():
+def test_cache_shares_tables_between_casters(monkeypatch):
     clear_cache()
     grid = rooms_map()
     a = RayCaster(grid, 10.0, "lut", lut=LutParams(n_angles=32))
@@ -353,9 +353,12 @@ def test_cache_shares_tables_between_casters():
     )
     clear_cache()
     assert RayCaster(grid, 10.0, "lut", lut=LutParams(n_angles=32)).table is not a.table
-    for _ in range(raycast.CACHE_SIZE + 2):  # least recently used entries are dropped
-        RayCaster(grid, 5.0 + _, "lut", lut=LutParams(n_angles=8))
-    assert len(raycast._cache) <= raycast.CACHE_SIZE
+    one_table = a.table.nbytes
+    monkeypatch.setattr(raycast, "CACHE_BYTES", 3 * one_table)
+    tables = [RayCaster(grid, 5.0 + k, "lut", lut=LutParams(n_angles=32)).table for k in range(5)]
+    assert RayCaster(grid, 9.0, "lut", lut=LutParams(n_angles=32)).table is tables[-1]
+    assert RayCaster(grid, 5.0, "lut", lut=LutParams(n_angles=32)).table is not tables[0]
+    assert sum(v.nbytes for v in raycast._cache.values()) <= 3 * one_table
 
 
 @pytest.mark.parametrize("method", METHODS)
