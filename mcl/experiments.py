@@ -66,7 +66,7 @@ UNIFORM_COEFFICIENTS: tuple[float, ...] = (0.01, 0.1, 0.3, 0.5, 1.0)
 """Half-widths c of the uniform noise in the source's table (per update)."""
 GAUSSIAN_SIGMAS: tuple[float, ...] = (0.01, 0.1, 0.3, 0.5, 1.0)
 """Standard deviations sigma of the Gaussian noise in the source's table (per update)."""
-DEFAULT_PARTICLES = 1000
+DEFAULT_PARTICLES = 1500
 """Particles per run by default (see the README for the measured update rate)."""
 
 SERIES: dict[str, str] = {
