@@ -371,3 +371,24 @@ def test_reader_names_what_is_wrong(tmp_path) -> None:
     bad.write_text(",".join(HEADER) + "\n1,2,3\n")
     with pytest.raises(ValueError, match="row 1 has 3 fields"):
         read_error_log(bad)
+
+
+def test_config_loads_from_yaml_with_nested_sections(tmp_path) -> None:
+    from racecar_sim.params import from_yaml
+
+    path = tmp_path / "mcl.yaml"
+    path.write_text(
+        "localization:\n"
+        "  init: global\n"
+        "  motion: {scheme: uniform, coefficients: [0.1, 0.05, 0.02]}\n"
+        "  filter: {n_particles: 321, init_spread: [0.3, 0.3, 0.1]}\n"
+        "  sensor: {sigma_hit: 5.0}\n"
+    )
+    config = from_yaml(LocalizationConfig, path, section="localization")
+    assert config.init == "global"
+    assert config.motion.scheme == "uniform" and config.motion.coefficients == (0.1, 0.05, 0.02)
+    assert config.filter.n_particles == 321 and config.filter.init_spread == (0.3, 0.3, 0.1)
+    assert config.sensor.sigma_hit == 5.0
+    path.write_text("localization:\n  motion: {scheme: wobbly}\n")
+    with pytest.raises(ValueError, match="motion"):
+        from_yaml(LocalizationConfig, path, section="localization")
