@@ -27,7 +27,6 @@ from ``beam_angles`` raises ``ValueError``. With every beam dropped, all particl
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 
 import numba as nb
@@ -35,7 +34,7 @@ import numpy as np
 
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.params import LidarParams
-from racecar_sim.raycast import METHODS, RayCaster
+from racecar_sim.raycast import RayCaster
 
 __all__ = ["SensorModel", "SensorModelParams", "beam_table"]
 
@@ -219,23 +218,8 @@ class SensorModel:
             if not np.isfinite(beam_angles).all():
                 raise ValueError("beam_angles must be finite")
         self.beam_angles = beam_angles
-        self.caster = RayCaster(
-            occupancy_map, self.max_range, method=self._method(p.raycast_method)
-        )
+        self.caster = RayCaster(occupancy_map, self.max_range, method=p.raycast_method)
         self._subsample_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-
-    @staticmethod
-    def _method(method: str) -> str:
-        """The caster method, falling back to "exact" while an approximate one is not available."""
-        if method in METHODS or method not in ("lut", "march"):
-            return method  # an unknown name is rejected by RayCaster with the list of methods
-        warnings.warn(
-            f"ray casting method {method!r} is not available in racecar_sim.raycast yet; "
-            "the sensor model uses 'exact'",
-            RuntimeWarning,
-            stacklevel=3,
-        )
-        return "exact"
 
     # ------------------------------------------------------------------ stages
     def _subsample(self, n_ranges: int) -> tuple[np.ndarray, np.ndarray]:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 import pytest
@@ -13,7 +12,7 @@ from mcl_helpers import lidar_pose, room_map
 
 from mcl.sensor_model import SensorModel, SensorModelParams, beam_table
 from racecar_sim.params import LidarParams, from_mapping, from_yaml
-from racecar_sim.raycast import METHODS, RayCaster
+from racecar_sim.raycast import RayCaster
 
 P = SensorModelParams()
 LIDAR = LidarParams()
@@ -238,15 +237,8 @@ def test_given_beam_angles_are_used(room, scan: np.ndarray) -> None:
     assert normal.log_evaluate(poses, scan)[0] > reversed_angles.log_evaluate(poses, scan)[0] + 1.0
 
 
-def test_default_method_is_approximate_with_fallback(room) -> None:
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        m = SensorModel(room)
-    if "lut" in METHODS:
-        assert m.caster.method == "lut"
-    else:
-        assert m.caster.method == "exact"
-        assert any("lut" in str(w.message) for w in caught)
+def test_default_method_is_the_lookup_table(room) -> None:
+    assert SensorModel(room).caster.method == "lut"
     with pytest.raises(ValueError, match="method"):
         SensorModel(room, SensorModelParams(raycast_method="magic"))
 
