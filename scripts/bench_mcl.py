@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import sys
 import time
-import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -173,14 +173,14 @@ def main(argv: list[str] | None = None) -> int:
     params = SensorModelParams(raycast_method=args.method, num_beams_per_particle=args.beams)
 
     t = time.perf_counter()
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        fast = SensorModel(grid, params)
+    fast = SensorModel(grid, params)  # builds (or takes from the cache) the caster's table
     build = time.perf_counter() - t
-    for w in caught:
-        print(f"warning: {w.message}")
     exact = SensorModel(
         grid, SensorModelParams(raycast_method="exact", num_beams_per_particle=args.beams)
+    )
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
+    print(
+        f"{os.cpu_count()} CPUs, load average {load:.1f} before the run (other processes slow it)"
     )
     print(
         f"map {grid.name}: {grid.width}x{grid.height} cells at {grid.resolution} m; "
