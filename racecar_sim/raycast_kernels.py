@@ -207,7 +207,7 @@ def to_metres(r, max_t, scale, max_out):
 
 @nb.njit(cache=True)
 def _exact_span(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, q0, q1):
-    """Rays ``q0 <= q < q1`` (ray ``q`` is pose ``q // M``, beam ``q % M``) of :func:`exact_rays`."""
+    """Rays ``q0 <= q < q1`` (pose ``q // M``, beam ``q % M``) of :func:`exact_rays`."""
     m = cos_a.shape[0]
     for q in range(q0, q1):
         i = q // m
