@@ -38,7 +38,10 @@ import numpy as np
 
 from racecar_sim.raycast_kernels import CHUNK, cast_ray, cast_ray_from, to_metres
 
-__all__ = ["LutParams", "LutTable", "build_lut", "lut_rays"]
+__all__ = ["PARALLEL_MIN_ENTRIES", "LutParams", "LutTable", "build_lut", "lut_rays"]
+
+PARALLEL_MIN_ENTRIES = 4_000_000
+"""Tables with fewer entries (free cells x directions) are built on the calling thread."""
 
 _CODE_MAX = 65000  # uint16 code of the cap range; 65535 marks an unset entry during the build
 _UNSET = 65535
@@ -235,31 +238,43 @@ def _sweep_direction(kind, index, th, sub, box, unit, cap, row, pend_i, pend_t):
     return written
 
 
-@nb.njit(cache=True, parallel=True)
-def _sweep_block(kind, index, n_angles, k_start, sub, box, unit, cap, buf, written):
-    """Sweep directions ``k_start + r`` into ``buf[r]`` (uint16 (B, n_free)), parallel over r."""
+@nb.njit(cache=True)
+def _sweep_rows(kind, index, n_angles, k_start, r_lo, r_hi, sub, box, unit, cap, buf, written):
+    """Sweep directions ``k_start + r`` into ``buf[r]`` for ``r_lo <= r < r_hi``."""
     n_buf = (box[1] - box[0]) + (box[3] - box[2]) + 4
-    for r in nb.prange(buf.shape[0]):
+    pend_i = np.empty(n_buf, dtype=np.int64)
+    pend_t = np.empty(n_buf, dtype=np.float64)
+    for r in range(r_lo, r_hi):
         k = k_start + r
         if k >= n_angles:
-            continue
-        pend_i = np.empty(n_buf, dtype=np.int64)
-        pend_t = np.empty(n_buf, dtype=np.float64)
+            break
         th = 2.0 * math.pi * k / n_angles
         written[k] = _sweep_direction(kind, index, th, sub, box, unit, cap, buf[r], pend_i, pend_t)
 
 
 @nb.njit(cache=True, parallel=True)
-def _scatter_block(buf, k_start, table):
-    """table[:, k_start : k_start + B] = buf.T (as far as table has columns), parallel over rows."""
+def _sweep_parallel(kind, index, n_angles, k_start, sub, box, unit, cap, buf, written):
+    """:func:`_sweep_rows` over all of ``buf``, one direction per work item."""
+    for r in nb.prange(buf.shape[0]):
+        _sweep_rows(kind, index, n_angles, k_start, r, r + 1, sub, box, unit, cap, buf, written)
+
+
+@nb.njit(cache=True)
+def _scatter_rows(buf, k_start, table, i_lo, i_hi):
+    """``table[i, k_start + r] = buf[r, i]`` for ``i_lo <= i < i_hi`` and the block's rows."""
+    n_rows = min(buf.shape[0], table.shape[1] - k_start)
+    for i in range(i_lo, i_hi):
+        for r in range(n_rows):
+            table[i, k_start + r] = buf[r, i]
+
+
+@nb.njit(cache=True, parallel=True)
+def _scatter_parallel(buf, k_start, table):
+    """:func:`_scatter_rows` over every table row, in blocks of 1024 rows."""
     n = table.shape[0]
-    nb_ = min(buf.shape[0], table.shape[1] - k_start)
     blk = 1024
     for bi in nb.prange((n + blk - 1) // blk):
-        i1 = min(bi * blk + blk, n)
-        for i in range(bi * blk, i1):
-            for r in range(nb_):
-                table[i, k_start + r] = buf[r, i]
+        _scatter_rows(buf, k_start, table, bi * blk, min(bi * blk + blk, n))
 
 
 @nb.njit(cache=True, parallel=True)
@@ -324,10 +339,17 @@ def build_lut(
     table = np.empty((n_free, n_angles), dtype=np.uint16)
     buf = np.empty((min(block, n_angles), n_free), dtype=np.uint16)
     written = np.zeros(n_angles, dtype=np.int64)
+    parallel = n_free * n_angles >= PARALLEL_MIN_ENTRIES
     for k_start in range(0, n_angles, buf.shape[0]):
         buf.fill(_UNSET)
-        _sweep_block(kind, index, n_angles, k_start, int(sub), box, unit, cap, buf, written)
-        _scatter_block(buf, k_start, table)
+        if parallel:
+            _sweep_parallel(kind, index, n_angles, k_start, int(sub), box, unit, cap, buf, written)
+            _scatter_parallel(buf, k_start, table)
+        else:
+            _sweep_rows(
+                kind, index, n_angles, k_start, 0, len(buf), int(sub), box, unit, cap, buf, written
+            )
+            _scatter_rows(buf, k_start, table, 0, n_free)
     if (written != n_free).any():  # a cell its owner line did not visit (float ties): cast it
         unset = np.argwhere(table == _UNSET)
         fi_rows, fi_cols = np.nonzero(free)
