@@ -60,6 +60,10 @@ class SensorModelParams:
             (an approximate one is fine: the simulated lidar stays exact).
         mount_offset: metres from the rear axle (the particle pose) forward to the lidar.
         fov: radians spanned by the scan when the beam angles are not given (first beam at -fov/2).
+        parallel: numba threads for casting and scoring: None decides by size (the caster's
+            ``PARALLEL_MIN_RAYS``, :data:`PARALLEL_MIN_LOOKUPS`); False keeps one thread, which is
+            faster when other processes keep the cores busy (e.g. a pool of experiment workers);
+            True always uses every thread.
     """
 
     alpha_hit: float = 0.74
@@ -74,6 +78,7 @@ class SensorModelParams:
     raycast_method: str = "lut"
     mount_offset: float = _LIDAR.mount_offset
     fov: float = _LIDAR.fov
+    parallel: bool | None = None
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -110,6 +115,8 @@ class SensorModelParams:
                 raise bad(name, f"must be an integer >= {low}")
         if not isinstance(self.raycast_method, str):
             raise bad("raycast_method", "must be a method name")
+        if self.parallel is not None and not isinstance(self.parallel, bool):
+            raise bad("parallel", "must be true, false or null")
 
     @property
     def z_max(self) -> int:
@@ -219,7 +226,9 @@ class SensorModel:
             if not np.isfinite(beam_angles).all():
                 raise ValueError("beam_angles must be finite")
         self.beam_angles = beam_angles
-        self.caster = RayCaster(occupancy_map, self.max_range, method=p.raycast_method)
+        self.caster = RayCaster(
+            occupancy_map, self.max_range, method=p.raycast_method, parallel=p.parallel
+        )
         self._subsample_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     # ------------------------------------------------------------------ stages
@@ -302,7 +311,10 @@ class SensorModel:
             return out
         if z_px.min() < 0 or z_px.max() > self.z_max:
             raise ValueError(f"measured pixels must lie in [0, {self.z_max}]")
-        kernel = _score_parallel if expected.size >= PARALLEL_MIN_LOOKUPS else _score_serial
+        parallel = self.params.parallel
+        if parallel is None:
+            parallel = expected.size >= PARALLEL_MIN_LOOKUPS
+        kernel = _score_parallel if parallel else _score_serial
         kernel(expected, z_px, self._log_table, 1.0 / self.m_per_px, float(self.z_max), out)
         return out
 

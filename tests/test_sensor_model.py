@@ -253,6 +253,8 @@ def test_params_validation_and_yaml(tmp_path) -> None:
         SensorModelParams(table_width=1)
     with pytest.raises(ValueError, match="num_beams_per_particle"):
         SensorModelParams(num_beams_per_particle=2.5)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="parallel"):
+        SensorModelParams(parallel="yes")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="must not all be zero"):
         SensorModelParams(alpha_hit=0.0, alpha_max=0.0, alpha_rand=0.0)
     assert from_mapping(SensorModelParams, {"sigma_hit": 4.0}).sigma_hit == 4.0
@@ -272,6 +274,11 @@ def test_parallel_and_serial_scoring_agree(model: SensorModel) -> None:
     big = model.score(expected, z)  # one call over the threshold: parallel kernel
     parts = np.concatenate([model.score(expected[i : i + 1000], z) for i in range(0, n, 1000)])
     np.testing.assert_array_equal(big, parts)
+    forced = SensorModel(room_map(), SensorModelParams(raycast_method="exact", parallel=True))
+    np.testing.assert_array_equal(forced.score(expected[:100], z), big[:100])
+    single = SensorModel(room_map(), SensorModelParams(raycast_method="exact", parallel=False))
+    np.testing.assert_array_equal(single.score(expected, z), big)
+    assert single.caster.parallel is False
     d = np.floor(np.clip(expected / 0.05, 0, 200) + 0.5).astype(int)
     manual = P.squash_exponent * np.log(beam_table(P))[z[None, :], d].sum(axis=1)
     np.testing.assert_allclose(big, manual, rtol=1e-9)
