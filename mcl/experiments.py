@@ -12,6 +12,7 @@ can skip runs whose log is complete, and a run that crashes is reported while th
 
 Output folder layout::
 
+    config.json                  the sweep's settings (checked by ``resume``)
     logs/<run_id>.csv            one error log per run (mcl.error_log format)
     runs.csv                     one line per run: status and its error statistics
     summary.csv, summary.md      per series and coefficient: statistics across seeds (mean, sd)
@@ -24,6 +25,7 @@ Output folder layout::
 from __future__ import annotations
 
 import csv
+import json
 import math
 import multiprocessing
 import os
@@ -32,7 +34,7 @@ import traceback
 from collections.abc import Iterable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import as_completed as futures_completed
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -309,6 +311,24 @@ def execute_runs(
     return results
 
 
+def _check_settings(config: ExperimentConfig, path: Path, resume: bool) -> None:
+    """Record the sweep's settings in ``path``; with ``resume``, refuse a folder made otherwise.
+
+    Logs are only reusable by runs with the same settings (map, particles, env, ...).
+    """
+    settings = json.dumps(asdict(config), sort_keys=True, default=str)
+    if resume and path.is_file():
+        before = path.read_text(encoding="utf-8").strip()
+        if before != settings:
+            old, new = json.loads(before), json.loads(settings)
+            changed = sorted(k for k in new if old.get(k) != new[k])
+            raise ValueError(
+                f"--resume: {path.parent} holds runs with other settings ({', '.join(changed)} "
+                "differ); use another output folder or drop --resume"
+            )
+    path.write_text(settings + "\n", encoding="utf-8")
+
+
 def run_experiment(
     config: ExperimentConfig,
     out_dir: str | os.PathLike[str],
@@ -325,7 +345,8 @@ def run_experiment(
         config: the sweep.
         out_dir: output folder (created).
         workers: processes (default: the CPU count; 1 runs inline in this process).
-        resume: skip runs whose log already has every row.
+        resume: skip runs whose log already has every row (the folder's config.json must match
+            ``config``: ``ValueError`` naming the settings that differ otherwise).
         progress: show a tqdm bar over the runs on ``stream``.
         plots: draw the PNG plots.
         stream: where progress and failures are reported (default: stderr).
@@ -343,6 +364,8 @@ def run_experiment(
     workers = workers if workers is not None else (os.cpu_count() or 1)
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+
+    _check_settings(config, out / "config.json", resume)
 
     by_id: dict[str, RunResult] = {}
     todo: list[tuple[RunSpec, Path]] = []

@@ -12,6 +12,8 @@ import argparse
 import sys
 from pathlib import Path
 
+import yaml
+
 from mcl.experiments import (
     DEFAULT_PARTICLES,
     GAUSSIAN_SIGMAS,
@@ -31,6 +33,14 @@ def _floats(text: str) -> tuple[float, ...]:
         raise argparse.ArgumentTypeError(
             f"expected comma-separated numbers, got {text!r}"
         ) from None
+
+
+def _setting(text: str) -> tuple[str, object]:
+    """``NAME=VALUE`` (VALUE read as YAML: numbers, booleans, lists) for an env setting."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip():
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    return name.strip(), yaml.safe_load(value)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -60,6 +70,14 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="skip the Gaussian runs at sigma = c/sqrt(3) (variance of each uniform c)",
     )
+    parser.add_argument(
+        "--env",
+        type=_setting,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a RacecarEnv setting for every run, e.g. --env lidar_rate=20 (repeatable)",
+    )
     parser.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
     parser.add_argument("--resume", action="store_true", help="skip runs whose log is complete")
     parser.add_argument("--no-plots", action="store_true")
@@ -77,6 +95,7 @@ def main(argv: list[str] | None = None) -> int:
             uniform=args.uniform,
             gaussian=args.gaussian,
             matched=not args.no_matched,
+            env=tuple(args.env),
         )
     except ValueError as exc:
         parser.error(str(exc))

@@ -137,13 +137,22 @@ def test_resume_skips_complete_runs_and_redoes_cut_ones(sweep, tmp_path) -> None
     assert [r.mean for r in again.summary] == [r.mean for r in report.summary]
 
 
+def test_resume_refuses_a_folder_made_with_other_settings(sweep, tmp_path) -> None:
+    report, _ = sweep
+    out = tmp_path / "other"
+    shutil.copytree(report.out_dir, out)
+    other = ExperimentConfig(**{**TINY.__dict__, "n_particles": 99})
+    with pytest.raises(ValueError, match="n_particles"):
+        run_experiment(other, out, workers=1, resume=True, progress=False, plots=False)
+
+
 def test_script_resumes_and_prints_the_summary(sweep, capsys) -> None:
     report, _ = sweep
     script = _load_script()
     code = script.main(
         [
             "--uniform", "0.01,0.5", "--gaussian", "0.01,0.5", "--no-matched", "--seeds", "1",
-            "--duration", "5", "--particles", "150", "--resume", "--no-plots", "--workers", "1",
+            "--duration", "5", "--particles", "150", "--resume", "--no-plots", "--workers", "1", "--env", "n_beams=181",
             "--out", str(report.out_dir),
         ]
     )  # fmt: skip
