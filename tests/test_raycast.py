@@ -334,6 +334,25 @@ def test_lut_table_is_compact_and_over_free_cells_only():
     assert (table.index >= 0).sum() == table.table.shape[0]
 
 
+def test_lut_entries_along_the_grid_axes_are_exact_casts_from_cell_centres():
+    """With one sweep line per cell, the lines of the axis directions pass through the cell
+    centres, so those entries are the exact ranges from the centres (to the uint16 quantum)."""
+    grid = rooms_map()  # origin yaw 0.7: table directions are in the grid frame
+    n_angles = 16
+    caster = RayCaster(grid, 10.0, "lut", lut=LutParams(n_angles=n_angles, sub_lines=1))
+    table = caster.table
+    assert table is not None
+    rows, cols = np.nonzero(~grid.occupied)
+    centres = grid.grid_to_world(np.column_stack([rows, cols]))
+    index = table.index[grid.height - rows, cols + 1]  # pad frame: flipped, one-cell ring
+    exact = RayCaster(grid, 10.0)
+    for k in (0, 4, 8, 12):
+        theta = 2 * math.pi * k / n_angles + grid.yaw
+        want = exact.cast(np.column_stack([centres, np.full(len(rows), theta)]), [0.0])[:, 0]
+        got = np.minimum(table.table[index, k] * table.unit * grid.resolution, 10.0)
+        np.testing.assert_allclose(got, want, atol=table.unit * grid.resolution)
+
+
 def test_methods_list():
     assert set(METHODS) == {"exact", "lut", "march"}
     assert METHODS[0] == "exact"
