@@ -160,6 +160,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--warmup", type=int, default=3)
     parser.add_argument("--baseline-updates", type=int, default=5, help="timed numpy updates")
     parser.add_argument("--method", default="lut", help="ray casting method for the particles")
+    parser.add_argument(
+        "--threads",
+        choices=("auto", "one", "all"),
+        default="auto",
+        help="numba threads for the library's casting and scoring (SensorModelParams.parallel)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     if not args.map.is_file():
@@ -170,13 +176,19 @@ def main(argv: list[str] | None = None) -> int:
     rng = np.random.default_rng(args.seed)
     truth = grid.sample_free_poses(rng, 1, clearance=1.0)[0]
     scan = Lidar(grid).measure(truth, rng).astype(np.float64)
-    params = SensorModelParams(raycast_method=args.method, num_beams_per_particle=args.beams)
+    parallel = {"auto": None, "one": False, "all": True}[args.threads]
+    params = SensorModelParams(
+        raycast_method=args.method, num_beams_per_particle=args.beams, parallel=parallel
+    )
 
     t = time.perf_counter()
     fast = SensorModel(grid, params)  # builds (or takes from the cache) the caster's table
     build = time.perf_counter() - t
     exact = SensorModel(
-        grid, SensorModelParams(raycast_method="exact", num_beams_per_particle=args.beams)
+        grid,
+        SensorModelParams(
+            raycast_method="exact", num_beams_per_particle=args.beams, parallel=parallel
+        ),
     )
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     print(
@@ -185,6 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"map {grid.name}: {grid.width}x{grid.height} cells at {grid.resolution} m; "
         f"{args.beams} beams per particle; caster {fast.caster.method!r} built in {build:.2f} s; "
+        f"threads {args.threads}; "
         f"median of {args.updates} updates ({args.baseline_updates} for numpy) after {args.warmup}"
     )
 
