@@ -63,6 +63,36 @@ def _erode3(s: np.ndarray) -> np.ndarray:
     return np.minimum(np.minimum(p[:-2], p[1:-1]), p[2:])
 
 
+def _fit_line(
+    px: np.ndarray, py: np.ndarray, rank: np.ndarray
+) -> tuple[float, float, float, float, float] | None:
+    """Total least squares line through points (lidar frame, metres), or None below 5 points.
+
+    Returns (distance from the origin, direction ux, uy, normal nx, ny): the direction points
+    the way ``rank`` grows along the points, the normal away from the origin.
+    """
+    if px.size < 5:
+        return None
+    cx, cy = px.mean(), py.mean()
+    dx, dy = px - cx, py - cy
+    sxx, syy, sxy = (dx * dx).mean(), (dy * dy).mean(), (dx * dy).mean()
+    theta = 0.5 * math.atan2(2.0 * sxy, sxx - syy)  # principal direction
+    ux, uy = math.cos(theta), math.sin(theta)
+    if np.dot(rank - rank.mean(), dx * ux + dy * uy) < 0:
+        ux, uy = -ux, -uy
+    nx, ny = -uy, ux
+    offset = cx * nx + cy * ny
+    if offset < 0:
+        nx, ny, offset = -nx, -ny, -offset
+    return float(offset), ux, uy, nx, ny
+
+
+def _beam_step(fov: float, n: int) -> int:
+    """Stride through n beams over fov radians keeping them at most half a degree apart."""
+    spacing = fov / max(n - 1, 1)
+    return max(1, int(math.radians(0.5) / spacing))
+
+
 def _action(steer: float, speed: float) -> np.ndarray:
     return np.array([steer, speed], dtype=np.float32)
 
@@ -74,11 +104,13 @@ class WallFollower:
 
     Each call, on a scan cleaned of isolated outliers (:func:`despeckle`):
 
-    1. **Fit the wall.** A straight line (total least squares, refitted once without the points
-       more than ``trim`` metres beyond the first fit, so alcoves and doorways do not pull it away)
-       through the hits on ``side`` between ``window[0]`` and ``window[1]`` radians from the front
-       and nearer than ``fit_range``. It gives the distance ``d`` from the lidar and the wall's
-       angle ``phi`` to the heading, the line oriented from the rear beams to the front beams.
+    1. **Fit the wall.** The hits on ``side`` between ``window[0]`` and ``window[1]`` radians
+       from the front and nearer than ``fit_range`` are cut into ``n_segments`` runs of
+       neighbouring beams; each run's line is a candidate, and the one with the most hits within
+       ``trim`` of it wins (beams bunch up on nearer walls, so the nearer wall wins), so a doorway
+       or a recess beside the car does not pull the wall away. A total least squares line through
+       the winner's hits gives the distance ``d`` from the lidar and the wall's angle ``phi`` to
+       the heading, the line oriented from the rear beams to the front beams.
     2. **PD on the distance.** The distance predicted ``lookahead`` metres ahead,
        ``d_L = d + s L sin(phi)`` (``s`` = +1 left, -1 right), is steered towards ``distance``::
 
@@ -92,7 +124,8 @@ class WallFollower:
        blocked, the nearest steering angle (of ``n_arcs`` spread over the steering range) whose arc
        is clear is taken, else the one with the longest clear arc.
     4. **Speed.** ``speed``, less in sharp turns, and no more than what stops within the clear
-       length of the chosen arc at ``brake`` m/s², never below ``min_speed``.
+       length of the chosen arc at ``brake`` m/s², never below ``min_speed`` unless the arc is
+       blocked within half of ``stop_distance`` (then it stops).
     5. **Backing out.** When even the best arc is blocked within ``stop_distance`` (a dead end
        too tight to turn in), the car reverses at ``reverse_speed`` with full lock towards the
        wall side (so the nose swings away from it) until an arc ahead is clear again. This is
@@ -111,7 +144,8 @@ class WallFollower:
         lookahead: metres ahead at which the distance is predicted.
         window: (near, far) radians from the front on ``side`` whose beams fit the wall.
         fit_range: metres; farther hits are ignored when fitting the wall.
-        trim: metres beyond the first fitted line past which hits are dropped from the refit.
+        trim: metres from a line within which a hit counts as lying on it.
+        n_segments: runs of neighbouring hits whose lines are the candidates for the wall.
         max_steer: radians, limit of the steering command.
         wheelbase: metres between the axles (for the arcs of the collision check).
         mount_offset: metres from the rear axle forwards to the lidar.
@@ -139,6 +173,7 @@ class WallFollower:
     window: tuple[float, float] = (math.radians(15.0), math.radians(115.0))
     fit_range: float = 3.0
     trim: float = 0.15
+    n_segments: int = 8
     max_steer: float = 0.42
     wheelbase: float = 0.33
     mount_offset: float = 0.275
@@ -185,6 +220,8 @@ class WallFollower:
                 raise ValueError(f"WallFollower.{name} = {value!r} must be {sense}")
         if not isinstance(self.n_arcs, int) or self.n_arcs < 3:
             raise ValueError(f"WallFollower.n_arcs = {self.n_arcs!r} must be an integer >= 3")
+        if not isinstance(self.n_segments, int) or self.n_segments < 1:
+            raise ValueError(f"WallFollower.n_segments = {self.n_segments!r} must be >= 1")
         near, far = (float(v) for v in self.window)
         if not 0 <= near < far <= math.pi:
             raise ValueError(f"WallFollower.window = {self.window!r} must be 0 <= near < far <= pi")
@@ -225,25 +262,28 @@ class WallFollower:
         rank = np.arange(px.size, dtype=np.float64)
         if self.sign > 0:
             rank = rank[::-1]
-        for attempt in range(2):
-            cx, cy = px.mean(), py.mean()
-            dx, dy = px - cx, py - cy
-            sxx, syy, sxy = (dx * dx).mean(), (dy * dy).mean(), (dx * dy).mean()
-            theta = 0.5 * math.atan2(2.0 * sxy, sxx - syy)  # principal direction
-            ux, uy = math.cos(theta), math.sin(theta)
-            if np.dot(rank - rank.mean(), dx * ux + dy * uy) < 0:
-                ux, uy = -ux, -uy
-            # Unit normal pointing away from the car (towards the wall side).
-            nx, ny = -uy, ux
-            offset = cx * nx + cy * ny
-            if offset < 0:
-                nx, ny, offset = -nx, -ny, -offset
-            if attempt == 0:
-                keep = (px * nx + py * ny) - offset < self.trim
-                if np.count_nonzero(keep) < 5 or keep.all():
-                    break
-                px, py, rank = px[keep], py[keep], rank[keep]
-        return float(offset), math.atan2(uy, ux)
+        # Candidate lines through runs of neighbouring hits; the wall is the one most hits lie on.
+        n_runs = min(self.n_segments, px.size // 5)
+        m = px.size // n_runs
+        sx = px[: n_runs * m].reshape(n_runs, m)
+        sy = py[: n_runs * m].reshape(n_runs, m)
+        dx = sx - sx.mean(axis=1, keepdims=True)
+        dy = sy - sy.mean(axis=1, keepdims=True)
+        theta = 0.5 * np.arctan2(2.0 * (dx * dy).sum(axis=1), (dx * dx - dy * dy).sum(axis=1))
+        nx, ny = -np.sin(theta), np.cos(theta)
+        offset = sx.mean(axis=1) * nx + sy.mean(axis=1) * ny
+        gap = np.abs(px[None, :] * nx[:, None] + py[None, :] * ny[:, None] - offset[:, None])
+        score = (gap < self.trim).sum(axis=1) - np.abs(offset) * 1e-6
+        keep = gap[int(np.argmax(score))] < self.trim
+        line = None
+        for _ in range(2):  # refit on the chosen line's hits, then once more
+            line = _fit_line(px[keep], py[keep], rank[keep])
+            if line is None:
+                return None
+            off, _, _, lnx, lny = line
+            keep = np.abs(px * lnx + py * lny - off) < self.trim
+        assert line is not None
+        return float(line[0]), math.atan2(line[2], line[1])
 
     def _arc_clearance(
         self, scan: np.ndarray, steers: np.ndarray, reach: float, backwards: bool = False
@@ -255,25 +295,28 @@ class WallFollower:
         check only sees what the beams see (nothing within ``2 pi - fov`` straight behind).
         """
         cos_a, sin_a = self._geometry(scan.size)[:2]
+        step = self._cache.setdefault(("step", scan.size), _beam_step(self.fov, scan.size))
         bumper = self.car_rear if backwards else self.car_front
-        near = scan < reach + bumper + self.car_width + self.mount_offset
-        x = scan[near] * cos_a[near] + self.mount_offset  # rear-axle frame
+        r = scan[::step]
+        near = r < reach + bumper + self.car_width + self.mount_offset
+        x = r[near] * cos_a[::step][near] + self.mount_offset  # rear-axle frame
         if backwards:
             x = -x  # driving backwards on a circle = driving forwards on its mirror image
-        y = scan[near] * sin_a[near]
+        y = r[near] * sin_a[::step][near]
         ahead = x > 0.0
         x, y = x[ahead], y[ahead]
         if x.size == 0:
             return np.full(steers.shape, reach)
         kappa = np.tan(steers)[:, None] / self.wheelbase  # (K, 1) 1/metres
-        flip = np.where(kappa < 0, -1.0, 1.0)
-        k = np.maximum(np.abs(kappa), 1e-6)
-        radius = 1.0 / k
-        yy = y[None, :] * flip  # mirror right turns onto left turns
-        psi = np.arctan2(x[None, :], radius - yy)  # angle round the centre (0, radius)
-        rho = np.hypot(x[None, :], radius - yy)
-        hit = (np.abs(rho - radius) < self.car_width / 2) & (psi >= 0)
-        travel = np.where(hit, radius * psi - bumper, np.inf)
+        radius = 1.0 / np.maximum(np.abs(kappa), 1e-6)
+        # Mirror right turns onto left turns: the centre of every arc is then (0, radius).
+        towards = radius - np.where(kappa < 0, -y, y)  # (K, P) centre-to-point along -y
+        rho2 = x * x + towards * towards
+        half = self.car_width / 2
+        hit = (rho2 < (radius + half) ** 2) & (rho2 > np.maximum(radius - half, 0.0) ** 2)
+        psi = np.full(hit.shape, np.inf)
+        np.arctan2(np.broadcast_to(x, hit.shape), towards, out=psi, where=hit)  # in (0, pi)
+        travel = radius * psi - bumper
         return np.clip(travel.min(axis=1), 0.0, reach)
 
     def reset(self) -> None:
@@ -299,14 +342,33 @@ class WallFollower:
         return min(max(float(angles[k]), -self.max_steer), self.max_steer)
 
     def __call__(self, obs: Mapping[str, Any] | np.ndarray, pose: np.ndarray | None = None):
-        """Action float32 [steer rad, speed m/s] from ``obs["scan"]`` (``pose`` is unused)."""
-        scan = despeckle(_scan_of(obs))
+        """Action float32 [steer rad, speed m/s] from ``obs["scan"]`` (``pose`` is unused).
+
+        The same scan again (the env repeats it between lidar scans) gives the same action.
+        """
+        raw = _scan_of(obs)
+        last = self._state.get("scan")
+        if last is not None and last.shape == raw.shape and np.array_equal(last, raw):
+            return self._state["action"].copy()
+        action = self._decide(despeckle(raw))
+        self._state["scan"] = raw
+        self._state["action"] = action
+        return action.copy()
+
+    def _decide(self, scan: np.ndarray) -> np.ndarray:
+        """The action for a despeckled scan (updates the backing-out state)."""
         wanted = self.wanted_steer(scan)
         v_want = self.speed * (1.0 - 0.5 * abs(wanted) / self.max_steer)
         need = self.check_distance + v_want**2 / (2.0 * self.brake)
+        reversing = self._state.get("reversing", False)
+        if not reversing:  # the usual case: the wanted arc is clear, no need to look further
+            clear_wanted = float(self._arc_clearance(scan, np.array([wanted]), need)[0])
+            if clear_wanted >= need:
+                room = clear_wanted - self.stop_distance
+                return _action(wanted, min(v_want, math.sqrt(2.0 * self.brake * max(room, 0.0))))
         steers = np.concatenate([[wanted], self._steers])
         clear = self._arc_clearance(scan, steers, need)
-        if self._state.get("reversing", False):
+        if reversing:
             if clear.max() < need and self._can_reverse(scan):
                 return self._reverse_action()
             self._state["reversing"] = False
@@ -323,7 +385,8 @@ class WallFollower:
             self._state["reversing"] = True  # boxed in: back out, nose turning off the wall
             return self._reverse_action()
         speed = min(v_want, math.sqrt(2.0 * self.brake * max(room, 0.0)))
-        speed = max(speed, min(self.min_speed, self.speed))
+        if clear[k] > 0.5 * self.stop_distance:
+            speed = max(speed, min(self.min_speed, self.speed))  # creep on, else stand still
         return _action(float(steers[k]), speed)
 
     def _reverse_action(self) -> np.ndarray:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 
 from racecar_sim.maps import OccupancyMap
@@ -70,10 +71,6 @@ class Lidar:
         self.angles.setflags(write=False)
         self.period: float = 1.0 / params.rate
         self._caster = RayCaster(occupancy_map, params.max_range, method="exact")
-        # Cumulative thresholds of the uniform draw choosing a beam's noise part.
-        self._t_rand = params.p_rand
-        self._t_max = params.p_rand + params.p_max
-        self._t_short = params.p_rand + params.p_max + params.p_short
 
     # ------------------------------------------------------------------ geometry
     def mount_pose(self, pose: np.ndarray) -> np.ndarray:
@@ -99,44 +96,57 @@ class Lidar:
     def add_noise(self, ranges: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The beam noise alone: true ``ranges`` (metres, any shape) -> float32 noisy ranges.
 
-        See the module docstring for the model. Draws, in this order: one uniform per beam, one
-        standard normal per beam, one uniform per random return, one uniform per short return.
+        See the module docstring for the model. Draws one uniform and one standard normal per
+        beam (in that order). The uniform both picks the beam's part and, rescaled to [0, 1)
+        within that part's interval, gives the random return's or the short return's distance,
+        so no further draws are needed.
 
         Raises:
             ValueError: a range is NaN, negative or beyond ``max_range``.
         """
         p = self.params
-        r = np.asarray(ranges, dtype=np.float64)
-        if not (np.isfinite(r).all() and (r >= 0).all() and (r <= p.max_range).all()):
+        r = np.ascontiguousarray(ranges, dtype=np.float64)
+        flat = r.reshape(-1)
+        u = rng.random(flat.size)
+        z = rng.standard_normal(flat.size)
+        out = np.empty(flat.size, dtype=np.float32)
+        ok = _compose_noise(
+            flat, u, z, p.sigma, p.max_range, p.p_rand, p.p_max, p.p_short, p.short_lambda, out
+        )
+        if not ok:
             raise ValueError(
                 f"ranges must be finite and within [0, max_range={p.max_range}] metres"
             )
-        u = rng.random(r.shape)
-        out = r + p.sigma * rng.standard_normal(r.shape)
-        no_return = r >= p.max_range
-        out[no_return] = p.max_range
-        if self._t_short > 0.0:
-            out[u < self._t_max] = p.max_range  # drop-outs (random returns overwrite below)
-            rand = u < self._t_rand
-            n_rand = int(np.count_nonzero(rand))
-            if n_rand:
-                out[rand] = p.max_range * rng.random(n_rand)
-            short = (u >= self._t_max) & (u < self._t_short) & ~no_return
-            n_short = int(np.count_nonzero(short))
-            if n_short:
-                out[short] = _truncated_exponential(r[short], p.short_lambda, rng.random(n_short))
-        np.clip(out, 0.0, p.max_range, out=out)
-        return out.astype(np.float32)
+        return out.reshape(r.shape)
 
 
-def _truncated_exponential(upper: np.ndarray, rate: float, v: np.ndarray) -> np.ndarray:
-    """Inverse CDF of an exponential with ``rate`` (1/m) truncated to [0, upper] at uniforms ``v``.
+@nb.njit(cache=True)
+def _compose_noise(r, u, z, sigma, max_range, p_rand, p_max, p_short, rate, out) -> bool:
+    """Fill ``out`` (float32) with noisy ranges; False (out unfinished) on an invalid range.
 
-    F(x) = (1 - exp(-rate x)) / (1 - exp(-rate upper)), so x = -log1p(-v (1 - exp(-rate upper))) /
-    rate, which lies in [0, upper] for v in [0, 1).
+    r: true ranges (metres); u: one uniform per beam choosing the part; z: one standard normal per
+    beam. The parts take the uniform's intervals [0, p_rand), [p_rand, p_rand + p_max),
+    [.., .. + p_short) in this order, the rest is Gaussian.
     """
-    mass = -np.expm1(-rate * upper)
-    return np.minimum(-np.log1p(-v * mass) / rate, upper)
+    t_max = p_rand + p_max
+    t_short = t_max + p_short
+    for i in range(r.size):
+        ri = r[i]
+        if not (ri >= 0.0 and ri <= max_range):  # also catches NaN
+            return False
+        ui = u[i]
+        if ui < p_rand:
+            v = ui / p_rand * max_range  # uniform in [0, max_range)
+        elif ui < t_max or ri >= max_range:
+            v = max_range  # a drop-out, or no surface in range to return from
+        elif ui < t_short:
+            w = (ui - t_max) / p_short  # uniform in [0, 1)
+            # Inverse CDF of the exponential truncated to [0, ri].
+            v = min(-math.log1p(-w * -math.expm1(-rate * ri)) / rate, ri)
+        else:
+            v = ri + sigma * z[i]
+        out[i] = min(max(v, 0.0), max_range)
+    return True
 
 
 class Odometry:
