@@ -16,7 +16,8 @@ The table ``table[z_measured_px, d_expected_px]`` (Probabilistic Robotics, 6.3) 
 
 weighted by the alphas, then every column is normalised to sum to 1. A particle's likelihood is the
 product over beams of ``table[z, d]``, raised to ``squash_exponent`` to soften the peak; it is computed
-as a sum of logs (a numba kernel over particles, threaded for large batches), so products far below 1e-300 keep their order.
+as a sum of logs (a numba kernel over particles, threaded for large batches), so products far below
+1e-300 keep their order.
 
 Scan treatment: the scan is down-sampled to ``num_beams_per_particle`` evenly spaced beams (all beams
 when it has fewer); beams of the down-sampled set that are NaN or +-inf are *dropped* (they carry no
