@@ -118,7 +118,8 @@ class WallFollower:
 
        ``sin(phi)`` is the change of ``d`` per metre driven, so ``kd`` is a derivative gain that
        needs no time step. When nothing is within ``fit_range`` abeam on ``side`` (the wall turns
-       away, e.g. round a corner) the car turns towards the side at full lock.
+       away round a corner, or the car is in the open) the car steers towards the nearest hit on
+       ``side``, at full lock when that is abeam or behind.
     3. **Collision check.** The arc of that steering angle is checked against every hit for a
        car ``car_width`` wide over the distance needed to brake plus ``check_distance``; if it is
        blocked, the nearest steering angle (of ``n_arcs`` spread over the steering range) whose arc
@@ -211,6 +212,8 @@ class WallFollower:
             "stop_distance",
             "check_distance",
             "min_speed",
+            "reverse_speed",
+            "car_rear",
         )
         for name in positive + non_negative:
             value = getattr(self, name)
@@ -235,7 +238,7 @@ class WallFollower:
         return 1 if self.side == "left" else -1
 
     def _geometry(self, n: int) -> tuple[np.ndarray, ...]:
-        """cos, sin of the n beam angles, the side-window mask and the abeam mask (cached per n)."""
+        """cos, sin of the n beam angles, side-window mask, abeam mask, angles (cached per n)."""
         if n not in self._cache:
             angles = np.linspace(-self.fov / 2, self.fov / 2, n)
             rel = self.sign * angles
@@ -582,6 +585,9 @@ def waypoints_from_drive(
         RuntimeError: the car collided or did not close the loop within ``max_steps``.
     """
     options = {"pose": list(map(float, start_pose))} if start_pose is not None else None
+    reset = getattr(driver, "reset", None)
+    if callable(reset):
+        reset()  # a driver with state (the wall follower backing out) starts afresh
     obs, info = env.reset(seed=seed, options=options)
     start = np.asarray(info["pose"], dtype=np.float64)[:2]
     path = [start]

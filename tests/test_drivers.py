@@ -330,6 +330,7 @@ def bottom_hallway_start(grid: OccupancyMap) -> np.ndarray:
     return grid.grid_to_world(np.array([row, col]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("side", "heading"), [("right", 0.0), ("left", math.pi)], ids=["anticlockwise", "clockwise"]
 )
@@ -353,6 +354,7 @@ def test_wall_follower_laps_the_default_map_without_collision(
     assert clearance.min() > 0.3  # the rear axle never came near a wall
 
 
+@pytest.mark.slow
 def test_wall_follower_drives_a_minute_on_the_stata_basement(stata_map: OccupancyMap) -> None:
     env = make_env(stata_map)
     wf = WallFollower(side="right")
