@@ -9,8 +9,10 @@ Workloads, poses uniform in free space from a fixed seed:
 
 Each method is timed as the median of 5 runs after a warm-up run. The baseline, measured in the same
 run, is a plain numpy ray marcher (vectorised over rays, no numba): sphere tracing on the map's
-distance field with steps of at least half a cell. Ratios are Mrays/s over the baseline's.
-Errors are absolute, vs ``"exact"``, over every ray of the workload.
+distance field with steps of at least half a cell. Ratios are Mrays/s (wall clock) over the
+baseline's. ``Mrays/CPU-s`` divides by this process's CPU time instead (summed over numba's
+threads): steadier than wall clock when other programs share the cores. Errors are absolute, vs
+``"exact"``, over every ray of the workload. The load average is printed before and after.
 
     .venv/bin/python scripts/bench_raycast.py [--quick] [--map YAML ...]
 """
@@ -131,14 +133,16 @@ def workloads(grid: OccupancyMap, quick: bool, seed: int) -> list[Workload]:
     ]
 
 
-def median_seconds(fn: Callable[[], object], runs: int) -> float:
+def median_seconds(fn: Callable[[], object], runs: int) -> tuple[float, float]:
+    """Median wall-clock and median process-CPU seconds of ``runs`` calls after a warm-up."""
     fn()  # warm-up (and numba compilation on a first use)
-    times = []
+    wall, cpu = [], []
     for _ in range(runs):
-        start = time.perf_counter()
+        w0, c0 = time.perf_counter(), time.process_time()
         fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+        wall.append(time.perf_counter() - w0)
+        cpu.append(time.process_time() - c0)
+    return statistics.median(wall), statistics.median(cpu)
 
 
 # -------------------------------------------------------------------------- one map
@@ -161,7 +165,7 @@ def bench_map(grid: OccupancyMap, args: argparse.Namespace) -> list[dict[str, ob
         seconds = {
             name: median_seconds(lambda c=c, w=wl: w.run(c), runs) for name, c in casters.items()
         }
-        base = wl.rays / seconds[BASELINE]
+        base = wl.rays / seconds[BASELINE][0]
         for name, cast in casters.items():
             err = np.abs(wl.run(cast) - exact)
             build_s, nbytes = builds.get(name, (None, None))
@@ -170,8 +174,9 @@ def bench_map(grid: OccupancyMap, args: argparse.Namespace) -> list[dict[str, ob
                     "map": grid.name,
                     "workload": wl.name,
                     "method": name,
-                    "mrays": wl.rays / seconds[name] / 1e6,
-                    "ratio": wl.rays / seconds[name] / base,
+                    "mrays": wl.rays / seconds[name][0] / 1e6,
+                    "cpu_mrays": wl.rays / seconds[name][1] / 1e6,
+                    "ratio": wl.rays / seconds[name][0] / base,
                     "err": None if name == "exact" else err,
                     "build_s": build_s,
                     "mbytes": None if nbytes is None else nbytes / 1e6,
@@ -183,10 +188,10 @@ def bench_map(grid: OccupancyMap, args: argparse.Namespace) -> list[dict[str, ob
 
 def format_table(rows: list[dict[str, object]]) -> str:
     head = (
-        "| map | workload | method | Mrays/s | x baseline | mean err (m) | p99 err (m) "
-        "| max err (m) | build (s) | table (MB) |"
+        "| map | workload | method | Mrays/s | x baseline | Mrays/CPU-s | mean err (m) "
+        "| p99 err (m) | max err (m) | build (s) | table (MB) |"
     )
-    lines = [head, "|" + "---|" * 10]
+    lines = [head, "|" + "---|" * 11]
     for r in rows:
         err = r["err"]
         if isinstance(err, np.ndarray):
@@ -197,7 +202,7 @@ def format_table(rows: list[dict[str, object]]) -> str:
         mb = "" if r["mbytes"] is None else f"{r['mbytes']:.0f}"
         lines.append(
             f"| {r['map']} | {r['workload']} | {r['method']} | {r['mrays']:.2f} "
-            f"| {r['ratio']:.1f} | {e} | {build} | {mb} |"
+            f"| {r['ratio']:.1f} | {r['cpu_mrays']:.2f} | {e} | {build} | {mb} |"
         )
     return "\n".join(lines)
 
