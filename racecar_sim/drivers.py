@@ -571,12 +571,15 @@ def waypoints_from_drive(
     max_steps: int = 100_000,
     close_radius: float = 1.0,
     min_length: float = 10.0,
+    close_heading: float = math.pi / 4,
 ) -> np.ndarray:
     """Drive ``driver`` in ``env`` until the car returns to its start; the path as a waypoint loop.
 
     ``env`` is a RacecarSim env (``reset(seed=, options={"pose": ...})``, ``step(action)`` with the
     true pose in ``info["pose"]``). The loop closes when the car, after covering ``min_length``
-    metres, comes back within ``close_radius`` metres of where it started.
+    metres, comes back within ``close_radius`` metres of where it started *heading the same way*
+    (within ``close_heading`` radians): passing the start the other way (an out-and-back round a
+    pillar) is not a loop, so the drive goes on.
 
     Returns:
         (K, 2) world metres, one point every ``spacing`` metres, for ``PurePursuit(loop=True)``.
@@ -589,17 +592,24 @@ def waypoints_from_drive(
     if callable(reset):
         reset()  # a driver with state (the wall follower backing out) starts afresh
     obs, info = env.reset(seed=seed, options=options)
-    start = np.asarray(info["pose"], dtype=np.float64)[:2]
+    start_pose = np.asarray(info["pose"], dtype=np.float64)
+    start = start_pose[:2]
     path = [start]
     covered = 0.0
     for _ in range(max_steps):
         obs, _, terminated, truncated, info = env.step(driver(obs, info["pose"]))
-        xy = np.asarray(info["pose"], dtype=np.float64)[:2]
+        pose = np.asarray(info["pose"], dtype=np.float64)
+        xy = pose[:2]
         covered += float(np.hypot(*(xy - path[-1])))
         path.append(xy)
         if info.get("collision", False):
             raise RuntimeError(f"the car collided at {xy.round(2).tolist()} after {covered:.1f} m")
-        if covered > min_length and np.hypot(*(xy - start)) < close_radius:
+        turned = abs(math.remainder(pose[2] - start_pose[2], 2 * math.pi))
+        if (
+            covered > min_length
+            and np.hypot(*(xy - start)) < close_radius
+            and turned < close_heading
+        ):
             return resample_polyline(np.asarray(path[:-1]), spacing, loop=True)
         if terminated or truncated:
             break

@@ -403,3 +403,33 @@ def test_waypoints_from_drive_records_a_closed_loop() -> None:
     # ... and pure pursuit on the recorded loop drives round it again.
     run = drive(make_env(room), PurePursuit(loop), [9.0, 6.0, math.pi / 2], 11.0)
     assert run["collisions"] == 0 and winding(run["path"], centre) > 1.0
+
+
+class ScriptedEnv:
+    """An env stand-in whose car follows a fixed list of poses, one per step."""
+
+    def __init__(self, poses: np.ndarray) -> None:
+        self.poses = poses
+        self.i = 0
+
+    def reset(self, seed=None, options=None):
+        self.i = 0
+        return {}, {"pose": self.poses[0]}
+
+    def step(self, action):
+        self.i += 1
+        return {}, 0.0, False, False, {"pose": self.poses[self.i], "collision": False}
+
+
+def test_waypoints_from_drive_does_not_close_an_out_and_back_path() -> None:
+    # Out 8 m east, U-turn, back west past the start (heading pi), U-turn again, then east past the
+    # start once more (heading 0): only the last pass closes the loop.
+    out = np.column_stack([np.linspace(0, 8, 81), np.zeros(81), np.zeros(81)])
+    back = np.column_stack([np.linspace(8, -3, 111), np.full(111, 0.3), np.full(111, math.pi)])
+    again = np.column_stack([np.linspace(-3, 2, 51), np.zeros(51), np.zeros(51)])
+    poses = np.vstack([out, back, again])
+    loop = waypoints_from_drive(
+        ScriptedEnv(poses), lambda obs, pose=None: np.zeros(2), min_length=5.0, spacing=0.1
+    )
+    # Closing on the way back would have stopped before x = -3; the closed loop reaches it.
+    assert loop[:, 0].min() < -2.5
