@@ -433,3 +433,19 @@ def test_waypoints_from_drive_does_not_close_an_out_and_back_path() -> None:
     )
     # Closing on the way back would have stopped before x = -3; the closed loop reaches it.
     assert loop[:, 0].min() < -2.5
+
+
+def test_waypoints_from_drive_orients_the_loop_along_the_start_heading() -> None:
+    # The car starts heading west, then settles into an anticlockwise circle that runs east through
+    # its start: the returned loop must run west there so pure pursuit needs no U-turn.
+    west = np.column_stack([np.linspace(1, -1, 21), np.zeros(21), np.full(21, math.pi)])
+    a = np.linspace(-math.pi / 2, 3.5 * math.pi, 800)
+    circle_poses = np.column_stack([5 * np.cos(a), 5 + 5 * np.sin(a), a + math.pi / 2])
+    loop = waypoints_from_drive(
+        ScriptedEnv(np.vstack([west, circle_poses])),
+        lambda obs, pose=None: np.zeros(2),
+        spacing=0.1,
+    )
+    assert np.abs(np.hypot(loop[:, 0], loop[:, 1] - 5) - 5).max() < 0.05
+    i = int(np.argmin(np.hypot(loop[:, 0], loop[:, 1])))
+    assert (loop[(i + 1) % len(loop)] - loop[i - 1])[0] < 0
