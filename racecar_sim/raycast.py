@@ -225,6 +225,7 @@ class RayCaster:
         self.parallel = parallel
         res = occupancy_map.resolution
         self._max_cells = self.max_range / res
+        self._beam_memo: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         digest = _digest(occupancy_map.occupied)
         self._field: np.ndarray = _cached(
             ("field", digest), lambda: field_from_occupancy(occupancy_map.occupied), cache
@@ -268,6 +269,19 @@ class RayCaster:
             np.sin(heading),
         )
 
+    def _beam_directions(self, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """cos and sin of the beam angles, remembered for the last angles seen.
+
+        A lidar or a sensor model casts the same beams every call; comparing 1080 angles is about
+        ten times cheaper than their cos and sin.
+        """
+        memo = self._beam_memo
+        if memo is not None and memo[0].shape == angles.shape and np.array_equal(memo[0], angles):
+            return memo[1], memo[2]
+        cos_a, sin_a = np.cos(angles), np.sin(angles)
+        self._beam_memo = (angles.copy(), cos_a, sin_a)
+        return cos_a, sin_a
+
     def cast(self, poses: np.ndarray, angles: np.ndarray) -> np.ndarray:
         """Ranges (N, M) in metres, of the caster's dtype.
 
@@ -295,7 +309,7 @@ class RayCaster:
         if out.size == 0:
             return out
         gu, gv, heading, cos_h, sin_h = self._grid_frame(poses)
-        cos_a, sin_a = np.cos(angles), np.sin(angles)
+        cos_a, sin_a = self._beam_directions(angles)
         res = self.map.resolution
         max_t = self._max_cells
         parallel = self.parallel if self.parallel is not None else out.size >= PARALLEL_MIN_RAYS

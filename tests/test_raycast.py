@@ -463,3 +463,15 @@ def test_bad_options_raise(kwargs):
 def test_bad_params_raise(cls, kwargs):
     with pytest.raises(ValueError, match=next(iter(kwargs))):
         cls(**kwargs)
+
+
+def test_remembered_beam_directions_follow_changed_angles():
+    grid = rooms_map()
+    poses = free_poses(grid, 20, seed=5)
+    angles = np.linspace(-2.0, 2.0, 37)
+    caster = RayCaster(grid, 8.0)
+    first = caster.cast(poses, angles)
+    angles += 0.3  # the same array, changed in place: the caster must not reuse stale directions
+    moved = caster.cast(poses, angles)
+    np.testing.assert_array_equal(moved, RayCaster(grid, 8.0, cache=False).cast(poses, angles))
+    assert not np.array_equal(first, moved)
