@@ -16,21 +16,48 @@ metres.
 Degenerate weights: when every particle's weight is zero or not finite after a correction (e.g. the
 scan matches nothing, or the filter is lost), the filter does not produce NaN. It counts the event in
 ``n_degenerate`` and, by ``ParticleFilterParams.on_degenerate``, keeps the particles with uniform
-weights (``"keep"``) or re-spreads them uniformly over free space (``"global"``).
+weights (``"keep"``) or re-spreads as many uniformly over free space (``"global"``).
+
+Global localization and recovery (all off by default, so the plain filter is unchanged):
+
+- :meth:`ParticleFilter.initialize_global` spreads :meth:`~ParticleFilter.global_particle_count`
+  particles over free space, by default ``global_density`` per square metre of free floor
+  (at least ``n_particles``, at most ``global_max_particles``).
+- KLD-sampling (:mod:`mcl.kld`, ``params.kld``) picks the particle count at every resampling, so the
+  many particles of a global start shrink to a few hundred once the cloud has converged.
+- Augmented MCL (:mod:`mcl.augmented`, ``params.augmented``) follows the slow and fast averages of
+  the scan likelihood; while ``p = max(0, 1 - w_fast / w_slow)`` is above 0 the filter resamples,
+  and each draw of the resampling is a random free-space pose with probability p (Table 8.3). With
+  KLD-sampling on, each random draw counts as a bin of its own, so a lost filter grows its set (as
+  ROS amcl). The random poses join the particles at the start of the next correction instead of
+  right away, so that a scan weighs them before any estimate sees them (a fraction p of uniformly
+  weighted random poses would otherwise drag the mean pose across the map).
+- :meth:`ParticleFilter.uncertainty` gives the covariance, the clusters of the cloud and an
+  ambiguity flag (:mod:`mcl.clusters`).
+- ``update_min_distance`` / ``update_min_angle`` skip scans until the car has moved so far (as
+  ROS amcl's ``update_min_d`` / ``update_min_a``): scans taken at 40 Hz from almost the same pose
+  are far from independent, and weighing them all makes the filter overconfident before the car
+  has seen what tells similar places apart.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
 from mcl.angles import circular_mean, wrap_angle
+from mcl.augmented import AugmentedParams, LikelihoodAverages
+from mcl.clusters import ClusterParams, Uncertainty, assess
+from mcl.kld import KLDParams, bin_keys, kld_stop
 from mcl.motion_model import MotionModel, twist_to_odometry
-from mcl.resampling import RESAMPLERS, resample
+from mcl.resampling import RESAMPLERS, multinomial, resample
 from mcl.sensor_model import SensorModel
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.params import from_mapping
 
 __all__ = ["ParticleFilter", "ParticleFilterParams"]
 
@@ -52,8 +79,19 @@ class ParticleFilterParams:
         on_degenerate: what to do when every weight is zero or not finite: ``"keep"`` the particles
             with uniform weights, or re-spread them over free space (``"global"``).
         init_spread: default standard deviations (metres, metres, radians) of :meth:`initialize`.
-        global_clearance: metres; :meth:`initialize_global` draws positions at least this far from
-            any occupied cell (0 allows every free cell).
+        global_clearance: metres; :meth:`initialize_global` and augmented MCL draw positions at
+            least this far from any occupied cell (0 allows every free cell).
+        global_particles: particles of :meth:`initialize_global`; None sizes the count from the
+            map's free area (see ``global_density``).
+        global_density: particles per square metre of free floor for a global start.
+        global_max_particles: cap on the count sized from the free area.
+        update_min_distance: metres the odometry must have moved (or ``update_min_angle``
+            radians turned) since the last used scan before :meth:`correct` uses another one;
+            0 for both uses every scan.
+        update_min_angle: radians, see ``update_min_distance``.
+        augmented: :class:`~mcl.augmented.AugmentedParams` (alphas 0: off).
+        kld: :class:`~mcl.kld.KLDParams` (``enabled=False``: fixed count).
+        clusters: :class:`~mcl.clusters.ClusterParams` of :meth:`uncertainty`.
     """
 
     n_particles: int = 4000
@@ -62,6 +100,14 @@ class ParticleFilterParams:
     on_degenerate: str = "keep"
     init_spread: tuple[float, float, float] = (0.5, 0.5, 0.3)
     global_clearance: float = 0.0
+    global_particles: int | None = None
+    global_density: float = 20.0
+    global_max_particles: int = 20000
+    update_min_distance: float = 0.0
+    update_min_angle: float = 0.0
+    augmented: AugmentedParams = field(default_factory=AugmentedParams)
+    kld: KLDParams = field(default_factory=KLDParams)
+    clusters: ClusterParams = field(default_factory=ClusterParams)
 
     def __post_init__(self) -> None:
         n = self.n_particles
@@ -94,6 +140,40 @@ class ParticleFilterParams:
             or not (math.isfinite(c) and c >= 0)
         ):
             raise ValueError(f"ParticleFilterParams.global_clearance = {c!r} must be >= 0 metres")
+        g = self.global_particles
+        if g is not None and (isinstance(g, bool) or not isinstance(g, int) or g < 1):
+            raise ValueError(
+                f"ParticleFilterParams.global_particles = {g!r} must be None or a positive integer"
+            )
+        for name in ("global_density", "update_min_distance", "update_min_angle"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not 0 <= v < math.inf:
+                raise ValueError(f"ParticleFilterParams.{name} = {v!r} must be a number >= 0")
+        gmax = self.global_max_particles
+        if isinstance(gmax, bool) or not isinstance(gmax, int) or gmax < 1:
+            raise ValueError(
+                f"ParticleFilterParams.global_max_particles = {gmax!r} must be a positive integer"
+            )
+        for name, cls in (
+            ("augmented", AugmentedParams),
+            ("kld", KLDParams),
+            ("clusters", ClusterParams),
+        ):
+            object.__setattr__(self, name, _nested(getattr(self, name), cls, name))
+
+
+def _nested(value: Any, cls: type, name: str) -> Any:
+    """A nested parameter dataclass from an instance or a mapping of its fields (named on error)."""
+    if isinstance(value, cls):
+        return value
+    if isinstance(value, Mapping):
+        try:
+            return from_mapping(cls, dict(value))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"ParticleFilterParams.{name}: {exc}") from exc
+    raise ValueError(
+        f"ParticleFilterParams.{name} must be a {cls.__name__} or a mapping, got {value!r}"
+    )
 
 
 def _spread(value: float | tuple[float, ...] | np.ndarray, name: str) -> tuple[float, float, float]:
@@ -124,6 +204,13 @@ class ParticleFilter:
         after which every weight was zero or not finite (see the module docstring).
         last_log_mean_likelihood: log of the weighted mean likelihood of the last scan,
         ``log sum_i w_i p(z | x_i)`` with the weights before the correction (for augmented MCL).
+        last_effective_sample_size: Kish's effective sample size right after the last weight
+            update, before any resampling (NaN before the first).
+        averages: the :class:`~mcl.augmented.LikelihoodAverages` of augmented MCL.
+        pending_random: random particles drawn by the last resampling that join the particles at
+            the next correction (augmented MCL).
+        n_injected: random particles injected by augmented MCL so far; last_injected: by the last
+            correction. n_skipped: scans :meth:`correct` skipped (``update_min_distance``).
     """
 
     def __init__(
@@ -150,6 +237,14 @@ class ParticleFilter:
         self.n_resamples = 0
         self.n_degenerate = 0
         self.last_log_mean_likelihood = math.nan
+        self.last_effective_sample_size = math.nan
+        self.averages = LikelihoodAverages(params.augmented)
+        self.n_injected = 0
+        self.last_injected = 0
+        self.pending_random = 0
+        self.n_skipped = 0
+        self._moved = [math.inf, math.inf]  # metres, radians of odometry since the last used scan
+        self._global_count: int | None = None
 
     # ------------------------------------------------------------------ state
     def _require(self) -> tuple[np.ndarray, np.ndarray]:
@@ -237,14 +332,47 @@ class ParticleFilter:
         sd = np.asarray(_spread(self.params.init_spread if spread is None else spread, "spread"))
         n = self.params.n_particles
         self.set_particles(centre + self.rng.standard_normal((n, 3)) * sd)
+        self._restart()
 
-    def initialize_global(self) -> None:
-        """Particles uniform over the map's free space, headings uniform in [-pi, pi)."""
-        self.set_particles(
-            self.map.sample_free_poses(
-                self.rng, self.params.n_particles, clearance=self.params.global_clearance
-            )
-        )
+    def global_particle_count(self) -> int:
+        """Particles of a global start: ``params.global_particles`` when given, else
+        ``global_density`` x the map's free area (m²), at least ``n_particles``, at most
+        ``global_max_particles`` (or ``n_particles`` when that is larger)."""
+        p = self.params
+        if p.global_particles is not None:
+            return p.global_particles
+        if self._global_count is None:
+            by_area = math.ceil(p.global_density * self.map.free_area)
+            self._global_count = max(p.n_particles, min(by_area, p.global_max_particles))
+        return self._global_count
+
+    @property
+    def max_particles(self) -> int:
+        """Most particles KLD-sampling may keep: ``kld.max_particles`` or the global count."""
+        kld_max = self.params.kld.max_particles
+        return kld_max if kld_max is not None else self.global_particle_count()
+
+    def initialize_global(self, n_particles: int | None = None) -> None:
+        """Particles uniform over the map's free space, headings uniform in [-pi, pi).
+
+        Args:
+            n_particles: how many; None for :meth:`global_particle_count`.
+        """
+        n = self.global_particle_count() if n_particles is None else n_particles
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+            raise ValueError(f"n_particles must be a positive integer, got {n_particles!r}")
+        self.set_particles(self.random_free_poses(int(n)))
+        self._restart()
+
+    def random_free_poses(self, n: int) -> np.ndarray:
+        """(n, 3) world poses uniform over free space (``global_clearance``), from the filter's rng."""
+        return self.map.sample_free_poses(self.rng, n, clearance=self.params.global_clearance)
+
+    def _restart(self) -> None:
+        """A new initial belief: forget the likelihood history; the next scan is always used."""
+        self.averages.reset()
+        self.pending_random = 0
+        self._moved = [math.inf, math.inf]
 
     # ------------------------------------------------------------------ update steps
     def predict(self, twist: np.ndarray, dt: float) -> None:
@@ -260,6 +388,9 @@ class ParticleFilter:
         """Move the particles by a car-frame displacement [dx, dy, dtheta] (metres, radians)."""
         particles, _ = self._require()
         self._particles = self.motion_model.evaluate(particles, odometry, self.rng)
+        odo = np.asarray(odometry, dtype=np.float64)
+        self._moved[0] += math.hypot(odo[0], odo[1])
+        self._moved[1] += abs(float(odo[2]))
 
     def update_weights(self, log_likelihood: np.ndarray) -> None:
         """Multiply the weights by ``exp(log_likelihood)`` (N,) and normalise (Bayes rule).
@@ -282,36 +413,123 @@ class ParticleFilter:
             self.n_degenerate += 1
             self.last_log_mean_likelihood = -math.inf
             if self.params.on_degenerate == "global":
-                self.initialize_global()
+                self.initialize_global(particles.shape[0])  # same count (KLD may grow it)
             else:
                 self.set_particles(particles)
+            self.last_effective_sample_size = self.effective_sample_size
             return
         self.last_log_mean_likelihood = float(top + math.log(np.exp(lw - top).sum()))
         self._set_log_weights(lw)
+        self.last_effective_sample_size = self.effective_sample_size
 
     def needs_resampling(self) -> bool:
-        """Whether the effective sample size is at most ``resample_threshold`` x N."""
+        """Whether the effective sample size is at most ``resample_threshold`` x N, or augmented
+        MCL wants to inject random particles (its injection probability is above 0)."""
+        if self.averages.injection_probability > 0.0:
+            return True
         return self.effective_sample_size <= self.params.resample_threshold * self.n_particles
 
     def resample(self, n: int | None = None) -> np.ndarray:
-        """Draw ``n`` particles (default: the current count) by ``params.resampling``.
+        """Draw ``n`` particles by ``params.resampling``; the weights become uniform.
 
-        The weights become uniform. Returns the chosen indexes of the old particles.
+        The default count is the current one, or with ``params.kld.enabled`` the count
+        KLD-sampling asks for (:meth:`kld_count`). With augmented MCL on, each of the ``n`` draws
+        is a random free-space pose with the injection probability p instead: those are kept
+        aside in :attr:`pending_random` and join the particles at the start of the next
+        :meth:`correct`, so that its scan weighs them before any estimate sees them.
+
+        Returns the chosen indexes of the old particles (the drawn, non-random ones).
         """
         particles, weights = self._require()
-        idx = resample(self.params.resampling, weights, self.rng, n)
+        p_random = self.averages.injection_probability
+        if n is None and self.params.kld.enabled:
+            n, n_random = self.kld_count(p_random)
+        else:
+            n = particles.shape[0] if n is None else n
+            n_random = int(self.rng.binomial(n, p_random)) if p_random > 0.0 else 0
+        n_random = min(n_random, n - 1)  # keep at least one particle of the belief
+        idx = resample(self.params.resampling, weights, self.rng, n - n_random)
         self.set_particles(particles[idx])
+        self.pending_random = n_random
         self.n_resamples += 1
         return idx
+
+    def kld_count(self, p_random: float = 0.0) -> tuple[int, int]:
+        """(particles, of which random) that KLD-sampling asks for (:mod:`mcl.kld`).
+
+        Draws batches of the weighted particles (multinomial, independent), each draw replaced with
+        probability ``p_random`` by a random pose that counts as a bin of its own, doubling the
+        batch until Fox's rule stops or :attr:`max_particles` draws are made.
+        """
+        particles, weights = self._require()
+        kld = self.params.kld
+        n_max = self.max_particles
+        keys = np.empty(0, dtype=np.int64)
+        random = np.empty(0, dtype=bool)
+        batch = min(max(kld.min_particles, particles.shape[0]), n_max)
+        while True:
+            draws = particles[multinomial(weights, self.rng, batch)]
+            new_keys = bin_keys(draws, kld.bin_size)
+            is_random = (
+                self.rng.random(batch) < p_random if p_random > 0.0 else np.zeros(batch, bool)
+            )
+            new_keys[is_random] = -1
+            keys = np.concatenate([keys, new_keys])
+            random = np.concatenate([random, is_random])
+            n = kld_stop(keys, kld)
+            if n is not None or keys.size >= n_max:
+                n = min(n if n is not None else n_max, n_max)
+                return n, int(np.count_nonzero(random[:n]))
+            batch = min(keys.size, n_max - keys.size)
+
+    def _join_pending_random(self) -> None:
+        """Add the random particles kept aside by :meth:`resample`, each with the mean weight."""
+        k = self.pending_random
+        if k <= 0:
+            return
+        particles, weights = self._require()
+        n = particles.shape[0]
+        total = n + k
+        new = self.random_free_poses(k)
+        w = np.concatenate([weights * (n / total), np.full(k, 1.0 / total)])
+        self.set_particles(np.concatenate([particles, new]), w)
+        self.pending_random = 0
+        self.last_injected = k
+        self.n_injected += k
+
+    def should_correct(self) -> bool:
+        """Whether the car moved ``update_min_distance`` or turned ``update_min_angle`` since the
+        last used scan (always True when both are 0)."""
+        p = self.params
+        if p.update_min_distance <= 0.0 and p.update_min_angle <= 0.0:
+            return True
+        moved, turned = self._moved
+        return (p.update_min_distance > 0.0 and moved >= p.update_min_distance) or (
+            p.update_min_angle > 0.0 and turned >= p.update_min_angle
+        )
 
     def correct(self, scan: np.ndarray) -> bool:
         """Weigh the particles by a scan (metres) and resample if needed; returns whether it did.
 
+        The steps: skip the scan unless :meth:`should_correct`; add the random particles of
+        augmented MCL drawn at the last resampling; :meth:`update_weights` with the sensor model's
+        log-likelihoods; fold the scan's per-beam likelihood into :attr:`averages`;
+        :meth:`resample` when :meth:`needs_resampling`.
+
         See :class:`~mcl.sensor_model.SensorModel` for the scan's treatment (NaN/inf beams
         dropped, wrong length or negative ranges rejected with ``ValueError``).
         """
-        particles, _ = self._require()
-        self.update_weights(self.sensor_model.log_evaluate(particles, scan))
+        self._require()
+        if not self.should_correct():
+            self.n_skipped += 1
+            return False
+        n_beams = self.sensor_model.observe(scan)[1].size  # checks the scan before any change
+        self._moved = [0.0, 0.0]
+        self.last_injected = 0
+        self._join_pending_random()
+        self.update_weights(self.sensor_model.log_evaluate(self.particles, scan))
+        squash = float(self.sensor_model.params.squash_exponent)
+        self.averages.update(self.last_log_mean_likelihood, int(n_beams), squash)
         if self.needs_resampling():
             self.resample()
             return True
@@ -342,3 +560,8 @@ class ParticleFilter:
         dev = p - mean
         dev[:, 2] = wrap_angle(dev[:, 2])
         return (dev * w[:, None]).T @ dev
+
+    def uncertainty(self) -> Uncertainty:
+        """Covariance, clusters and ambiguity flag of the cloud (:func:`mcl.clusters.assess`)."""
+        p, w = self._require()
+        return assess(p, w, self.covariance(), self.params.clusters)

@@ -149,7 +149,12 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     Info: the env's plus ``localization``: ``estimate`` (3,), ``position_error`` (m),
     ``heading_error`` (rad, estimate minus truth wrapped to [-pi, pi)), ``n_eff`` (effective
     sample size after this step's weight update, before resampling), ``update_s`` (s of wall time
-    of this step's filter update), ``corrected`` (whether a scan was used).
+    of this step's filter update), ``corrected`` (whether the step carried a fresh scan), and how
+    far to trust the estimate (:meth:`mcl.particle_filter.ParticleFilter.uncertainty`):
+    ``n_particles``, ``covariance`` (3, 3) (metres, radians), ``position_sd`` (m, largest axis),
+    ``heading_sd`` (rad), ``n_clusters`` (clusters of the cloud with a noticeable weight),
+    ``top_weight`` (weight of the heaviest cluster) and ``ambiguous`` (True when the cloud does not
+    pin down one pose: two heavy clusters or a large spread, e.g. in a featureless corridor).
 
     Reset options (the others go to the env): ``init`` (``"pose"`` or ``"global"``, this episode),
     ``init_spread`` (standard deviations x m, y m, theta rad around the start, or one number),
@@ -313,15 +318,17 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         assert pf is not None
         z = np.asarray(scan, dtype=np.float64)
         z = np.where(z >= self._lidar_max_range, self.sensor_model.max_range, z)
-        pf.update_weights(pf.sensor_model.log_evaluate(pf.particles, z))
-        n_eff = pf.effective_sample_size
-        if pf.needs_resampling():
-            pf.resample()
-        return n_eff
+        skipped = pf.n_skipped
+        pf.correct(z)  # inject (augmented MCL), weigh, resample (KLD count) when needed
+        if pf.n_skipped != skipped:  # the filter waits for more motion (update_min_distance)
+            return pf.effective_sample_size
+        return pf.last_effective_sample_size
 
     def _localization(
         self, estimate: np.ndarray, truth: np.ndarray, n_eff: float, update_s: float, fresh: bool
     ) -> dict[str, Any]:
+        assert self.filter is not None
+        unc = self.filter.uncertainty()
         loc = {
             "estimate": estimate,
             "position_error": float(math.hypot(estimate[0] - truth[0], estimate[1] - truth[1])),
@@ -329,6 +336,13 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             "n_eff": float(n_eff),
             "update_s": float(update_s),
             "corrected": fresh,
+            "n_particles": self.filter.n_particles,
+            "covariance": unc.covariance,
+            "position_sd": unc.position_sd,
+            "heading_sd": unc.heading_sd,
+            "n_clusters": unc.n_clusters,
+            "top_weight": unc.top_weight,
+            "ambiguous": unc.ambiguous,
         }
         self.last_localization = loc
         return loc
