@@ -31,7 +31,7 @@ import multiprocessing
 import os
 import sys
 import traceback
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import as_completed as futures_completed
 from dataclasses import asdict, dataclass, field
@@ -264,8 +264,12 @@ def execute_runs(
     total: int | None = None,
     done_already: int = 0,
     stream: TextIO | None = None,
+    runner: Callable[[RunSpec, Path, float], RunResult] | None = None,
 ) -> list[RunResult]:
     """Run ``todo`` = [(spec, log path)]: inline when ``workers`` is 1, else in a spawn process pool.
+
+    Each run is ``runner(spec, log_path, diverged_m)`` (default :func:`run_spec_safely`; another
+    runner must be a module-level function so that worker processes can import it).
 
     A tqdm bar counts ``total`` runs (default: len(todo)) from ``done_already``; failures are
     reported on ``stream`` (default stderr) as they come. Returns the results in the order they
@@ -274,6 +278,7 @@ def execute_runs(
     from tqdm import tqdm
 
     bar = tqdm(total=total, initial=done_already, unit="run", disable=not progress, file=stream)
+    run = runner if runner is not None else run_spec_safely
     results: list[RunResult] = []
 
     def finished(result: RunResult) -> None:
@@ -285,13 +290,12 @@ def execute_runs(
     try:
         if workers <= 1:
             for spec, path in todo:
-                finished(run_spec_safely(spec, path, diverged_m))
+                finished(run(spec, path, diverged_m))
             return results
         context = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(workers, mp_context=context, initializer=_init_worker) as pool:
             futures: dict[Future[RunResult], tuple[RunSpec, Path]] = {
-                pool.submit(run_spec_safely, spec, path, diverged_m): (spec, path)
-                for spec, path in todo
+                pool.submit(run, spec, path, diverged_m): (spec, path) for spec, path in todo
             }
             for future in futures_completed(futures):
                 spec, path = futures[future]

@@ -70,6 +70,9 @@ class RunSpec:
         env: extra :class:`racecar_sim.env.EnvConfig` settings as (name, value) pairs; runs
             default to ``terminate_on_collision=False`` so that each lasts its full duration.
         drive_on: ``"truth"`` or ``"estimate"``: the pose pure pursuit steers by.
+        config: the filter's settings (sensor model, particle filter, ...) apart from ``motion``
+            and ``n_particles``; None for :class:`~mcl.wrapper.LocalizationConfig` defaults.
+        scenario_settings: keyword arguments of the scenario as (name, value) pairs.
     """
 
     map: str = DEFAULT_MAP
@@ -83,6 +86,8 @@ class RunSpec:
     nominal: float = math.nan
     env: tuple[tuple[str, Any], ...] = ()
     drive_on: str = "truth"
+    config: LocalizationConfig | None = None
+    scenario_settings: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         if self.driver not in DRIVERS:
@@ -99,6 +104,10 @@ class RunSpec:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"RunSpec.seed = {self.seed!r} must be a non-negative integer")
         object.__setattr__(self, "env", tuple((str(k), v) for k, v in dict(self.env).items()))
+        settings = tuple((str(k), v) for k, v in dict(self.scenario_settings).items())
+        object.__setattr__(self, "scenario_settings", settings)
+        if self.config is not None and not isinstance(self.config, LocalizationConfig):
+            raise ValueError(f"RunSpec.config = {self.config!r} must be a LocalizationConfig")
 
     @property
     def env_settings(self) -> dict[str, Any]:
@@ -134,6 +143,7 @@ class RunResult:
         wall_s: seconds of wall time the run took (0 when skipped).
         n_collisions: steps with wall contact (-1 when not known, e.g. skipped).
         error: for a failed run, the exception and where it happened.
+        outcome: what the scenario reports after the run (its ``outcome()``, if it has one).
     """
 
     spec: RunSpec
@@ -143,6 +153,7 @@ class RunResult:
     wall_s: float = 0.0
     n_collisions: int = -1
     error: str = ""
+    outcome: dict[str, Any] = field(default_factory=dict)
 
 
 # ---------------------------------------------------------------------- drivers
@@ -230,7 +241,7 @@ def run_one(
         spec: the run.
         log_path: where the error log goes (parents created, an old file replaced).
         config: filter settings besides ``spec.motion`` and ``spec.n_particles`` (defaults:
-            :class:`LocalizationConfig`).
+            ``spec.config``, else :class:`LocalizationConfig`).
         on_frame: when given, called as ``on_frame(frame, info)`` with the ``render()`` frame (RGB
             uint8) and the info of the reset and of every ``frame_every``-th step.
         frame_every: steps between two frames.
@@ -244,12 +255,13 @@ def run_one(
         raise ValueError(f"frame_every must be a positive integer, got {frame_every!r}")
     t_start = time.perf_counter()
     grid = _load_map(spec.map)
-    base = config if config is not None else LocalizationConfig()
+    base = config if config is not None else spec.config or LocalizationConfig()
     config = replace(base.with_particles(spec.n_particles), motion=spec.motion)
     render_mode = "rgb_array" if on_frame is not None else None
     env = RacecarEnv(grid, render_mode=render_mode, **spec.env_settings)
     driver = make_driver(spec.driver, env, spec.seed, spec.drive_on)
-    scenario = make_scenario(spec.scenario)
+    scenario = make_scenario(spec.scenario, **dict(spec.scenario_settings))
+    after_step = getattr(scenario, "after_step", None)
     scenario_rng = np.random.default_rng(
         np.random.SeedSequence(spec.seed).spawn(_SCENARIO_STREAM + 1)[-1]
     )
@@ -270,6 +282,8 @@ def run_one(
             scenario.before_step(wrapped, k, (k - 1) * env.dt, scenario_rng)
             obs, _, terminated, truncated, info = wrapped.step(driver(obs, info))
             n_collisions += bool(info["collision"])
+            if after_step is not None:
+                after_step(wrapped, k, info)
             if on_frame is not None and k % frame_every == 0:
                 on_frame(wrapped.render(), info)
             if terminated or truncated:
@@ -284,4 +298,5 @@ def run_one(
         log_path=Path(log_path),
         wall_s=time.perf_counter() - t_start,
         n_collisions=n_collisions,
+        outcome=dict(scenario.outcome()) if hasattr(scenario, "outcome") else {},
     )
