@@ -1,9 +1,14 @@
-"""The odometry-noise experiment: uniform vs Gaussian motion noise in MCL (see mcl.experiments).
+"""MCL experiments: the odometry-noise sweep (scenario ``tracking``, see mcl.experiments), and
+global localization / kidnapping (scenarios ``global`` and ``kidnap``, see mcl.recovery).
 
-Example (the full run of the README, about half an hour on 2 cores):
+Examples (the full runs of the README):
 
     .venv/bin/python scripts/experiment.py --map ../shared/maps/stata_basement.yaml \
         --seeds 3 --duration 60 --out runs/stata
+    .venv/bin/python scripts/experiment.py --scenario global --map basement_loop \
+        --seeds 20 --out runs/global_basement_loop
+    .venv/bin/python scripts/experiment.py --scenario kidnap --map basement_loop \
+        --seeds 20 --out runs/kidnap_basement_loop
 """
 
 from __future__ import annotations
@@ -20,6 +25,12 @@ from mcl.experiments import (
     UNIFORM_COEFFICIENTS,
     ExperimentConfig,
     run_experiment,
+)
+from mcl.recovery import (
+    RECOVERY_SCENARIOS,
+    RecoveryConfig,
+    recovery_localization,
+    run_recovery_experiment,
 )
 from mcl.runs import DRIVERS
 from mcl.scenarios import SCENARIOS
@@ -51,8 +62,28 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--driver", choices=sorted(DRIVERS), default="wall")
     parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="tracking")
     parser.add_argument("--seeds", type=int, default=3, help="number of seeds (0, 1, ...)")
-    parser.add_argument("--duration", type=float, default=60.0, help="simulated seconds per run")
-    parser.add_argument("--particles", type=int, default=DEFAULT_PARTICLES)
+    parser.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        help="simulated seconds per run (default: 60; global: 20; kidnap: kidnap time + 20)",
+    )
+    parser.add_argument(
+        "--particles",
+        type=int,
+        default=None,
+        help=f"particles per run (default {DEFAULT_PARTICLES}); global/kidnap: particles of the "
+        "global start (default: 300 per m² of free floor)",
+    )
+    parser.add_argument(
+        "--kidnap-time", type=float, default=5.0, help="kidnap: seconds before the car is moved"
+    )
+    parser.add_argument(
+        "--time-limit",
+        type=float,
+        default=None,
+        help="global/kidnap: seconds to converge for a success (default: 10 global, 15 kidnap)",
+    )
     parser.add_argument(
         "--uniform",
         type=_floats,
@@ -83,6 +114,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-plots", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("runs/experiment"), help="output folder")
     args = parser.parse_args(argv)
+    if args.scenario in RECOVERY_SCENARIOS:
+        return _recovery(parser, args)
 
     try:
         config = ExperimentConfig(
@@ -90,8 +123,8 @@ def main(argv: list[str] | None = None) -> int:
             driver=args.driver,
             scenario=args.scenario,
             seeds=args.seeds,
-            duration=args.duration,
-            n_particles=args.particles,
+            duration=args.duration if args.duration is not None else 60.0,
+            n_particles=args.particles if args.particles is not None else DEFAULT_PARTICLES,
             uniform=args.uniform,
             gaussian=args.gaussian,
             matched=not args.no_matched,
@@ -105,6 +138,35 @@ def main(argv: list[str] | None = None) -> int:
     print((args.out / "summary.md").read_text())
     ok = sum(r.status == "ok" for r in report.results)
     skipped = sum(r.status == "skipped" for r in report.results)
+    print(f"{ok} runs done, {skipped} skipped (complete logs), {len(report.failed)} failed")
+    for r in report.failed:
+        print(f"FAILED {r.spec.run_id}: {r.error}", file=sys.stderr)
+    print(f"output folder: {args.out.resolve()}")
+    return 1 if report.failed else 0
+
+
+def _recovery(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    """The global-localization / kidnapping experiment (mcl.recovery)."""
+    try:
+        config = RecoveryConfig(
+            map=args.map,
+            scenario=args.scenario,
+            driver=args.driver,
+            seeds=args.seeds,
+            duration=args.duration,
+            kidnap_time=args.kidnap_time,
+            time_limit=args.time_limit,
+            localization=recovery_localization(global_particles=args.particles),
+            env=tuple(args.env),
+        )
+    except ValueError as exc:
+        parser.error(str(exc))
+    report = run_recovery_experiment(
+        config, args.out, workers=args.workers, resume=args.resume, plots=not args.no_plots
+    )
+    print((args.out / "summary.md").read_text())
+    ok = sum(r.result.status == "ok" for r in report.runs)
+    skipped = sum(r.result.status == "skipped" for r in report.runs)
     print(f"{ok} runs done, {skipped} skipped (complete logs), {len(report.failed)} failed")
     for r in report.failed:
         print(f"FAILED {r.spec.run_id}: {r.error}", file=sys.stderr)
