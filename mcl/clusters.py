@@ -213,7 +213,7 @@ def assess(
     heading_sd = float(math.sqrt(max(float(cov[2, 2]), 0.0)))
     cw = clusters.weights
     n_clusters = int(np.count_nonzero(cw >= params.min_weight))
-    top = float(cw[0])
+    top = min(float(cw[0]), 1.0)  # rounding of the weight sums
     second = float(cw[1]) if cw.size > 1 else 0.0
     ambiguous = (
         (cw.size > 1 and second >= params.ambiguous_weight)
