@@ -4,6 +4,9 @@ Depends on ``racecar_sim.maps`` and ``racecar_sim.raycast``; ``racecar_sim`` nev
 """
 
 from mcl.angles import circular_mean, wrap_angle
+from mcl.augmented import AugmentedParams
+from mcl.clusters import ClusterParams, Uncertainty
+from mcl.kld import KLDParams
 from mcl.motion_model import (
     MotionModel,
     MotionModelParams,
@@ -25,6 +28,9 @@ from mcl.wrapper import LocalizationConfig, LocalizationWrapper
 
 __all__ = [
     "RESAMPLERS",
+    "AugmentedParams",
+    "ClusterParams",
+    "KLDParams",
     "LocalizationConfig",
     "LocalizationWrapper",
     "MotionModel",
@@ -33,6 +39,7 @@ __all__ = [
     "ParticleFilterParams",
     "SensorModel",
     "SensorModelParams",
+    "Uncertainty",
     "beam_table",
     "circular_mean",
     "effective_sample_size",
