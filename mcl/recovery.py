@@ -9,7 +9,7 @@ convergence (position error < 0.3 m and heading error < 10 deg held for 2 s), su
 time limit (10 s global, 15 s kidnap), and from the per-step flags of ``info["localization"]`` the
 fraction of time the filter called its pose ambiguous and the fraction it was confidently wrong.
 
-The filter (:func:`recovery_localization`) is the lab's beam model tempered harder (squash 0.1),
+The filter (:func:`recovery_localization`) is the lab's beam model tempered harder (squash 0.05),
 using a scan every 0.1 m or 0.2 rad of motion, started with 300 particles per m² of free floor,
 KLD-sampling down to 1000 particles (up to 20 000 while searching) and augmented MCL
 (alpha_slow 0.001, alpha_fast 0.1). See the README for why each of these is needed.
@@ -78,7 +78,7 @@ def recovery_localization(
     max_particles: int = 20_000,
     alpha_slow: float = 0.001,
     alpha_fast: float = 0.1,
-    squash_exponent: float = 0.1,
+    squash_exponent: float = 0.05,
     update_min_distance: float = 0.1,
     update_min_angle: float = 0.2,
 ) -> LocalizationConfig:

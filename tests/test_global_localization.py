@@ -188,7 +188,7 @@ def test_uncertainty_is_honest_in_a_symmetric_room_and_sure_in_an_asymmetric_one
     occ = np.zeros((80, 160), dtype=bool)  # an empty 8 m x 4 m box: symmetric under 180 deg
     occ[:2, :] = occ[-2:, :] = occ[:, :2] = occ[:, -2:] = True
     box = OccupancyMap(occupied=occ, resolution=0.05, origin=(0.0, 0.0, 0.0), name="box")
-    # Tempered as for global localization (squash 0.1): with the lab's 1/2.2 ten scans from one
+    # Tempered (squash 0.1, the experiment uses 0.05): with the lab's 1/2.2 ten scans from one
     # spot already collapse the cloud onto one of the two equally good modes.
     box_sensor = SensorModel(
         box, SensorModelParams(raycast_method="exact", parallel=False, squash_exponent=0.1)
