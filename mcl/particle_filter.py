@@ -18,7 +18,8 @@ scan matches nothing, or the filter is lost), the filter does not produce NaN. I
 ``n_degenerate`` and, by ``ParticleFilterParams.on_degenerate``, keeps the particles with uniform
 weights (``"keep"``) or re-spreads as many uniformly over free space (``"global"``).
 
-Global localization and recovery (all off by default, so the plain filter is unchanged):
+Global localization and recovery (KLD-sampling, augmented MCL and scan spacing are off by default,
+so the plain filter's draws are unchanged):
 
 - :meth:`ParticleFilter.initialize_global` spreads :meth:`~ParticleFilter.global_particle_count`
   particles over free space, by default ``global_density`` per square metre of free floor
