@@ -44,9 +44,7 @@ so the plain filter's draws are unchanged):
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Any
 
 import numpy as np
 
@@ -58,7 +56,7 @@ from mcl.motion_model import MotionModel, twist_to_odometry
 from mcl.resampling import RESAMPLERS, multinomial, resample
 from mcl.sensor_model import SensorModel
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.params import from_mapping
+from racecar_sim.params import nested
 
 __all__ = ["ParticleFilter", "ParticleFilterParams"]
 
@@ -160,21 +158,9 @@ class ParticleFilterParams:
             ("kld", KLDParams),
             ("clusters", ClusterParams),
         ):
-            object.__setattr__(self, name, _nested(getattr(self, name), cls, name))
-
-
-def _nested(value: Any, cls: type, name: str) -> Any:
-    """A nested parameter dataclass from an instance or a mapping of its fields (named on error)."""
-    if isinstance(value, cls):
-        return value
-    if isinstance(value, Mapping):
-        try:
-            return from_mapping(cls, dict(value))
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"ParticleFilterParams.{name}: {exc}") from exc
-    raise ValueError(
-        f"ParticleFilterParams.{name} must be a {cls.__name__} or a mapping, got {value!r}"
-    )
+            object.__setattr__(
+                self, name, nested(getattr(self, name), cls, f"ParticleFilterParams.{name}")
+            )
 
 
 def _spread(value: float | tuple[float, ...] | np.ndarray, name: str) -> tuple[float, float, float]:

@@ -31,7 +31,8 @@ _STYLES: dict[str, dict[str, object]] = {
 }
 
 
-def _save(fig: plt.Figure, path: str | os.PathLike[str]) -> Path:
+def save_figure(fig: plt.Figure, path: str | os.PathLike[str]) -> Path:
+    """Write ``fig`` as PNG to ``path`` (folders created), close it, return the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=_DPI)
@@ -65,7 +66,7 @@ def plot_error_vs_time(
     if title:
         ax_p.set_title(title)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_overlay(
@@ -93,7 +94,7 @@ def plot_overlay(
     if title:
         ax.set_title(title)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_error_vs_coefficient(
@@ -135,4 +136,4 @@ def plot_error_vs_coefficient(
     if title:
         ax.set_title(title)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)

@@ -18,22 +18,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from mcl.error_log import read_error_log
-from mcl.plots import plot_error_vs_time, plot_overlay
+from mcl.plots import plot_error_vs_time, plot_overlay, save_figure
 
 if TYPE_CHECKING:
     from mcl.recovery import RecoveryConfig, RecoveryRun
 
 __all__ = ["plot_convergence_curve", "plot_particles", "write_recovery_plots"]
-
-_DPI = 100
-
-
-def _save(fig: plt.Figure, path: str | os.PathLike[str]) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=_DPI)
-    plt.close(fig)
-    return path
 
 
 def plot_convergence_curve(
@@ -70,7 +60,7 @@ def plot_convergence_curve(
     if title:
         ax.set_title(title)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_particles(
@@ -108,7 +98,7 @@ def plot_particles(
     if title:
         ax_n.set_title(title)
     fig.tight_layout()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def write_recovery_plots(

@@ -33,7 +33,7 @@ from mcl.error_log import ErrorLogWriter
 from mcl.motion_model import MotionModel, MotionModelParams
 from mcl.particle_filter import ParticleFilter, ParticleFilterParams
 from mcl.sensor_model import SensorModel, SensorModelParams
-from racecar_sim.params import from_mapping
+from racecar_sim.params import from_mapping, nested
 
 __all__ = [
     "INIT_MODES",
@@ -53,20 +53,6 @@ FilterFactory = Callable[..., ParticleFilter]
 """Builds the filter: called as ``factory(occupancy_map, motion_model=..., sensor_model=...,
 params=..., rng=...)`` (the signature of :class:`~mcl.particle_filter.ParticleFilter`); a variant
 such as augmented MCL passes its own class."""
-
-
-def _nested(value: Any, cls: type, name: str) -> Any:
-    """A parameter dataclass from an instance or a mapping of its fields (named on error)."""
-    if isinstance(value, cls):
-        return value
-    if isinstance(value, Mapping):
-        try:
-            return from_mapping(cls, dict(value))
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"LocalizationConfig.{name}: {exc}") from exc
-    raise ValueError(
-        f"LocalizationConfig.{name} must be a {cls.__name__} or a mapping, got {value!r}"
-    )
 
 
 @dataclass(frozen=True)
@@ -100,9 +86,15 @@ class LocalizationConfig:
             raise ValueError(
                 f"LocalizationConfig.init = {self.init!r}; choose one of {list(INIT_MODES)}"
             )
-        object.__setattr__(self, "motion", _nested(self.motion, MotionModelParams, "motion"))
-        object.__setattr__(self, "sensor", _nested(self.sensor, SensorModelParams, "sensor"))
-        object.__setattr__(self, "filter", _nested(self.filter, ParticleFilterParams, "filter"))
+        object.__setattr__(
+            self, "motion", nested(self.motion, MotionModelParams, "LocalizationConfig.motion")
+        )
+        object.__setattr__(
+            self, "sensor", nested(self.sensor, SensorModelParams, "LocalizationConfig.sensor")
+        )
+        object.__setattr__(
+            self, "filter", nested(self.filter, ParticleFilterParams, "LocalizationConfig.filter")
+        )
         n = self.render_particles
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:
             raise ValueError(

@@ -21,6 +21,7 @@ __all__ = [
     "OdometryNoise",
     "from_mapping",
     "from_yaml",
+    "nested",
 ]
 
 T = TypeVar("T")
@@ -38,6 +39,24 @@ def from_mapping(cls: type[T], mapping: dict[str, Any] | None) -> T:
     if unknown:
         raise ValueError(f"unknown {cls.__name__} parameter(s) {unknown}; known: {sorted(names)}")
     return cls(**mapping)
+
+
+def nested(value: Any, cls: type[T], owner: str) -> T:
+    """A nested parameter dataclass from an instance of ``cls`` or a mapping of its fields.
+
+    ``owner`` names the field in errors (e.g. ``"ParticleFilterParams.kld"``).
+
+    Raises:
+        ValueError: the mapping has an unknown key or a rejected value, or ``value`` is neither.
+    """
+    if isinstance(value, cls):
+        return value
+    if isinstance(value, dict) or hasattr(value, "keys"):
+        try:
+            return from_mapping(cls, dict(value))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{owner}: {exc}") from exc
+    raise ValueError(f"{owner} must be a {cls.__name__} or a mapping, got {value!r}")
 
 
 def from_yaml(cls: type[T], path: str | os.PathLike[str], section: str | None = None) -> T:

@@ -58,3 +58,15 @@ def test_from_yaml_reads_a_section(tmp_path: Path) -> None:
     assert from_yaml(CarParams, path, section="car").mass == 4.0
     with pytest.raises(ValueError, match="not found"):
         from_yaml(CarParams, tmp_path / "nope.yaml")
+
+
+def test_nested_takes_an_instance_or_a_mapping_and_names_the_owner() -> None:
+    from racecar_sim.params import nested
+
+    car = CarParams(mass=4.0)
+    assert nested(car, CarParams, "Outer.car") is car
+    assert nested({"mass": 5.0}, CarParams, "Outer.car") == CarParams(mass=5.0)
+    with pytest.raises(ValueError, match=r"Outer\.car: unknown CarParams parameter"):
+        nested({"masss": 5.0}, CarParams, "Outer.car")
+    with pytest.raises(ValueError, match=r"Outer\.car must be a CarParams or a mapping"):
+        nested(3, CarParams, "Outer.car")
