@@ -32,7 +32,7 @@ from mcl.recovery import (
     recovery_localization,
     run_recovery_experiment,
 )
-from mcl.runs import DRIVERS
+from mcl.runs import DRIVERS, RunResult
 from mcl.scenarios import SCENARIOS
 from racecar_sim.maps import DEFAULT_MAP
 
@@ -135,14 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     report = run_experiment(
         config, args.out, workers=args.workers, resume=args.resume, plots=not args.no_plots
     )
-    print((args.out / "summary.md").read_text())
-    ok = sum(r.status == "ok" for r in report.results)
-    skipped = sum(r.status == "skipped" for r in report.results)
-    print(f"{ok} runs done, {skipped} skipped (complete logs), {len(report.failed)} failed")
-    for r in report.failed:
-        print(f"FAILED {r.spec.run_id}: {r.error}", file=sys.stderr)
-    print(f"output folder: {args.out.resolve()}")
-    return 1 if report.failed else 0
+    return _finish(args.out, [r.status for r in report.results], report.failed)
 
 
 def _recovery(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
@@ -164,14 +157,18 @@ def _recovery(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     report = run_recovery_experiment(
         config, args.out, workers=args.workers, resume=args.resume, plots=not args.no_plots
     )
-    print((args.out / "summary.md").read_text())
-    ok = sum(r.result.status == "ok" for r in report.runs)
-    skipped = sum(r.result.status == "skipped" for r in report.runs)
-    print(f"{ok} runs done, {skipped} skipped (complete logs), {len(report.failed)} failed")
-    for r in report.failed:
+    return _finish(args.out, [r.result.status for r in report.runs], report.failed)
+
+
+def _finish(out: Path, statuses: list[str], failed: list[RunResult]) -> int:
+    """Print the summary, the run counts and each failure; exit status 1 when a run failed."""
+    print((out / "summary.md").read_text())
+    ok, skipped = statuses.count("ok"), statuses.count("skipped")
+    print(f"{ok} runs done, {skipped} skipped (complete logs), {len(failed)} failed")
+    for r in failed:
         print(f"FAILED {r.spec.run_id}: {r.error}", file=sys.stderr)
-    print(f"output folder: {args.out.resolve()}")
-    return 1 if report.failed else 0
+    print(f"output folder: {out.resolve()}")
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
