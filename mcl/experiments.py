@@ -315,8 +315,9 @@ def execute_runs(
     return results
 
 
-def _check_settings(config: ExperimentConfig, path: Path, resume: bool) -> None:
-    """Record the sweep's settings in ``path``; with ``resume``, refuse a folder made otherwise.
+def record_settings(config: Any, path: Path, resume: bool) -> None:
+    """Record an experiment config (a dataclass) as JSON in ``path``; with ``resume``, refuse a folder
+    made with other settings, naming the settings that differ.
 
     Logs are only reusable by runs with the same settings (map, particles, env, ...).
     """
@@ -331,6 +332,56 @@ def _check_settings(config: ExperimentConfig, path: Path, resume: bool) -> None:
                 "differ); use another output folder or drop --resume"
             )
     path.write_text(settings + "\n", encoding="utf-8")
+
+
+def run_pending(
+    config: Any,
+    specs: Sequence[RunSpec],
+    out: Path,
+    *,
+    workers: int | None,
+    resume: bool,
+    reuse: Callable[[RunSpec, Path], RunResult | None],
+    progress: bool,
+    stream: TextIO,
+    diverged_m: float = DIVERGED_M,
+    runner: Callable[[RunSpec, Path, float], RunResult] | None = None,
+) -> list[RunResult]:
+    """Run ``specs`` into ``out/logs/<run_id>.csv``; the results in the order of ``specs``.
+
+    The folder's ``config.json`` records ``config`` (see :func:`record_settings`). With ``resume``,
+    ``reuse(spec, log_path)`` may return a ``"skipped"`` result for a run whose output is complete;
+    every other run goes to :func:`execute_runs` over ``workers`` processes (default: the CPU count).
+    """
+    ids = [s.run_id for s in specs]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"{type(config).__name__}: two runs share a name (repeated settings?)")
+    workers = workers if workers is not None else (os.cpu_count() or 1)
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    (out / "logs").mkdir(parents=True, exist_ok=True)
+    record_settings(config, out / "config.json", resume)
+    by_id: dict[str, RunResult] = {}
+    todo: list[tuple[RunSpec, Path]] = []
+    for spec in specs:
+        path = _log_path(out, spec)
+        kept = reuse(spec, path) if resume else None
+        if kept is not None:
+            by_id[spec.run_id] = kept
+        else:
+            todo.append((spec, path))
+    done = execute_runs(
+        todo,
+        min(workers, max(len(todo), 1)),
+        diverged_m=diverged_m,
+        progress=progress,
+        total=len(specs),
+        done_already=len(by_id),
+        stream=stream,
+        runner=runner,
+    )
+    by_id.update({r.spec.run_id: r for r in done})
+    return [by_id[i] for i in ids]
 
 
 def run_experiment(
@@ -358,38 +409,23 @@ def run_experiment(
     Failed runs are listed on ``stream``, in runs.csv and in summary.md; they do not stop the
     others.
     """
-    stream = stream if stream is not None else sys.stderr
     out = Path(out_dir)
-    (out / "logs").mkdir(parents=True, exist_ok=True)
-    specs = config.runs()
-    ids = [s.run_id for s in specs]
-    if len(set(ids)) != len(ids):
-        raise ValueError("ExperimentConfig: two runs share a name (repeated coefficients?)")
-    workers = workers if workers is not None else (os.cpu_count() or 1)
-    if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
 
-    _check_settings(config, out / "config.json", resume)
+    def reuse(spec: RunSpec, path: Path) -> RunResult | None:
+        complete = count_rows(path) == spec.n_steps
+        return _skipped(spec, path, config.diverged_m) if complete else None
 
-    by_id: dict[str, RunResult] = {}
-    todo: list[tuple[RunSpec, Path]] = []
-    for spec in specs:
-        path = _log_path(out, spec)
-        if resume and count_rows(path) == spec.n_steps:
-            by_id[spec.run_id] = _skipped(spec, path, config.diverged_m)
-        else:
-            todo.append((spec, path))
-    done = execute_runs(
-        todo,
-        min(workers, max(len(todo), 1)),
-        diverged_m=config.diverged_m,
+    results = run_pending(
+        config,
+        config.runs(),
+        out,
+        workers=workers,
+        resume=resume,
+        reuse=reuse,
         progress=progress,
-        total=len(specs),
-        done_already=len(by_id),
-        stream=stream,
+        stream=stream if stream is not None else sys.stderr,
+        diverged_m=config.diverged_m,
     )
-    by_id.update({r.spec.run_id: r for r in done})
-    results = [by_id[i] for i in ids]
     summary = summarize(results)
     files = write_summary(config, summary, results, out)
     if plots:

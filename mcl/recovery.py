@@ -44,7 +44,7 @@ import numpy as np
 from mcl.augmented import AugmentedParams
 from mcl.convergence import ConvergenceCriteria, RecoveryStats, recovery_stats
 from mcl.error_log import count_rows, read_error_log
-from mcl.experiments import execute_runs, run_spec_safely
+from mcl.experiments import run_pending, run_spec_safely
 from mcl.kld import KLDParams
 from mcl.metrics import DIVERGED_M, error_stats
 from mcl.particle_filter import ParticleFilterParams
@@ -262,21 +262,6 @@ def run_recovery_safely(spec: RunSpec, log_path: Path, diverged_m: float = DIVER
     return result
 
 
-def _check_settings(config: RecoveryConfig, path: Path, resume: bool) -> None:
-    """Record the settings in ``path``; with ``resume``, refuse a folder made with others."""
-    settings = json.dumps(asdict(config), sort_keys=True, default=str)
-    if resume and path.is_file():
-        before = path.read_text(encoding="utf-8").strip()
-        if before != settings:
-            old, new = json.loads(before), json.loads(settings)
-            changed = sorted(k for k in new if old.get(k) != new[k])
-            raise ValueError(
-                f"--resume: {path.parent} holds runs with other settings ({', '.join(changed)} "
-                "differ); use another output folder or drop --resume"
-            )
-    path.write_text(settings + "\n", encoding="utf-8")
-
-
 def _judge(config: RecoveryConfig, result: RunResult) -> RecoveryRun:
     if result.status == "failed" or not result.log_path.is_file():
         return RecoveryRun(result, None)
@@ -318,40 +303,32 @@ def run_recovery_experiment(
         plots: draw the PNG plots.
         stream: where progress and failures are reported (default: stderr).
     """
-    stream = stream if stream is not None else sys.stderr
     out = Path(out_dir)
-    (out / "logs").mkdir(parents=True, exist_ok=True)
-    workers = workers if workers is not None else (os.cpu_count() or 1)
-    if workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
-    _check_settings(config, out / "config.json", resume)
-    specs = config.runs()
-    by_id: dict[str, RunResult] = {}
-    todo: list[tuple[RunSpec, Path]] = []
-    for spec in specs:
-        path = out / "logs" / f"{spec.run_id}.csv"
+
+    def reuse(spec: RunSpec, path: Path) -> RunResult | None:
         outcome = _outcome_path(path)
-        if resume and count_rows(path) == spec.n_steps and outcome.is_file():
-            by_id[spec.run_id] = RunResult(
-                spec=spec,
-                status="skipped",
-                stats=error_stats(read_error_log(path)),
-                log_path=path,
-                outcome=json.loads(outcome.read_text(encoding="utf-8")),
-            )
-        else:
-            todo.append((spec, path))
-    done = execute_runs(
-        todo,
-        min(workers, max(len(todo), 1)),
+        if count_rows(path) != spec.n_steps or not outcome.is_file():
+            return None
+        return RunResult(
+            spec=spec,
+            status="skipped",
+            stats=error_stats(read_error_log(path)),
+            log_path=path,
+            outcome=json.loads(outcome.read_text(encoding="utf-8")),
+        )
+
+    results = run_pending(
+        config,
+        config.runs(),
+        out,
+        workers=workers,
+        resume=resume,
+        reuse=reuse,
         progress=progress,
-        total=len(specs),
-        done_already=len(by_id),
-        stream=stream,
+        stream=stream if stream is not None else sys.stderr,
         runner=run_recovery_safely,
     )
-    by_id.update({r.spec.run_id: r for r in done})
-    runs = [_judge(config, by_id[s.run_id]) for s in specs]
+    runs = [_judge(config, r) for r in results]
     files = write_tables(config, runs, out)
     if plots:
         from mcl.recovery_plots import write_recovery_plots
