@@ -5,7 +5,6 @@ Depends on ``racecar_sim.maps`` and ``racecar_sim.raycast``; ``racecar_sim`` nev
 
 from mcl.angles import circular_mean, wrap_angle
 from mcl.augmented import AugmentedParams
-from mcl.clusters import ClusterParams, Uncertainty
 from mcl.kld import KLDParams
 from mcl.motion_model import (
     MotionModel,
@@ -24,7 +23,9 @@ from mcl.resampling import (
     systematic,
 )
 from mcl.sensor_model import SensorModel, SensorModelParams, beam_table
+from mcl.uncertainty import ClusterParams, Uncertainty
 from mcl.wrapper import LocalizationConfig, LocalizationWrapper
+from racecar_sim import __version__
 
 __all__ = [
     "RESAMPLERS",
@@ -40,6 +41,7 @@ __all__ = [
     "SensorModel",
     "SensorModelParams",
     "Uncertainty",
+    "__version__",
     "beam_table",
     "circular_mean",
     "effective_sample_size",
@@ -52,4 +54,3 @@ __all__ = [
     "uniform_to_gaussian",
     "wrap_angle",
 ]
-__version__ = "0.1.0"

@@ -34,7 +34,7 @@ so the plain filter's draws are unchanged):
   right away, so that a scan weighs them before any estimate sees them (a fraction p of uniformly
   weighted random poses would otherwise drag the mean pose across the map).
 - :meth:`ParticleFilter.uncertainty` gives the covariance, the clusters of the cloud and an
-  ambiguity flag (:mod:`mcl.clusters`).
+  ambiguity flag (:mod:`mcl.uncertainty`).
 - ``update_min_distance`` / ``update_min_angle`` skip scans until the car has moved so far (as
   ROS amcl's ``update_min_d`` / ``update_min_a``): scans taken at 40 Hz from almost the same pose
   are far from independent, and weighing them all makes the filter overconfident before the car
@@ -50,13 +50,13 @@ import numpy as np
 
 from mcl.angles import circular_mean, wrap_angle
 from mcl.augmented import AugmentedParams, LikelihoodAverages
-from mcl.clusters import ClusterParams, Uncertainty, assess
 from mcl.kld import KLDParams, bin_keys, kld_stop
 from mcl.motion_model import MotionModel, twist_to_odometry
 from mcl.resampling import RESAMPLERS, multinomial, resample
 from mcl.sensor_model import SensorModel
+from mcl.uncertainty import ClusterParams, Uncertainty, assess
+from racecar_sim.config import nested
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.params import nested
 
 __all__ = ["ParticleFilter", "ParticleFilterParams"]
 
@@ -90,7 +90,7 @@ class ParticleFilterParams:
         update_min_angle: radians, see ``update_min_distance``.
         augmented: :class:`~mcl.augmented.AugmentedParams` (alphas 0: off).
         kld: :class:`~mcl.kld.KLDParams` (``enabled=False``: fixed count).
-        clusters: :class:`~mcl.clusters.ClusterParams` of :meth:`uncertainty`.
+        clusters: :class:`~mcl.uncertainty.ClusterParams` of :meth:`uncertainty`.
     """
 
     n_particles: int = 4000
@@ -549,6 +549,6 @@ class ParticleFilter:
         return (dev * w[:, None]).T @ dev
 
     def uncertainty(self) -> Uncertainty:
-        """Covariance, clusters and ambiguity flag of the cloud (:func:`mcl.clusters.assess`)."""
+        """Covariance, clusters and ambiguity flag of the cloud (:func:`mcl.uncertainty.assess`)."""
         p, w = self._require()
         return assess(p, w, self.covariance(), self.params.clusters)

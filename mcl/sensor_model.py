@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from racecar_sim.config import LidarParams
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.params import LidarParams
 from racecar_sim.raycast import RayCaster
 
 __all__ = ["SensorModel", "SensorModelParams", "beam_table"]

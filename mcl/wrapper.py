@@ -33,7 +33,7 @@ from mcl.error_log import ErrorLogWriter
 from mcl.motion_model import MotionModel, MotionModelParams
 from mcl.particle_filter import ParticleFilter, ParticleFilterParams
 from mcl.sensor_model import SensorModel, SensorModelParams
-from racecar_sim.params import from_mapping, nested
+from racecar_sim.config import from_mapping, nested
 
 __all__ = [
     "INIT_MODES",
@@ -57,7 +57,7 @@ such as augmented MCL passes its own class."""
 
 @dataclass(frozen=True)
 class LocalizationConfig:
-    """Settings of :class:`LocalizationWrapper` (loadable with ``racecar_sim.params.from_mapping``).
+    """Settings of :class:`LocalizationWrapper` (loadable with ``racecar_sim.config.from_mapping``).
 
     Attributes:
         init: ``"pose"`` (Gaussian around the true start pose, standard deviations

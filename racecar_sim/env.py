@@ -2,189 +2,35 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import yaml
 from gymnasium import spaces
 
+from racecar_sim.config import (
+    CarParams,
+    EnvConfig,
+    LidarParams,
+    OdometryNoise,
+    load_config,
+    merge_settings,
+)
 from racecar_sim.maps import MapError, OccupancyMap, resolve_map
-from racecar_sim.params import CarParams, LidarParams, OdometryNoise, from_mapping
 from racecar_sim.physics import RacecarPhysics
 from racecar_sim.render import MapRenderer
 from racecar_sim.sensors import Lidar, Odometry
 
 __all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
 
-_LIDAR = LidarParams()
-_ODOM = OdometryNoise()
 _EPS_TIME = 1e-9  # seconds; tolerance when comparing the clock with the next scan's due time
 _START_TRIES = 1000  # random start poses tried before giving up
 
 RenderHook = Callable[[np.ndarray, MapRenderer], None]
 """``fn(img, renderer) -> None``: draws overlays in place on the RGB frame being rendered."""
-
-
-@dataclass(frozen=True)
-class EnvConfig:
-    """Every setting of :class:`RacecarEnv` (SI units), with defaults.
-
-    Attributes:
-        map: bundled map name, map YAML path or :class:`OccupancyMap`; None = the default map.
-        n_beams: lidar beams per scan.
-        fov: radians covered by the scan, centred on the heading.
-        max_range: metres, longest lidar range (and the value of a drop-out).
-        mount_offset: metres from the rear axle forwards to the lidar.
-        lidar_rate: scans per second.
-        dt: seconds of control per :meth:`RacecarEnv.step`.
-        substep: longest physics substep, seconds.
-        terminate_on_collision: end the episode when the car touches a wall.
-        collision_penalty: reward subtracted on a step with wall contact.
-        start_clearance: metres of free space kept around the car's footprint at a random start.
-        range_sigma: metres, Gaussian range noise of the lidar.
-        p_short: probability per beam of a short return.
-        short_lambda: 1/metres, rate of the short-return distance.
-        p_max: probability per beam of a max-range drop-out.
-        p_rand: probability per beam of a uniformly random return.
-        odom_proportional: odometry (vx, vy, omega) noise as a fraction of the true value.
-        odom_additive: odometry (vx, vy, omega) additive noise, m/s, m/s, rad/s.
-        car: the car's geometry and limits, a :class:`CarParams` or a mapping of its fields.
-    """
-
-    map: str | os.PathLike[str] | OccupancyMap | None = None
-    n_beams: int = _LIDAR.n_beams
-    fov: float = _LIDAR.fov
-    max_range: float = _LIDAR.max_range
-    mount_offset: float = _LIDAR.mount_offset
-    lidar_rate: float = _LIDAR.rate
-    dt: float = 0.025
-    substep: float = 0.005
-    terminate_on_collision: bool = True
-    collision_penalty: float = 1.0
-    start_clearance: float = 0.1
-    range_sigma: float = _LIDAR.sigma
-    p_short: float = _LIDAR.p_short
-    short_lambda: float = _LIDAR.short_lambda
-    p_max: float = _LIDAR.p_max
-    p_rand: float = _LIDAR.p_rand
-    odom_proportional: tuple[float, float, float] = _ODOM.proportional
-    odom_additive: tuple[float, float, float] = _ODOM.additive
-    car: CarParams = field(default_factory=CarParams)
-
-    def __post_init__(self) -> None:
-        if isinstance(self.car, Mapping):
-            object.__setattr__(self, "car", from_mapping(CarParams, dict(self.car)))
-        elif not isinstance(self.car, CarParams):
-            raise ValueError(f"car must be a CarParams or a mapping, got {self.car!r}")
-        for name in ("dt", "substep"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
-        for name in ("collision_penalty", "start_clearance"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a non-negative number, got {value!r}")
-        if not isinstance(self.terminate_on_collision, bool):
-            raise ValueError(
-                f"terminate_on_collision must be true or false, got {self.terminate_on_collision!r}"
-            )
-        # Build the sensor parameters once so that bad values fail here, naming the setting.
-        self.lidar_params()
-        self.odometry_noise()
-
-    def lidar_params(self) -> LidarParams:
-        """The lidar settings as :class:`LidarParams`."""
-        try:
-            return LidarParams(
-                n_beams=self.n_beams,
-                fov=self.fov,
-                max_range=self.max_range,
-                mount_offset=self.mount_offset,
-                rate=self.lidar_rate,
-                sigma=self.range_sigma,
-                p_short=self.p_short,
-                short_lambda=self.short_lambda,
-                p_max=self.p_max,
-                p_rand=self.p_rand,
-            )
-        except (TypeError, ValueError) as exc:
-            raise ValueError(
-                f"lidar settings (n_beams, fov, max_range, mount_offset, lidar_rate, range_sigma, "
-                f"p_short, short_lambda, p_max, p_rand): {exc}"
-            ) from exc
-
-    def odometry_noise(self) -> OdometryNoise:
-        """The odometry settings as :class:`OdometryNoise`."""
-        try:
-            return OdometryNoise(
-                proportional=tuple(self.odom_proportional),  # type: ignore[arg-type]
-                additive=tuple(self.odom_additive),  # type: ignore[arg-type]
-            )
-        except (TypeError, ValueError) as exc:
-            raise ValueError(
-                f"odometry settings (odom_proportional, odom_additive): {exc}"
-            ) from exc
-
-
-_SETTINGS = frozenset(f.name for f in dataclasses.fields(EnvConfig))
-
-
-def load_config(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read env settings from a YAML mapping whose keys are :class:`EnvConfig` field names.
-
-    A relative ``map`` path is taken relative to the YAML file when such a file exists there.
-
-    Raises:
-        ValueError: the file is missing, not a mapping, or has a key that is not a setting (named).
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"env config file {path} not found")
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as exc:
-        raise ValueError(f"env config file {path}: not valid YAML ({exc})") from exc
-    if not isinstance(data, dict):
-        raise ValueError(f"env config file {path}: expected a mapping of settings")
-    unknown = sorted(set(data) - _SETTINGS)
-    if unknown:
-        raise ValueError(
-            f"env config file {path}: unknown setting(s) {unknown}; known: {sorted(_SETTINGS)}"
-        )
-    spec = data.get("map")
-    if isinstance(spec, str) and not Path(spec).is_absolute() and (path.parent / spec).is_file():
-        data["map"] = str(path.parent / spec)
-    return data
-
-
-def _merge_settings(
-    config: str | os.PathLike[str] | Mapping[str, Any] | EnvConfig | None,
-    overrides: dict[str, Any],
-) -> EnvConfig:
-    """EnvConfig from defaults < ``config`` (file, mapping or EnvConfig) < keyword ``overrides``."""
-    if config is None:
-        values: dict[str, Any] = {}
-    elif isinstance(config, EnvConfig):
-        values = {f.name: getattr(config, f.name) for f in dataclasses.fields(EnvConfig)}
-    elif isinstance(config, Mapping):
-        values = dict(config)
-    else:
-        values = load_config(config)
-    # A keyword left at None means "not given": the config file or the default applies.
-    values.update({k: v for k, v in overrides.items() if v is not None})
-    unknown = sorted(set(values) - _SETTINGS)
-    if unknown:
-        raise ValueError(
-            f"unknown RacecarEnv setting(s) {unknown}; known: {sorted(_SETTINGS | {'config'})}"
-        )
-    return EnvConfig(**values)
 
 
 class RacecarEnv(gym.Env):
@@ -203,7 +49,7 @@ class RacecarEnv(gym.Env):
     wheel angle to steer to (radians, positive turns left) and the speed to reach (m/s, negative
     reverses). Actions outside the box are clipped to it; an action with NaN or infinity raises
     ``ValueError``. The car follows the command within ``max_steer_rate``, ``max_accel`` and
-    ``max_decel`` of its :class:`~racecar_sim.params.CarParams`.
+    ``max_decel`` of its :class:`~racecar_sim.config.CarParams`.
 
     ## Observation Space
     ``Dict``:
@@ -268,7 +114,7 @@ class RacecarEnv(gym.Env):
                 f"render_mode {render_mode!r} is not supported; use one of "
                 f"{self.metadata['render_modes']} or None"
             )
-        self.config = _merge_settings(config, {"map": map, **settings})
+        self.config = merge_settings(config, {"map": map, **settings})
         self.render_mode = render_mode
         cfg = self.config
         self.map: OccupancyMap = resolve_map(cfg.map)

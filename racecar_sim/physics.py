@@ -34,8 +34,8 @@ import math
 import numpy as np
 import pymunk
 
+from racecar_sim.config import CarParams
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.params import CarParams
 
 __all__ = ["CAR_COLLISION_TYPE", "WALL_COLLISION_TYPE", "RacecarPhysics", "wall_segments"]
 

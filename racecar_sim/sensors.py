@@ -3,7 +3,7 @@
 Both sensors draw every random number from a :class:`numpy.random.Generator` passed to the call, so
 the same seed gives the same measurements.
 
-Lidar beam noise (the four-part beam model of :class:`~racecar_sim.params.LidarParams`). One uniform
+Lidar beam noise (the four-part beam model of :class:`~racecar_sim.config.LidarParams`). One uniform
 draw per beam chooses its part:
 
 * ``u < p_rand``: a random return, uniform in [0, max_range];
@@ -25,8 +25,8 @@ import math
 import numba as nb
 import numpy as np
 
+from racecar_sim.config import LidarParams, OdometryNoise
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.params import LidarParams, OdometryNoise
 from racecar_sim.raycast import RayCaster
 
 __all__ = ["Lidar", "Odometry", "check_pose"]

@@ -1,78 +1,8 @@
-"""Which parts of the global-localization filter matter? The recovery experiment with one part off.
+"""Thin wrapper: `racecar-sim recovery-ablation` (see :mod:`mcl.cli.recovery_ablation`)."""
 
-Runs :func:`mcl.recovery.run_recovery_experiment` on one map for each variant below (``--variants``
-to choose), each into ``<out>/<variant>``, and prints one summary line per variant:
-
-* ``full``: :func:`mcl.recovery.recovery_localization` as is;
-* ``lab``: the plain filter of the tracking experiments (beam model squash 1/2.2, every scan,
-  global start at the default 20 particles/m², fixed count, no augmented MCL);
-* ``sparse``: a global start at 20 particles/m² instead of 300;
-* ``sharp``: the lab's squash 1/2.2 instead of 0.1;
-* ``every_scan``: every scan used (40 Hz) instead of one every 0.1 m / 0.2 rad;
-* ``no_recovery``: augmented MCL off (both alphas 0).
-
-    .venv/bin/python scripts/recovery_ablation.py --scenario global --map basement_loop \\
-        --seeds 20 --out runs/ablation_global
-"""
-
-from __future__ import annotations
-
-import argparse
 import sys
-from dataclasses import replace
-from pathlib import Path
 
-from mcl.recovery import RecoveryConfig, recovery_localization, run_recovery_experiment
-from mcl.sensor_model import SensorModelParams
-from mcl.wrapper import LocalizationConfig
-from racecar_sim.maps import DEFAULT_MAP
-
-VARIANTS = {
-    "full": lambda: recovery_localization(),
-    "lab": lambda: LocalizationConfig(sensor=SensorModelParams(parallel=False)),
-    "sparse": lambda: recovery_localization(global_density=20.0),
-    "sharp": lambda: recovery_localization(squash_exponent=1.0 / 2.2),
-    "every_scan": lambda: recovery_localization(update_min_distance=0.0, update_min_angle=0.0),
-    "no_recovery": lambda: recovery_localization(alpha_slow=0.0, alpha_fast=0.0),
-}
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--map", default=DEFAULT_MAP)
-    parser.add_argument("--scenario", choices=["global", "kidnap"], default="global")
-    parser.add_argument("--seeds", type=int, default=20)
-    parser.add_argument("--variants", nargs="+", choices=sorted(VARIANTS), default=list(VARIANTS))
-    parser.add_argument("--workers", type=int, default=None)
-    parser.add_argument("--resume", action="store_true")
-    parser.add_argument("--out", type=Path, default=Path("runs/ablation"))
-    args = parser.parse_args(argv)
-    base = RecoveryConfig(map=args.map, scenario=args.scenario, seeds=args.seeds)
-    print(f"{args.scenario} on {Path(args.map).stem}, {args.seeds} seeds, limit {base.limit:g} s")
-    print("| variant | success | median s | never | confidently wrong | wall s per run |")
-    print("|---|---|---|---|---|---|")
-    failed = 0
-    for name in args.variants:
-        config = replace(base, localization=VARIANTS[name]())
-        report = run_recovery_experiment(
-            config, args.out / name, workers=args.workers, resume=args.resume, progress=False
-        )
-        failed += len(report.failed)
-        stats = [r.stats for r in report.runs if r.stats is not None]
-        times = sorted(s.convergence_s for s in stats if s.convergence_s == s.convergence_s)
-        median = f"{times[len(times) // 2]:.2f}" if times else "–"
-        wrong = sum(s.wrong_fraction for s in stats) / max(len(stats), 1)
-        walls = [r.result.wall_s for r in report.runs if r.result.status == "ok"]
-        wall = f"{sum(walls) / len(walls):.1f}" if walls else "–"
-        print(
-            f"| {name} | {sum(s.success for s in stats)}/{len(stats)} | {median} | "
-            f"{len(stats) - len(times)} | {100 * wrong:.0f} % | {wall} |",
-            flush=True,
-        )
-    return 1 if failed else 0
-
+from mcl.cli.recovery_ablation import main
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(sys.argv[1:]))

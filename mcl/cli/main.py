@@ -1,0 +1,50 @@
+"""``racecar-sim``: the console command, dispatching to one subcommand module each.
+
+Subcommands: ``drive`` (a headless localized drive), ``experiment`` (noise sweep, global
+localization, kidnapping), ``ablation`` (the recovery ablation), ``bench`` (benchmarks),
+``make-maps`` (draw the bundled maps).
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from collections.abc import Sequence
+
+SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    "drive": ("mcl.cli.drive", "a headless localized drive on a map, with error log, plot and video"),
+    "experiment": ("mcl.cli.experiment", "the noise sweep, or global localization / kidnapping"),
+    "ablation": ("mcl.cli.recovery_ablation", "the recovery experiment with one part switched off"),
+    "bench": ("mcl.cli.bench", "benchmarks: raycast, sim, mcl, uncertainty"),
+    "make-maps": ("mcl.cli.make_maps", "draw the bundled maps"),
+}
+"""Subcommand name -> (module with ``main(argv)``, one-line description)."""
+
+
+def _usage() -> str:
+    width = max(len(n) for n in SUBCOMMANDS)
+    rows = "\n".join(f"  {n:<{width}}  {d}" for n, (_, d) in SUBCOMMANDS.items())
+    return (
+        "usage: racecar-sim SUBCOMMAND [options]   (racecar-sim SUBCOMMAND --help for its options)\n\n"
+        f"subcommands:\n{rows}\n"
+    )
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run ``racecar-sim SUBCOMMAND ...``; returns the exit code."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] in ("-h", "--help"):
+        print(_usage(), end="")
+        return 0
+    name, rest = args[0], args[1:]
+    if name not in SUBCOMMANDS:
+        print(_usage(), end="", file=sys.stderr)
+        print(f"racecar-sim: error: unknown subcommand {name!r}", file=sys.stderr)
+        return 2
+    module = importlib.import_module(SUBCOMMANDS[name][0])
+    result = module.main(rest)
+    return result if isinstance(result, int) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

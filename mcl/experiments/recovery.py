@@ -1,0 +1,456 @@
+"""The global-localization and kidnapping experiment: how fast, and how often, the filter finds the car.
+
+Over N seeds on one map, every run starts the filter without knowing the pose (scenario
+``global``: particles uniform over free space, the car at a random start) or loses it on purpose
+(scenario ``kidnap``: tracking from the true start, then the car is teleported to a random free pose
+at ``kidnap_time``, see :mod:`mcl.experiments.scenarios`). The wall follower drives; each run writes the
+wrapper's CSV error log. From the log (:mod:`mcl.experiments.convergence`): the time from losing the car to
+convergence (position error < 0.3 m and heading error < 10 deg held for 2 s), success within the
+time limit (10 s global, 15 s kidnap), and from the per-step flags of ``info["localization"]`` the
+fraction of time the filter called its pose ambiguous and the fraction it was confidently wrong.
+
+The filter (:func:`recovery_localization`) is the lab's beam model tempered harder (squash 0.05),
+using a scan every 0.1 m or 0.2 rad of motion, started with 300 particles per m² of free floor,
+KLD-sampling down to 1000 particles (up to 20 000 while searching) and augmented MCL
+(alpha_slow 0.001, alpha_fast 0.1). See the README for why each of these is needed.
+
+Output folder layout::
+
+    config.json                 the experiment's settings (checked by ``resume``)
+    logs/<run_id>.csv           one error log per run (mcl.error_log format)
+    logs/<run_id>.json          what the scenario recorded (kidnap poses, per-step flags)
+    runs.csv                    one line per run: convergence time, success, honesty, particles
+    summary.md                  summary table and the per-run table
+    plots/runs/<run_id>.png     error vs time of each run
+    plots/overlay.png           position error vs time of every seed
+    plots/convergence.png       fraction of runs converged vs time since the filter lost the car
+    plots/particles.png         particle count, and the fraction of runs ambiguous, vs time
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import sys
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from mcl.augmented import AugmentedParams
+from mcl.error_log import count_rows, read_error_log
+from mcl.experiments.convergence import ConvergenceCriteria, RecoveryStats, recovery_stats
+from mcl.experiments.metrics import DIVERGED_M, error_stats
+from mcl.experiments.runner import run_pending, run_spec_safely
+from mcl.experiments.runs import DRIVERS, RunResult, RunSpec
+from mcl.kld import KLDParams
+from mcl.particle_filter import ParticleFilterParams
+from mcl.sensor_model import SensorModelParams
+from mcl.wrapper import LocalizationConfig
+from racecar_sim.maps import DEFAULT_MAP
+
+__all__ = [
+    "RECOVERY_SCENARIOS",
+    "RecoveryConfig",
+    "RecoveryReport",
+    "RecoveryRun",
+    "recovery_localization",
+    "run_recovery_experiment",
+    "run_recovery_safely",
+    "summary_markdown",
+]
+
+RECOVERY_SCENARIOS: dict[str, tuple[float, float]] = {
+    "global": (20.0, 10.0),
+    "kidnap": (20.0, 15.0),
+}
+"""Scenario -> (default seconds of driving after the filter loses the car, time limit in s)."""
+
+
+def recovery_localization(
+    global_density: float = 300.0,
+    global_particles: int | None = None,
+    min_particles: int = 1000,
+    max_particles: int = 20_000,
+    alpha_slow: float = 0.001,
+    alpha_fast: float = 0.1,
+    squash_exponent: float = 0.05,
+    update_min_distance: float = 0.1,
+    update_min_angle: float = 0.2,
+) -> LocalizationConfig:
+    """Filter settings for finding the car (module docstring); the defaults are the measured ones.
+
+    Args:
+        global_density: particles per m² of free floor at a global start (capped at 300 000).
+        global_particles: an explicit count for the global start instead.
+        min_particles, max_particles: KLD-sampling's bounds on the particle count.
+        alpha_slow, alpha_fast: augmented MCL's averaging rates per correction.
+        squash_exponent: the beam model's tempering exponent (the lab's is 1/2.2).
+        update_min_distance: metres of motion between two scans the filter uses.
+        update_min_angle: radians of rotation between two scans the filter uses.
+    """
+    return LocalizationConfig(
+        sensor=SensorModelParams(squash_exponent=squash_exponent, parallel=False),
+        filter=ParticleFilterParams(
+            n_particles=min_particles,
+            global_particles=global_particles,
+            global_density=global_density,
+            global_max_particles=300_000,
+            update_min_distance=update_min_distance,
+            update_min_angle=update_min_angle,
+            augmented=AugmentedParams(alpha_slow=alpha_slow, alpha_fast=alpha_fast),
+            kld=KLDParams(
+                enabled=True, epsilon=0.02, min_particles=min_particles, max_particles=max_particles
+            ),
+        ),
+    )
+
+
+@dataclass(frozen=True)
+class RecoveryConfig:
+    """The experiment: which runs to make and how to judge them.
+
+    Attributes:
+        map: bundled map name or map YAML path.
+        scenario: ``"global"`` or ``"kidnap"``.
+        driver: a key of :data:`mcl.experiments.runs.DRIVERS`.
+        seeds: number of seeds (``first_seed``, ``first_seed + 1``, ...): each gives its own start
+            pose, sensor noise, filter draws and kidnap pose.
+        first_seed: the first seed.
+        duration: seconds of simulated time per run; None = the scenario's default after the
+            filter loses the car (20 s), plus ``kidnap_time`` for a kidnapping.
+        kidnap_time: seconds after reset at which the car is kidnapped (scenario ``kidnap``).
+        time_limit: seconds after losing the car within which convergence counts as a success;
+            None = 10 s (global) or 15 s (kidnap).
+        criteria: what counts as converged.
+        localization: the filter's settings (default :func:`recovery_localization`).
+        env: extra RacecarEnv settings as (name, value) pairs.
+    """
+
+    map: str = DEFAULT_MAP
+    scenario: str = "global"
+    driver: str = "wall"
+    seeds: int = 20
+    first_seed: int = 0
+    duration: float | None = None
+    kidnap_time: float = 5.0
+    time_limit: float | None = None
+    criteria: ConvergenceCriteria = field(default_factory=ConvergenceCriteria)
+    localization: LocalizationConfig = field(default_factory=recovery_localization)
+    env: tuple[tuple[str, Any], ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.scenario not in RECOVERY_SCENARIOS:
+            raise ValueError(
+                f"RecoveryConfig.scenario = {self.scenario!r}; choose one of "
+                f"{sorted(RECOVERY_SCENARIOS)}"
+            )
+        if self.driver not in DRIVERS:
+            raise ValueError(f"RecoveryConfig.driver = {self.driver!r}; choose one of {DRIVERS}")
+        for name, low in (("seeds", 1), ("first_seed", 0)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ValueError(f"RecoveryConfig.{name} = {v!r} must be an integer >= {low}")
+        for name in ("duration", "time_limit", "kidnap_time"):
+            v = getattr(self, name)
+            if v is None and name != "kidnap_time":
+                continue
+            if isinstance(v, bool) or not isinstance(v, int | float) or not 0 <= v < math.inf:
+                raise ValueError(f"RecoveryConfig.{name} = {v!r} must be a number of seconds")
+        if self.total_duration <= self.lost_at:
+            raise ValueError(
+                f"RecoveryConfig.duration = {self.duration!r} s ends before the kidnap at "
+                f"{self.kidnap_time} s"
+            )
+        object.__setattr__(self, "env", tuple((str(k), v) for k, v in dict(self.env).items()))
+
+    @property
+    def lost_at(self) -> float:
+        """Seconds after reset at which the filter loses the car (0, or the kidnap)."""
+        return self.kidnap_time if self.scenario == "kidnap" else 0.0
+
+    @property
+    def limit(self) -> float:
+        """The time limit in seconds after losing the car."""
+        return (
+            self.time_limit if self.time_limit is not None else RECOVERY_SCENARIOS[self.scenario][1]
+        )
+
+    @property
+    def total_duration(self) -> float:
+        """Seconds of simulated time per run."""
+        if self.duration is not None:
+            return float(self.duration)
+        return self.lost_at + RECOVERY_SCENARIOS[self.scenario][0]
+
+    def runs(self) -> list[RunSpec]:
+        """One run per seed."""
+        settings = (("kidnap_time", self.kidnap_time),) if self.scenario == "kidnap" else ()
+        loc = self.localization
+        return [
+            RunSpec(
+                map=str(self.map),
+                driver=self.driver,
+                scenario=self.scenario,
+                motion=loc.motion,
+                seed=seed,
+                duration=self.total_duration,
+                n_particles=loc.filter.n_particles,
+                series=self.scenario,
+                env=self.env,
+                config=loc,
+                scenario_settings=settings,
+            )
+            for seed in range(self.first_seed, self.first_seed + self.seeds)
+        ]
+
+
+@dataclass(frozen=True)
+class RecoveryRun:
+    """One run and its judgement.
+
+    Attributes:
+        result: how the run went (:class:`mcl.experiments.runs.RunResult`).
+        stats: convergence and honesty (None when the run failed).
+    """
+
+    result: RunResult
+    stats: RecoveryStats | None
+
+
+@dataclass(frozen=True)
+class RecoveryReport:
+    """What :func:`run_recovery_experiment` did.
+
+    Attributes:
+        config: the experiment. out_dir: its folder. runs: one per seed, in seed order.
+        files: paths written.
+    """
+
+    config: RecoveryConfig
+    out_dir: Path
+    runs: list[RecoveryRun]
+    files: list[Path]
+
+    @property
+    def failed(self) -> list[RunResult]:
+        """The runs that crashed."""
+        return [r.result for r in self.runs if r.result.status == "failed"]
+
+    @property
+    def success_rate(self) -> float:
+        """Fraction of the finished runs that converged within the time limit."""
+        done = [r.stats for r in self.runs if r.stats is not None]
+        return float(np.mean([s.success for s in done])) if done else math.nan
+
+
+# ---------------------------------------------------------------------- running
+def _outcome_path(log_path: Path) -> Path:
+    return Path(log_path).with_suffix(".json")
+
+
+def run_recovery_safely(spec: RunSpec, log_path: Path, diverged_m: float = DIVERGED_M) -> RunResult:
+    """:func:`mcl.experiments.runner.run_spec_safely`, then the scenario's outcome saved next to the log
+    (``<log>.json``) so that ``resume`` can judge the run without running it again."""
+    result = run_spec_safely(spec, log_path, diverged_m)
+    if result.status == "ok":
+        _outcome_path(log_path).write_text(json.dumps(result.outcome), encoding="utf-8")
+    return result
+
+
+def _judge(config: RecoveryConfig, result: RunResult) -> RecoveryRun:
+    if result.status == "failed" or not result.log_path.is_file():
+        return RecoveryRun(result, None)
+    log = read_error_log(result.log_path)
+    outcome = result.outcome
+    lost_at = float(outcome.get("lost_at", config.lost_at))
+    if not math.isfinite(lost_at):  # the kidnap never happened (run too short)
+        lost_at = config.lost_at
+    stats = recovery_stats(
+        log,
+        lost_at,
+        config.limit,
+        ambiguous=np.asarray(outcome["ambiguous"]) if "ambiguous" in outcome else None,
+        n_particles=np.asarray(outcome["n_particles"]) if "n_particles" in outcome else None,
+        criteria=config.criteria,
+    )
+    return RecoveryRun(result, stats)
+
+
+def run_recovery_experiment(
+    config: RecoveryConfig,
+    out_dir: str | os.PathLike[str],
+    *,
+    workers: int | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    plots: bool = True,
+    stream: TextIO | None = None,
+) -> RecoveryReport:
+    """Run every seed into ``out_dir``, judge the runs, write runs.csv, summary.md and the plots.
+
+    Args:
+        config: the experiment.
+        out_dir: output folder (created).
+        workers: processes (default: the CPU count; 1 runs inline in this process).
+        resume: skip runs whose log is complete and whose outcome file exists (config.json must
+            match ``config``).
+        progress: show a tqdm bar over the runs on ``stream``.
+        plots: draw the PNG plots.
+        stream: where progress and failures are reported (default: stderr).
+    """
+    out = Path(out_dir)
+
+    def reuse(spec: RunSpec, path: Path) -> RunResult | None:
+        outcome = _outcome_path(path)
+        if count_rows(path) != spec.n_steps or not outcome.is_file():
+            return None
+        return RunResult(
+            spec=spec,
+            status="skipped",
+            stats=error_stats(read_error_log(path)),
+            log_path=path,
+            outcome=json.loads(outcome.read_text(encoding="utf-8")),
+        )
+
+    results = run_pending(
+        config,
+        config.runs(),
+        out,
+        workers=workers,
+        resume=resume,
+        reuse=reuse,
+        progress=progress,
+        stream=stream if stream is not None else sys.stderr,
+        runner=run_recovery_safely,
+    )
+    runs = [_judge(config, r) for r in results]
+    files = write_tables(config, runs, out)
+    if plots:
+        from mcl.experiments.recovery_plots import write_recovery_plots
+
+        files += write_recovery_plots(config, runs, out)
+    return RecoveryReport(config, out, runs, files)
+
+
+# ---------------------------------------------------------------------- tables
+def _fmt(value: float, digits: int = 2) -> str:
+    return "–" if value is None or not math.isfinite(value) else f"{value:.{digits}f}"
+
+
+def _pct(value: float) -> str:
+    return "–" if not math.isfinite(value) else f"{100 * value:.0f} %"
+
+
+def summary_markdown(config: RecoveryConfig, runs: Sequence[RecoveryRun]) -> str:
+    """The summary table (one row) and the per-run table, as Markdown."""
+    stats = [r.stats for r in runs if r.stats is not None]
+    n_failed = sum(r.result.status == "failed" for r in runs)
+    times = np.array([s.convergence_s for s in stats], dtype=np.float64)
+    conv = times[np.isfinite(times)]
+    ok = [s.success for s in stats]
+
+    def mean_of(name: str) -> float:
+        values = np.array([getattr(s, name) for s in stats], dtype=np.float64)
+        values = values[np.isfinite(values)]
+        return float(values.mean()) if values.size else math.nan
+
+    walls = [r.result.wall_s for r in runs if r.result.status == "ok"]
+    head = (
+        f"| runs | success (≤ {config.limit:g} s) | median s | mean s | p90 s | max s | never | error "
+        "after (m) | ambiguous | confidently wrong | wrong after limit | peak particles | final "
+        "particles | wall s |"
+    )
+    row = [
+        f"{len(stats)}" + (f" ({n_failed} failed)" if n_failed else ""),
+        f"{sum(ok)}/{len(ok)} = {_pct(float(np.mean(ok)) if ok else math.nan)}",
+        _fmt(float(np.median(conv)) if conv.size else math.nan),
+        _fmt(float(conv.mean()) if conv.size else math.nan),
+        _fmt(float(np.percentile(conv, 90)) if conv.size else math.nan),
+        _fmt(float(conv.max()) if conv.size else math.nan),
+        f"{int(np.count_nonzero(~np.isfinite(times)))}",
+        _fmt(mean_of("error_after"), 3),
+        _pct(mean_of("ambiguous_fraction")),
+        _pct(mean_of("wrong_fraction")),
+        _pct(mean_of("wrong_after_fraction")),
+        _fmt(mean_of("peak_particles"), 0),
+        _fmt(mean_of("final_particles"), 0),
+        _fmt(float(np.mean(walls)) if walls else math.nan, 1),
+    ]
+    lines = [head, "|" + "---|" * len(row), "| " + " | ".join(row) + " |", ""]
+    lines += [
+        "| run | seed | lost at s | converged after s | success | error after (m) | ambiguous "
+        "| confidently wrong | peak particles | status |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in runs:
+        s = r.stats
+        if s is None:
+            lines.append(
+                f"| {r.result.spec.run_id} | {r.result.spec.seed} | – | – | – | – | – | – | – | "
+                f"failed: {r.result.error} |"
+            )
+            continue
+        lines.append(
+            f"| {r.result.spec.run_id} | {r.result.spec.seed} | {s.lost_at:g} | "
+            f"{_fmt(s.convergence_s)} | {'yes' if s.success else 'no'} | "
+            f"{_fmt(s.error_after, 3)} | {_pct(s.ambiguous_fraction)} | "
+            f"{_pct(s.wrong_fraction)} | {s.peak_particles} | {r.result.status} |"
+        )
+    return "\n".join(lines)
+
+
+def write_tables(
+    config: RecoveryConfig, runs: Sequence[RecoveryRun], out_dir: str | os.PathLike[str]
+) -> list[Path]:
+    """Write runs.csv and summary.md into ``out_dir``; returns their paths."""
+    out = Path(out_dir)
+    runs_path, md_path = out / "runs.csv", out / "summary.md"
+    fields = ["run_id", "seed", "status", *RecoveryStats.__dataclass_fields__, "wall_s", "error"]
+    with runs_path.open("w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fields)
+        writer.writeheader()
+        for r in runs:
+            row: dict[str, Any] = {
+                "run_id": r.result.spec.run_id,
+                "seed": r.result.spec.seed,
+                "status": r.result.status,
+                "wall_s": round(r.result.wall_s, 3),
+                "error": r.result.error,
+            }
+            if r.stats is not None:
+                row.update(asdict(r.stats))
+            writer.writerow(row)
+    c = config
+    f = c.localization.filter
+    what = (
+        "global localization (particles uniform over free space, car at a random start)"
+        if c.scenario == "global"
+        else f"kidnapping (tracking from the true start, car teleported at {c.kidnap_time:g} s)"
+    )
+    text = [
+        f"# MCL {c.scenario} experiment",
+        "",
+        f"Map `{c.map}`, {what}; driver `{c.driver}`, seeds {c.first_seed}.."
+        f"{c.first_seed + c.seeds - 1}, {c.total_duration:g} s of simulated time per run. "
+        f"Converged = position error < {c.criteria.position_m:g} m and heading error < "
+        f"{math.degrees(c.criteria.heading_rad):g} deg held for {c.criteria.hold_s:g} s; times "
+        f"from the moment the filter lost the car; success = converged within {c.limit:g} s. "
+        f"Confidently wrong = not flagged ambiguous while the position error exceeds "
+        f"{c.criteria.wrong_m:g} m (fraction of the steps after losing the car; 'after limit': "
+        f"of the steps from the time limit on). Filter: "
+        f"KLD {f.kld.min_particles}-{f.kld.max_particles} particles, global start "
+        f"{f.global_particles or f'{f.global_density:g}/m²'}, alpha_slow "
+        f"{f.augmented.alpha_slow:g}, alpha_fast {f.augmented.alpha_fast:g}, squash "
+        f"{c.localization.sensor.squash_exponent:g}, a scan every "
+        f"{f.update_min_distance:g} m / {f.update_min_angle:g} rad.",
+        "",
+        summary_markdown(config, runs),
+        "",
+    ]
+    md_path.write_text("\n".join(text), encoding="utf-8")
+    return [runs_path, md_path]

@@ -1,0 +1,384 @@
+"""Every setting of the simulator: the car, the lidar, the odometry and the env, in SI units.
+
+Frozen dataclasses validated once when built. Every class can be built from a mapping or a YAML file
+with :func:`from_mapping` / :func:`from_yaml`; unknown keys raise a ``ValueError`` naming them.
+:class:`EnvConfig` gathers the env's keywords (see :class:`racecar_sim.env.RacecarEnv`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+
+from racecar_sim.maps import OccupancyMap
+
+__all__ = [
+    "CarParams",
+    "EnvConfig",
+    "LidarParams",
+    "OdometryNoise",
+    "from_mapping",
+    "from_yaml",
+    "load_config",
+    "merge_settings",
+    "nested",
+]
+
+T = TypeVar("T")
+
+
+def from_mapping(cls: type[T], mapping: dict[str, Any] | None) -> T:
+    """Build dataclass ``cls`` from a mapping, defaults for missing keys.
+
+    Raises:
+        ValueError: a key is not a field of ``cls``, or a value is rejected by its validation.
+    """
+    mapping = dict(mapping or {})
+    names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    unknown = sorted(set(mapping) - names)
+    if unknown:
+        raise ValueError(f"unknown {cls.__name__} parameter(s) {unknown}; known: {sorted(names)}")
+    return cls(**mapping)
+
+
+def nested(value: Any, cls: type[T], owner: str) -> T:
+    """A nested parameter dataclass from an instance of ``cls`` or a mapping of its fields.
+
+    ``owner`` names the field in errors (e.g. ``"ParticleFilterParams.kld"``).
+
+    Raises:
+        ValueError: the mapping has an unknown key or a rejected value, or ``value`` is neither.
+    """
+    if isinstance(value, cls):
+        return value
+    if isinstance(value, dict) or hasattr(value, "keys"):
+        try:
+            return from_mapping(cls, dict(value))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{owner}: {exc}") from exc
+    raise ValueError(f"{owner} must be a {cls.__name__} or a mapping, got {value!r}")
+
+
+def from_yaml(cls: type[T], path: str | os.PathLike[str], section: str | None = None) -> T:
+    """Build dataclass ``cls`` from a YAML file (optionally from one top-level ``section``)."""
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"parameter file {path} not found")
+    data = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(data, dict):
+        raise ValueError(f"parameter file {path}: expected a mapping")
+    if section is not None:
+        data = data.get(section, {}) or {}
+    try:
+        return from_mapping(cls, data)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"parameter file {path}: {exc}") from exc
+
+
+def _check(cls_name: str, **checks: tuple[float, bool]) -> None:
+    for name, (value, ok) in checks.items():
+        if not isinstance(value, int | float) or not math.isfinite(value) or not ok:
+            raise ValueError(f"{cls_name}.{name} = {value!r} is out of range")
+
+
+@dataclass(frozen=True)
+class CarParams:
+    """A 1/10-scale F1TENTH / MIT RSS racecar (kinematic bicycle about the rear axle).
+
+    Attributes:
+        wheelbase: metres between the axles.
+        max_steer: radians, limit of the front wheel angle (both directions).
+        max_steer_rate: radians per second the steering servo can turn.
+        max_speed: metres per second forwards.
+        max_reverse_speed: metres per second backwards (a positive number).
+        max_accel: metres per second squared when speeding up.
+        max_decel: metres per second squared when braking.
+        length: metres, bumper to bumper.
+        width: metres.
+        rear_overhang: metres from the rear axle back to the rear bumper.
+        mass: kilograms.
+    """
+
+    wheelbase: float = 0.33
+    max_steer: float = 0.42
+    max_steer_rate: float = 3.2
+    max_speed: float = 7.0
+    max_reverse_speed: float = 2.0
+    max_accel: float = 7.5
+    max_decel: float = 9.5
+    length: float = 0.55
+    width: float = 0.30
+    rear_overhang: float = 0.11
+    mass: float = 3.5
+
+    def __post_init__(self) -> None:
+        _check(
+            "CarParams",
+            wheelbase=(self.wheelbase, self.wheelbase > 0),
+            max_steer=(self.max_steer, 0 < self.max_steer < math.pi / 2),
+            max_steer_rate=(self.max_steer_rate, self.max_steer_rate > 0),
+            max_speed=(self.max_speed, self.max_speed > 0),
+            max_reverse_speed=(self.max_reverse_speed, self.max_reverse_speed >= 0),
+            max_accel=(self.max_accel, self.max_accel > 0),
+            max_decel=(self.max_decel, self.max_decel > 0),
+            length=(self.length, self.length > 0),
+            width=(self.width, self.width > 0),
+            rear_overhang=(self.rear_overhang, 0 <= self.rear_overhang < self.length),
+            mass=(self.mass, self.mass > 0),
+        )
+
+
+@dataclass(frozen=True)
+class LidarParams:
+    """A planar scanning lidar (defaults: the MIT RSS racecar's Hokuyo as used in the lab).
+
+    Beams are spread evenly over ``fov`` centred on the car's heading, first beam at ``-fov / 2``
+    (right), last at ``+fov / 2`` (left), both ends included.
+
+    Noise follows the four parts of the beam model (Probabilistic Robotics, 6.3), each beam drawing
+    one of: a random return (probability ``p_rand``, uniform in [0, max_range]), a max-range drop-out
+    (``p_max``, reported as ``max_range``), a short return from an unmapped obstacle (``p_short``, an
+    exponential distance with rate ``short_lambda`` truncated to the true range), otherwise the true
+    range plus Gaussian noise of ``sigma`` metres. Ranges are clipped to [0, max_range].
+
+    Attributes:
+        n_beams: number of beams per scan.
+        fov: radians covered by the scan.
+        max_range: metres; also the value of a drop-out.
+        mount_offset: metres ahead of the rear axle along the car's x axis.
+        rate: scans per second; between scans the last scan is repeated.
+        sigma: metres, standard deviation of the Gaussian range noise.
+        p_short: probability of a short return per beam.
+        short_lambda: 1/metres, rate of the exponential short-return distance.
+        p_max: probability of a max-range drop-out per beam.
+        p_rand: probability of a uniformly random return per beam.
+    """
+
+    n_beams: int = 1080
+    fov: float = 4.71
+    max_range: float = 10.0
+    mount_offset: float = 0.275
+    rate: float = 40.0
+    sigma: float = 0.01
+    p_short: float = 0.01
+    short_lambda: float = 1.0
+    p_max: float = 0.005
+    p_rand: float = 0.005
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.n_beams, int) or isinstance(self.n_beams, bool) or self.n_beams < 1:
+            raise ValueError(f"LidarParams.n_beams = {self.n_beams!r} must be a positive integer")
+        _check(
+            "LidarParams",
+            fov=(self.fov, 0 < self.fov <= 2 * math.pi),
+            max_range=(self.max_range, self.max_range > 0),
+            mount_offset=(self.mount_offset, True),
+            rate=(self.rate, self.rate > 0),
+            sigma=(self.sigma, self.sigma >= 0),
+            p_short=(self.p_short, 0 <= self.p_short <= 1),
+            short_lambda=(self.short_lambda, self.short_lambda > 0),
+            p_max=(self.p_max, 0 <= self.p_max <= 1),
+            p_rand=(self.p_rand, 0 <= self.p_rand <= 1),
+        )
+        if self.p_short + self.p_max + self.p_rand > 1:
+            raise ValueError("LidarParams: p_short + p_max + p_rand must not exceed 1")
+
+    @property
+    def angles(self):  # -> np.ndarray, imported lazily to keep this module light
+        """(n_beams,) beam angles in the car frame, radians."""
+        import numpy as np
+
+        if self.n_beams == 1:
+            return np.zeros(1)
+        return np.linspace(-self.fov / 2, self.fov / 2, self.n_beams)
+
+
+@dataclass(frozen=True)
+class OdometryNoise:
+    """Noise of the wheel odometry's car-frame twist (vx, vy, omega), like a VESC's /odom.
+
+    Each reported component is ``true * (1 + N(0, proportional**2)) + N(0, additive**2)``.
+
+    Attributes:
+        proportional: (vx, vy, omega) standard deviations as a fraction of the true value.
+        additive: (vx, vy, omega) standard deviations in m/s, m/s, rad/s.
+    """
+
+    proportional: tuple[float, float, float] = (0.02, 0.0, 0.05)
+    additive: tuple[float, float, float] = (0.005, 0.0, 0.005)
+
+    def __post_init__(self) -> None:
+        for name in ("proportional", "additive"):
+            value = tuple(float(v) for v in getattr(self, name))
+            if len(value) != 3 or not all(math.isfinite(v) and v >= 0 for v in value):
+                raise ValueError(
+                    f"OdometryNoise.{name} must be three non-negative numbers, got {value!r}"
+                )
+            object.__setattr__(self, name, value)
+
+
+# ---------------------------------------------------------------------- the env's settings
+_LIDAR = LidarParams()
+_ODOM = OdometryNoise()
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Every setting of :class:`RacecarEnv` (SI units), with defaults.
+
+    Attributes:
+        map: bundled map name, map YAML path or :class:`OccupancyMap`; None = the default map.
+        n_beams: lidar beams per scan.
+        fov: radians covered by the scan, centred on the heading.
+        max_range: metres, longest lidar range (and the value of a drop-out).
+        mount_offset: metres from the rear axle forwards to the lidar.
+        lidar_rate: scans per second.
+        dt: seconds of control per :meth:`RacecarEnv.step`.
+        substep: longest physics substep, seconds.
+        terminate_on_collision: end the episode when the car touches a wall.
+        collision_penalty: reward subtracted on a step with wall contact.
+        start_clearance: metres of free space kept around the car's footprint at a random start.
+        range_sigma: metres, Gaussian range noise of the lidar.
+        p_short: probability per beam of a short return.
+        short_lambda: 1/metres, rate of the short-return distance.
+        p_max: probability per beam of a max-range drop-out.
+        p_rand: probability per beam of a uniformly random return.
+        odom_proportional: odometry (vx, vy, omega) noise as a fraction of the true value.
+        odom_additive: odometry (vx, vy, omega) additive noise, m/s, m/s, rad/s.
+        car: the car's geometry and limits, a :class:`CarParams` or a mapping of its fields.
+    """
+
+    map: str | os.PathLike[str] | OccupancyMap | None = None
+    n_beams: int = _LIDAR.n_beams
+    fov: float = _LIDAR.fov
+    max_range: float = _LIDAR.max_range
+    mount_offset: float = _LIDAR.mount_offset
+    lidar_rate: float = _LIDAR.rate
+    dt: float = 0.025
+    substep: float = 0.005
+    terminate_on_collision: bool = True
+    collision_penalty: float = 1.0
+    start_clearance: float = 0.1
+    range_sigma: float = _LIDAR.sigma
+    p_short: float = _LIDAR.p_short
+    short_lambda: float = _LIDAR.short_lambda
+    p_max: float = _LIDAR.p_max
+    p_rand: float = _LIDAR.p_rand
+    odom_proportional: tuple[float, float, float] = _ODOM.proportional
+    odom_additive: tuple[float, float, float] = _ODOM.additive
+    car: CarParams = field(default_factory=CarParams)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.car, Mapping):
+            object.__setattr__(self, "car", from_mapping(CarParams, dict(self.car)))
+        elif not isinstance(self.car, CarParams):
+            raise ValueError(f"car must be a CarParams or a mapping, got {self.car!r}")
+        for name in ("dt", "substep"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
+        for name in ("collision_penalty", "start_clearance"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+        if not isinstance(self.terminate_on_collision, bool):
+            raise ValueError(
+                f"terminate_on_collision must be true or false, got {self.terminate_on_collision!r}"
+            )
+        # Build the sensor parameters once so that bad values fail here, naming the setting.
+        self.lidar_params()
+        self.odometry_noise()
+
+    def lidar_params(self) -> LidarParams:
+        """The lidar settings as :class:`LidarParams`."""
+        try:
+            return LidarParams(
+                n_beams=self.n_beams,
+                fov=self.fov,
+                max_range=self.max_range,
+                mount_offset=self.mount_offset,
+                rate=self.lidar_rate,
+                sigma=self.range_sigma,
+                p_short=self.p_short,
+                short_lambda=self.short_lambda,
+                p_max=self.p_max,
+                p_rand=self.p_rand,
+            )
+        except (TypeError, ValueError) as exc:
+            raise ValueError(
+                f"lidar settings (n_beams, fov, max_range, mount_offset, lidar_rate, range_sigma, "
+                f"p_short, short_lambda, p_max, p_rand): {exc}"
+            ) from exc
+
+    def odometry_noise(self) -> OdometryNoise:
+        """The odometry settings as :class:`OdometryNoise`."""
+        try:
+            return OdometryNoise(
+                proportional=tuple(self.odom_proportional),  # type: ignore[arg-type]
+                additive=tuple(self.odom_additive),  # type: ignore[arg-type]
+            )
+        except (TypeError, ValueError) as exc:
+            raise ValueError(
+                f"odometry settings (odom_proportional, odom_additive): {exc}"
+            ) from exc
+
+
+_SETTINGS = frozenset(f.name for f in dataclasses.fields(EnvConfig))
+
+
+def load_config(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Read env settings from a YAML mapping whose keys are :class:`EnvConfig` field names.
+
+    A relative ``map`` path is taken relative to the YAML file when such a file exists there.
+
+    Raises:
+        ValueError: the file is missing, not a mapping, or has a key that is not a setting (named).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"env config file {path} not found")
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        raise ValueError(f"env config file {path}: not valid YAML ({exc})") from exc
+    if not isinstance(data, dict):
+        raise ValueError(f"env config file {path}: expected a mapping of settings")
+    unknown = sorted(set(data) - _SETTINGS)
+    if unknown:
+        raise ValueError(
+            f"env config file {path}: unknown setting(s) {unknown}; known: {sorted(_SETTINGS)}"
+        )
+    spec = data.get("map")
+    if isinstance(spec, str) and not Path(spec).is_absolute() and (path.parent / spec).is_file():
+        data["map"] = str(path.parent / spec)
+    return data
+
+
+def merge_settings(
+    config: str | os.PathLike[str] | Mapping[str, Any] | EnvConfig | None,
+    overrides: dict[str, Any],
+) -> EnvConfig:
+    """EnvConfig from defaults < ``config`` (file, mapping or EnvConfig) < keyword ``overrides``."""
+    if config is None:
+        values: dict[str, Any] = {}
+    elif isinstance(config, EnvConfig):
+        values = {f.name: getattr(config, f.name) for f in dataclasses.fields(EnvConfig)}
+    elif isinstance(config, Mapping):
+        values = dict(config)
+    else:
+        values = load_config(config)
+    # A keyword left at None means "not given": the config file or the default applies.
+    values.update({k: v for k, v in overrides.items() if v is not None})
+    unknown = sorted(set(values) - _SETTINGS)
+    if unknown:
+        raise ValueError(
+            f"unknown RacecarEnv setting(s) {unknown}; known: {sorted(_SETTINGS | {'config'})}"
+        )
+    return EnvConfig(**values)
