@@ -44,133 +44,21 @@ so the plain filter's draws are unchanged):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 
 from mcl.angles import circular_mean, wrap_angle
-from mcl.augmented import AugmentedParams, LikelihoodAverages
-from mcl.kld import KLDParams, bin_keys, kld_stop
+from mcl.augmented import LikelihoodAverages
+from mcl.filter_params import ParticleFilterParams, spread_sd
+from mcl.kld import bin_keys, kld_stop
 from mcl.motion_model import MotionModel, twist_to_odometry
-from mcl.resampling import RESAMPLERS, multinomial, resample
+from mcl.resampling import multinomial, resample
 from mcl.sensor_model import SensorModel
-from mcl.uncertainty import ClusterParams, Uncertainty, assess
-from racecar_sim.config import nested
+from mcl.uncertainty import Uncertainty, assess
 from racecar_sim.maps import OccupancyMap
 
 __all__ = ["ParticleFilter", "ParticleFilterParams"]
-
-_THRESHOLD_WORDS = {"always": 1.0, "never": 0.0}
-_ON_DEGENERATE = ("keep", "global")
-
-
-@dataclass(frozen=True)
-class ParticleFilterParams:
-    """Parameters of the particle filter.
-
-    Attributes:
-        n_particles: number of particles.
-        resampling: ``"systematic"`` (low variance), ``"multinomial"`` (the MIT RSS lab) or
-            ``"stratified"``.
-        resample_threshold: resample when the effective sample size is at most this fraction of
-            the particle count. ``"always"`` (= 1.0) resamples after every correction like the lab;
-            ``"never"`` (= 0.0) never does.
-        on_degenerate: what to do when every weight is zero or not finite: ``"keep"`` the particles
-            with uniform weights, or re-spread them over free space (``"global"``).
-        init_spread: default standard deviations (metres, metres, radians) of :meth:`initialize`.
-        global_clearance: metres; :meth:`initialize_global` and augmented MCL draw positions at
-            least this far from any occupied cell (0 allows every free cell).
-        global_particles: particles of :meth:`initialize_global`; None sizes the count from the
-            map's free area (see ``global_density``).
-        global_density: particles per square metre of free floor for a global start.
-        global_max_particles: cap on the count sized from the free area.
-        update_min_distance: metres the odometry must have moved (or ``update_min_angle``
-            radians turned) since the last used scan before :meth:`correct` uses another one;
-            0 for both uses every scan.
-        update_min_angle: radians, see ``update_min_distance``.
-        augmented: :class:`~mcl.augmented.AugmentedParams` (alphas 0: off).
-        kld: :class:`~mcl.kld.KLDParams` (``enabled=False``: fixed count).
-        clusters: :class:`~mcl.uncertainty.ClusterParams` of :meth:`uncertainty`.
-    """
-
-    n_particles: int = 4000
-    resampling: str = "systematic"
-    resample_threshold: float | str = 0.5
-    on_degenerate: str = "keep"
-    init_spread: tuple[float, float, float] = (0.5, 0.5, 0.3)
-    global_clearance: float = 0.0
-    global_particles: int | None = None
-    global_density: float = 20.0
-    global_max_particles: int = 20000
-    update_min_distance: float = 0.0
-    update_min_angle: float = 0.0
-    augmented: AugmentedParams = field(default_factory=AugmentedParams)
-    kld: KLDParams = field(default_factory=KLDParams)
-    clusters: ClusterParams = field(default_factory=ClusterParams)
-
-    def __post_init__(self) -> None:
-        n = self.n_particles
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise ValueError(f"ParticleFilterParams.n_particles = {n!r} must be a positive integer")
-        if self.resampling not in RESAMPLERS:
-            raise ValueError(
-                f"ParticleFilterParams.resampling = {self.resampling!r}; "
-                f"choose one of {sorted(RESAMPLERS)}"
-            )
-        thr = self.resample_threshold
-        if isinstance(thr, str):
-            thr = _THRESHOLD_WORDS.get(thr, thr)
-        if isinstance(thr, bool) or not isinstance(thr, int | float) or not 0.0 <= thr <= 1.0:
-            raise ValueError(
-                f"ParticleFilterParams.resample_threshold = {self.resample_threshold!r} must be a "
-                "fraction in [0, 1], 'always' or 'never'"
-            )
-        object.__setattr__(self, "resample_threshold", float(thr))
-        if self.on_degenerate not in _ON_DEGENERATE:
-            raise ValueError(
-                f"ParticleFilterParams.on_degenerate = {self.on_degenerate!r}; "
-                f"choose one of {list(_ON_DEGENERATE)}"
-            )
-        object.__setattr__(self, "init_spread", _spread(self.init_spread, "init_spread"))
-        c = self.global_clearance
-        if (
-            isinstance(c, bool)
-            or not isinstance(c, int | float)
-            or not (math.isfinite(c) and c >= 0)
-        ):
-            raise ValueError(f"ParticleFilterParams.global_clearance = {c!r} must be >= 0 metres")
-        g = self.global_particles
-        if g is not None and (isinstance(g, bool) or not isinstance(g, int) or g < 1):
-            raise ValueError(
-                f"ParticleFilterParams.global_particles = {g!r} must be None or a positive integer"
-            )
-        for name in ("global_density", "update_min_distance", "update_min_angle"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not 0 <= v < math.inf:
-                raise ValueError(f"ParticleFilterParams.{name} = {v!r} must be a number >= 0")
-        gmax = self.global_max_particles
-        if isinstance(gmax, bool) or not isinstance(gmax, int) or gmax < 1:
-            raise ValueError(
-                f"ParticleFilterParams.global_max_particles = {gmax!r} must be a positive integer"
-            )
-        for name, cls in (
-            ("augmented", AugmentedParams),
-            ("kld", KLDParams),
-            ("clusters", ClusterParams),
-        ):
-            object.__setattr__(
-                self, name, nested(getattr(self, name), cls, f"ParticleFilterParams.{name}")
-            )
-
-
-def _spread(value: float | tuple[float, ...] | np.ndarray, name: str) -> tuple[float, float, float]:
-    """One number (all three) or three standard deviations (x m, y m, theta rad), non-negative."""
-    arr = np.asarray(value, dtype=np.float64).reshape(-1)
-    if arr.size == 1:
-        arr = np.repeat(arr, 3)
-    if arr.size != 3 or not (np.isfinite(arr).all() and (arr >= 0).all()):
-        raise ValueError(f"{name} must be one or three non-negative numbers, got {value!r}")
-    return (float(arr[0]), float(arr[1]), float(arr[2]))
 
 
 class ParticleFilter:
@@ -316,7 +204,7 @@ class ParticleFilter:
         centre = np.asarray(pose, dtype=np.float64)
         if centre.shape != (3,) or not np.isfinite(centre).all():
             raise ValueError(f"pose must be three finite numbers [x, y, theta], got {pose!r}")
-        sd = np.asarray(_spread(self.params.init_spread if spread is None else spread, "spread"))
+        sd = np.asarray(spread_sd(self.params.init_spread if spread is None else spread, "spread"))
         n = self.params.n_particles
         self.set_particles(centre + self.rng.standard_normal((n, 3)) * sd)
         self._restart()

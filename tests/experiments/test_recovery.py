@@ -155,7 +155,8 @@ def test_wrapper_info_reports_how_far_to_trust_the_estimate() -> None:
 
 
 def test_io_free_summary_of_failed_runs() -> None:
-    from mcl.experiments.recovery import RecoveryRun, summary_markdown
+    from mcl.experiments.recovery import RecoveryRun
+    from mcl.experiments.recovery_report import summary_markdown
     from mcl.experiments.runs import RunResult
 
     spec = RecoveryConfig(seeds=1).runs()[0]
