@@ -145,7 +145,7 @@ def timed_runs(env: gym.Env, runs: int, steps: int, warmup: int, seed: int = 0) 
     per step.
     """
     timers = instrument(env)
-    driver = WallFollower()
+    driver = WallFollower.for_env(env)
     obs, info = env.reset(seed=seed)
 
     def one_run(n: int) -> dict[str, float]:

@@ -158,16 +158,12 @@ class RunResult:
 
 # ---------------------------------------------------------------------- drivers
 def _wall_driver(env: RacecarEnv, seed: int, drive_on: str) -> StepDriver:
-    follower = WallFollower(
-        fov=float(env.lidar_params.fov), mount_offset=float(env.lidar_params.mount_offset)
-    )
+    follower = WallFollower.for_env(env)
     return lambda obs, info: follower(obs)
 
 
 def _pursuit_driver(env: RacecarEnv, seed: int, drive_on: str) -> StepDriver:
-    follower = WallFollower(
-        fov=float(env.lidar_params.fov), mount_offset=float(env.lidar_params.mount_offset)
-    )
+    follower = WallFollower.for_env(env)
     max_steps = round(_WAYPOINT_SECONDS / env.dt)
     try:
         waypoints = waypoints_from_drive(env, follower, seed=seed, max_steps=max_steps)
@@ -176,7 +172,7 @@ def _pursuit_driver(env: RacecarEnv, seed: int, drive_on: str) -> StepDriver:
             f"pure pursuit needs a loop of waypoints, recorded by following the wall from the "
             f"start of seed {seed}: {exc}"
         ) from exc
-    pursuit = PurePursuit(waypoints, loop=True)
+    pursuit = PurePursuit(waypoints, loop=True, car=env.car_params)
     if drive_on == "truth":
         return lambda obs, info: pursuit(obs, info["pose"])
     return lambda obs, info: pursuit(obs, obs["pose_estimate"])

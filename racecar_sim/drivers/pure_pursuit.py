@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from racecar_sim.config import CarParams
 from racecar_sim.drivers.base import as_action
 
 __all__ = ["PurePursuit", "resample_polyline"]
@@ -46,9 +47,9 @@ class PurePursuit:
         waypoints: (K, 2) world metres, K >= 2.
         lookahead: metres along the path ahead of the nearest point.
         speed: metres per second; without ``loop`` it falls to 0 over the last ``lookahead`` metres.
-        wheelbase: metres between the axles.
         loop: whether the path closes from the last waypoint back to the first.
-        max_steer: radians, limit of the steering command.
+        car: the car's ``wheelbase`` (metres) and ``max_steer`` (radians), as the env's
+            :class:`~racecar_sim.config.CarParams` (default: the default car).
     """
 
     def __init__(
@@ -56,28 +57,25 @@ class PurePursuit:
         waypoints: np.ndarray,
         lookahead: float = 1.0,
         speed: float = 2.0,
-        wheelbase: float = 0.33,
         loop: bool = True,
-        max_steer: float = 0.42,
+        car: CarParams | None = None,
     ) -> None:
+        car = car if car is not None else CarParams()
         pts = np.asarray(waypoints, dtype=np.float64)
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
             raise ValueError(f"waypoints must have shape (K >= 2, 2), got {pts.shape}")
         if not np.isfinite(pts).all():
             raise ValueError("waypoints must be finite")
-        for name, value in (("lookahead", lookahead), ("wheelbase", wheelbase)):
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"PurePursuit.{name} = {value!r} must be positive")
+        if not (math.isfinite(lookahead) and lookahead > 0):
+            raise ValueError(f"PurePursuit.lookahead = {lookahead!r} must be positive")
         if not (math.isfinite(speed) and speed >= 0):
             raise ValueError(f"PurePursuit.speed = {speed!r} must be non-negative")
-        if not 0 < max_steer < math.pi / 2:
-            raise ValueError(f"PurePursuit.max_steer = {max_steer!r} must be in (0, pi/2)")
         self.waypoints = pts
         self.lookahead = float(lookahead)
         self.speed = float(speed)
-        self.wheelbase = float(wheelbase)
+        self.wheelbase = float(car.wheelbase)
         self.loop = bool(loop)
-        self.max_steer = float(max_steer)
+        self.max_steer = float(car.max_steer)
         path = np.vstack([pts, pts[:1]]) if self.loop else pts
         self._a = path[:-1]
         self._v = np.diff(path, axis=0)

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from racecar_sim.config import CarParams, LidarParams, nested
 from racecar_sim.drivers.base import as_action, beam_step, despeckle, fit_line, scan_of
 
 __all__ = ["WallFollower"]
@@ -51,8 +52,9 @@ class WallFollower:
        wall side (so the nose swings away from it) until an arc ahead is clear again. This is
        the driver's only state; :meth:`reset` clears it.
 
-    Beams are assumed spread evenly over ``fov`` (radians, centred on the heading) for whatever
-    length the scan has; the lidar sits ``mount_offset`` metres ahead of the rear axle.
+    Beams are assumed spread evenly over ``lidar.fov`` (radians, centred on the heading) for
+    whatever length the scan has; the lidar sits ``lidar.mount_offset`` metres ahead of the rear
+    axle. The car's geometry comes from ``car`` (one source of truth with the env).
 
     Attributes:
         side: ``"right"`` or ``"left"``, the wall to follow.
@@ -60,17 +62,12 @@ class WallFollower:
         speed: metres per second on a clear straight.
         kp: radians of steering per metre of distance error.
         kd: radians of steering per unit of sin(wall angle).
-        fov: radians covered by the scan.
         lookahead: metres ahead at which the distance is predicted.
         window: (near, far) radians from the front on ``side`` whose beams fit the wall.
         fit_range: metres; farther hits are ignored when fitting the wall.
         trim: metres from a line within which a hit counts as lying on it.
         n_segments: runs of neighbouring hits whose lines are the candidates for the wall.
-        max_steer: radians, limit of the steering command.
-        wheelbase: metres between the axles (for the arcs of the collision check).
-        mount_offset: metres from the rear axle forwards to the lidar.
         car_width: metres, width of the swept corridor checked for obstacles (car plus margin).
-        car_front: metres from the rear axle forwards to the front bumper.
         n_arcs: steering angles tried when the wanted arc is blocked.
         brake: metres per second squared of planned braking.
         stop_distance: metres of clear arc kept in front of the bumper when stopped.
@@ -80,7 +77,10 @@ class WallFollower:
         reverse_speed: metres per second of backing out when every arc ahead is blocked within
             ``stop_distance`` (0 never reverses); the car backs up, nose turning away from the
             wall, until an arc ahead is clear for ``check_distance``.
-        car_rear: metres from the rear axle back to the rear bumper.
+        car: the car's geometry and limits (wheelbase, max_steer, length, rear_overhang), as the
+            env's :class:`~racecar_sim.config.CarParams`; :meth:`for_env` takes the env's own.
+        lidar: the lidar's ``fov`` (radians) and ``mount_offset`` (metres ahead of the rear axle),
+            as the env's :class:`~racecar_sim.config.LidarParams`.
     """
 
     side: str = "right"
@@ -88,24 +88,20 @@ class WallFollower:
     speed: float = 2.0
     kp: float = 1.0
     kd: float = 1.2
-    fov: float = 4.71
     lookahead: float = 0.8
     window: tuple[float, float] = (math.radians(15.0), math.radians(115.0))
     fit_range: float = 3.0
     trim: float = 0.15
     n_segments: int = 8
-    max_steer: float = 0.42
-    wheelbase: float = 0.33
-    mount_offset: float = 0.275
     car_width: float = 0.5
-    car_front: float = 0.44
     n_arcs: int = 15
     brake: float = 3.0
     stop_distance: float = 0.4
     check_distance: float = 1.5
     min_speed: float = 0.3
     reverse_speed: float = 0.6
-    car_rear: float = 0.11
+    car: CarParams = field(default_factory=CarParams)
+    lidar: LidarParams = field(default_factory=LidarParams)
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
     _state: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -115,11 +111,8 @@ class WallFollower:
         positive = (
             "distance",
             "kp",
-            "fov",
             "fit_range",
             "trim",
-            "max_steer",
-            "wheelbase",
             "car_width",
             "brake",
         )
@@ -127,12 +120,10 @@ class WallFollower:
             "speed",
             "kd",
             "lookahead",
-            "car_front",
             "stop_distance",
             "check_distance",
             "min_speed",
             "reverse_speed",
-            "car_rear",
         )
         for name in positive + non_negative:
             value = getattr(self, name)
@@ -148,8 +139,46 @@ class WallFollower:
         if not 0 <= near < far <= math.pi:
             raise ValueError(f"WallFollower.window = {self.window!r} must be 0 <= near < far <= pi")
         object.__setattr__(self, "window", (near, far))
+        for name, cls in (("car", CarParams), ("lidar", LidarParams)):
+            object.__setattr__(self, name, nested(getattr(self, name), cls, f"WallFollower.{name}"))
         steers = np.linspace(-self.max_steer, self.max_steer, self.n_arcs)
         object.__setattr__(self, "_steers", steers)
+
+    @classmethod
+    def for_env(cls, env: Any, **settings: Any) -> WallFollower:
+        """A wall follower with the geometry of ``env`` (a RacecarSim env, wrapped or not)."""
+        base = env.unwrapped
+        return cls(car=base.car_params, lidar=base.lidar_params, **settings)
+
+    @property
+    def fov(self) -> float:
+        """Radians covered by the scan (the lidar's)."""
+        return float(self.lidar.fov)
+
+    @property
+    def mount_offset(self) -> float:
+        """Metres from the rear axle forwards to the lidar."""
+        return float(self.lidar.mount_offset)
+
+    @property
+    def max_steer(self) -> float:
+        """Radians, limit of the steering command (the car's)."""
+        return float(self.car.max_steer)
+
+    @property
+    def wheelbase(self) -> float:
+        """Metres between the axles (for the arcs of the collision check)."""
+        return float(self.car.wheelbase)
+
+    @property
+    def car_front(self) -> float:
+        """Metres from the rear axle forwards to the front bumper."""
+        return float(self.car.length - self.car.rear_overhang)
+
+    @property
+    def car_rear(self) -> float:
+        """Metres from the rear axle back to the rear bumper."""
+        return float(self.car.rear_overhang)
 
     @property
     def sign(self) -> int:

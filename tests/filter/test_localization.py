@@ -37,7 +37,7 @@ def test_estimate_stays_within_15_cm_for_60_s_of_wall_following(seed: int) -> No
     start = info["pose"] + np.array([0.45 * math.cos(direction), 0.45 * math.sin(direction), 0.1])
     pf.initialize(start, spread=(0.3, 0.3, 0.1))
 
-    driver = WallFollower()
+    driver = WallFollower.for_env(env)
     steps = round(SECONDS / env.dt)
     errors, heading_errors, driven = [], [], 0.0
     for _ in range(steps):

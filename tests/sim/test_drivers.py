@@ -200,7 +200,7 @@ def test_unchanged_scan_gives_the_same_action(corridor: OccupancyMap) -> None:
 def test_beam_count_and_fov_are_taken_from_the_scan_length(corridor: OccupancyMap) -> None:
     params = LidarParams(n_beams=181, fov=math.pi, mount_offset=0.0, **NOISE_FREE)
     scan = Lidar(corridor, params).measure(np.array([20.0, 1.0, 0.0]), np.random.default_rng(0))
-    d, phi = WallFollower(fov=math.pi).fit_wall(scan.astype(np.float64))
+    d, phi = WallFollower(lidar=params).fit_wall(scan.astype(np.float64))
     assert d == pytest.approx(1.0 - RES, abs=0.02)
     assert abs(phi) < 0.02
 
