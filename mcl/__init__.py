@@ -5,6 +5,7 @@ Depends on ``racecar_sim.maps`` and ``racecar_sim.raycast``; ``racecar_sim`` nev
 
 from mcl.angles import circular_mean, wrap_angle
 from mcl.augmented import AugmentedParams
+from mcl.filter_params import DEFAULT_PARTICLES, ParticleFilterParams
 from mcl.kld import KLDParams
 from mcl.motion_model import (
     MotionModel,
@@ -13,7 +14,7 @@ from mcl.motion_model import (
     twist_to_odometry,
     uniform_to_gaussian,
 )
-from mcl.particle_filter import ParticleFilter, ParticleFilterParams
+from mcl.particle_filter import ParticleFilter
 from mcl.resampling import (
     RESAMPLERS,
     effective_sample_size,
@@ -28,6 +29,7 @@ from mcl.wrapper import LocalizationConfig, LocalizationWrapper
 from racecar_sim import __version__
 
 __all__ = [
+    "DEFAULT_PARTICLES",
     "RESAMPLERS",
     "AugmentedParams",
     "ClusterParams",

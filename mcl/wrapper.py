@@ -75,9 +75,7 @@ class LocalizationConfig:
     motion: MotionModelParams = field(default_factory=MotionModelParams)
     sensor: SensorModelParams = field(default_factory=SensorModelParams)
     filter: ParticleFilterParams = field(
-        default_factory=lambda: ParticleFilterParams(
-            n_particles=1000, init_spread=(0.25, 0.25, 0.1)
-        )
+        default_factory=lambda: ParticleFilterParams(init_spread=(0.25, 0.25, 0.1))
     )
     render_particles: int = 2000
 

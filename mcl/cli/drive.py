@@ -24,10 +24,10 @@ import numpy as np
 
 from mcl.error_log import read_error_log
 from mcl.experiments.metrics import DIVERGED_M
-from mcl.experiments.noise_sweep import DEFAULT_PARTICLES
 from mcl.experiments.plots import plot_error_vs_time
 from mcl.experiments.runs import DRIVERS, RunSpec, run_one
 from mcl.experiments.video import FrameWriter
+from mcl.filter_params import DEFAULT_PARTICLES
 from mcl.motion_model import MotionModelParams
 from racecar_sim.maps import DEFAULT_MAP
 

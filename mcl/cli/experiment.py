@@ -20,7 +20,6 @@ from pathlib import Path
 import yaml
 
 from mcl.experiments.noise_sweep import (
-    DEFAULT_PARTICLES,
     GAUSSIAN_SIGMAS,
     UNIFORM_COEFFICIENTS,
     ExperimentConfig,
@@ -34,6 +33,7 @@ from mcl.experiments.recovery import (
 )
 from mcl.experiments.runs import DRIVERS, RunResult
 from mcl.experiments.scenarios import SCENARIOS
+from mcl.filter_params import DEFAULT_PARTICLES
 from racecar_sim.maps import DEFAULT_MAP
 
 

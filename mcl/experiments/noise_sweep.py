@@ -36,11 +36,11 @@ from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.noise_report import SummaryRow, summarize, write_plots, write_summary
 from mcl.experiments.runner import run_pending, skipped_result
 from mcl.experiments.runs import RunResult, RunSpec
+from mcl.filter_params import DEFAULT_PARTICLES
 from mcl.motion_model import MotionModelParams, uniform_to_gaussian
 from racecar_sim.maps import DEFAULT_MAP
 
 __all__ = [
-    "DEFAULT_PARTICLES",
     "GAUSSIAN_SIGMAS",
     "UNIFORM_COEFFICIENTS",
     "ExperimentConfig",
@@ -52,8 +52,6 @@ UNIFORM_COEFFICIENTS: tuple[float, ...] = (0.01, 0.1, 0.3, 0.5, 1.0)
 """Half-widths c of the uniform noise in the source's table (per update)."""
 GAUSSIAN_SIGMAS: tuple[float, ...] = (0.01, 0.1, 0.3, 0.5, 1.0)
 """Standard deviations sigma of the Gaussian noise in the source's table (per update)."""
-DEFAULT_PARTICLES = 1500
-"""Particles per run by default (see the README for the measured update rate)."""
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ import numpy as np
 from mcl.error_log import read_error_log
 from mcl.experiments.metrics import DIVERGED_M, ErrorStats, error_stats
 from mcl.experiments.scenarios import make_scenario
+from mcl.filter_params import DEFAULT_PARTICLES
 from mcl.motion_model import MotionModelParams
 from mcl.sensor_model import SensorModel
 from mcl.wrapper import LocalizationConfig, LocalizationWrapper
@@ -81,7 +82,7 @@ class RunSpec:
     motion: MotionModelParams = field(default_factory=MotionModelParams)
     seed: int = 0
     duration: float = 60.0
-    n_particles: int = 1000
+    n_particles: int = DEFAULT_PARTICLES
     series: str = "run"
     nominal: float = math.nan
     env: tuple[tuple[str, Any], ...] = ()
