@@ -15,9 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
-import yaml
-
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.validation import check_number, read_yaml_mapping
 
 __all__ = [
     "CarParams",
@@ -69,11 +68,7 @@ def nested(value: Any, cls: type[T], owner: str) -> T:
 def from_yaml(cls: type[T], path: str | os.PathLike[str], section: str | None = None) -> T:
     """Build dataclass ``cls`` from a YAML file (optionally from one top-level ``section``)."""
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"parameter file {path} not found")
-    data = yaml.safe_load(path.read_text()) or {}
-    if not isinstance(data, dict):
-        raise ValueError(f"parameter file {path}: expected a mapping")
+    data = read_yaml_mapping(path)
     if section is not None:
         data = data.get(section, {}) or {}
     try:
@@ -82,10 +77,9 @@ def from_yaml(cls: type[T], path: str | os.PathLike[str], section: str | None = 
         raise ValueError(f"parameter file {path}: {exc}") from exc
 
 
-def _check(cls_name: str, **checks: tuple[float, bool]) -> None:
-    for name, (value, ok) in checks.items():
-        if not isinstance(value, int | float) or not math.isfinite(value) or not ok:
-            raise ValueError(f"{cls_name}.{name} = {value!r} is out of range")
+def _positive(owner: str, obj: Any, *names: str) -> None:
+    for name in names:
+        check_number(owner, name, getattr(obj, name), low=0.0, low_open=True)
 
 
 @dataclass(frozen=True)
@@ -119,20 +113,13 @@ class CarParams:
     mass: float = 3.5
 
     def __post_init__(self) -> None:
-        _check(
-            "CarParams",
-            wheelbase=(self.wheelbase, self.wheelbase > 0),
-            max_steer=(self.max_steer, 0 < self.max_steer < math.pi / 2),
-            max_steer_rate=(self.max_steer_rate, self.max_steer_rate > 0),
-            max_speed=(self.max_speed, self.max_speed > 0),
-            max_reverse_speed=(self.max_reverse_speed, self.max_reverse_speed >= 0),
-            max_accel=(self.max_accel, self.max_accel > 0),
-            max_decel=(self.max_decel, self.max_decel > 0),
-            length=(self.length, self.length > 0),
-            width=(self.width, self.width > 0),
-            rear_overhang=(self.rear_overhang, 0 <= self.rear_overhang < self.length),
-            mass=(self.mass, self.mass > 0),
-        )
+        _positive("CarParams", self, "wheelbase", "max_steer_rate", "max_speed", "max_accel")
+        _positive("CarParams", self, "max_decel", "length", "width", "mass")
+        check_number("CarParams", "max_steer", self.max_steer, low=0, high=math.pi / 2,
+                     low_open=True, high_open=True)  # fmt: skip
+        check_number("CarParams", "max_reverse_speed", self.max_reverse_speed, low=0)
+        check_number("CarParams", "rear_overhang", self.rear_overhang, low=0, high=self.length,
+                     high_open=True)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -173,20 +160,13 @@ class LidarParams:
     p_rand: float = 0.005
 
     def __post_init__(self) -> None:
-        if not isinstance(self.n_beams, int) or isinstance(self.n_beams, bool) or self.n_beams < 1:
-            raise ValueError(f"LidarParams.n_beams = {self.n_beams!r} must be a positive integer")
-        _check(
-            "LidarParams",
-            fov=(self.fov, 0 < self.fov <= 2 * math.pi),
-            max_range=(self.max_range, self.max_range > 0),
-            mount_offset=(self.mount_offset, True),
-            rate=(self.rate, self.rate > 0),
-            sigma=(self.sigma, self.sigma >= 0),
-            p_short=(self.p_short, 0 <= self.p_short <= 1),
-            short_lambda=(self.short_lambda, self.short_lambda > 0),
-            p_max=(self.p_max, 0 <= self.p_max <= 1),
-            p_rand=(self.p_rand, 0 <= self.p_rand <= 1),
-        )
+        check_number("LidarParams", "n_beams", self.n_beams, low=1, integer=True)
+        check_number("LidarParams", "fov", self.fov, low=0, high=2 * math.pi, low_open=True)
+        _positive("LidarParams", self, "max_range", "rate", "short_lambda")
+        check_number("LidarParams", "mount_offset", self.mount_offset)
+        check_number("LidarParams", "sigma", self.sigma, low=0)
+        for name in ("p_short", "p_max", "p_rand"):
+            check_number("LidarParams", name, getattr(self, name), low=0, high=1)
         if self.p_short + self.p_max + self.p_rand > 1:
             raise ValueError("LidarParams: p_short + p_max + p_rand must not exceed 1")
 
@@ -280,14 +260,16 @@ class EnvConfig:
             object.__setattr__(self, "car", from_mapping(CarParams, dict(self.car)))
         elif not isinstance(self.car, CarParams):
             raise ValueError(f"car must be a CarParams or a mapping, got {self.car!r}")
-        for name in ("dt", "substep"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
-        for name in ("collision_penalty", "start_clearance"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+        # The env's own names in messages (``lidar_rate``, not ``LidarParams.rate``).
+        check_number("", "n_beams", self.n_beams, low=1, integer=True)
+        for name in ("dt", "substep", "max_range", "lidar_rate", "short_lambda"):
+            check_number("", name, getattr(self, name), low=0, low_open=True)
+        for name in ("collision_penalty", "start_clearance", "range_sigma"):
+            check_number("", name, getattr(self, name), low=0)
+        for name in ("p_short", "p_max", "p_rand"):
+            check_number("", name, getattr(self, name), low=0, high=1)
+        check_number("", "fov", self.fov, low=0, high=2 * math.pi, low_open=True)
+        check_number("", "mount_offset", self.mount_offset)
         if not isinstance(self.terminate_on_collision, bool):
             raise ValueError(
                 f"terminate_on_collision must be true or false, got {self.terminate_on_collision!r}"
@@ -342,14 +324,7 @@ def load_config(path: str | os.PathLike[str]) -> dict[str, Any]:
         ValueError: the file is missing, not a mapping, or has a key that is not a setting (named).
     """
     path = Path(path)
-    if not path.is_file():
-        raise ValueError(f"env config file {path} not found")
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except yaml.YAMLError as exc:
-        raise ValueError(f"env config file {path}: not valid YAML ({exc})") from exc
-    if not isinstance(data, dict):
-        raise ValueError(f"env config file {path}: expected a mapping of settings")
+    data = read_yaml_mapping(path, "env config file")
     unknown = sorted(set(data) - _SETTINGS)
     if unknown:
         raise ValueError(

@@ -37,6 +37,7 @@ import numba as nb
 import numpy as np
 
 from racecar_sim.raycast.kernels import CHUNK, cast_ray, cast_ray_from, to_metres
+from racecar_sim.validation import check_number
 
 __all__ = ["PARALLEL_MIN_ENTRIES", "LutParams", "LutTable", "build_lut", "lut_rays"]
 
@@ -47,15 +48,6 @@ _CODE_MAX = 65000  # uint16 code of the cap range; 65535 marks an unset entry du
 _UNSET = 65535
 _SANE = 1.5  # cells an interpolated range may lie outside the two table ranges
 _CAP_MARGIN = 2.0  # cells stored beyond max_range, so a pose offset inside its cell stays right
-
-
-def _number(name: str, value: object, low: float, high: float = math.inf) -> None:
-    if (
-        not isinstance(value, int | float)
-        or isinstance(value, bool)
-        or not (low <= value <= high)  # NaN fails too
-    ):
-        raise ValueError(f"LutParams.{name} = {value!r} must be a number in [{low}, {high}]")
 
 
 @dataclass(frozen=True)
@@ -88,10 +80,10 @@ class LutParams:
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool):
                 raise ValueError(f"LutParams.{name} must be an integer, got {value!r}")
-        _number("n_angles", self.n_angles, 8, 65536)
-        _number("sub_lines", self.sub_lines, 1, 16)
-        _number("tolerance", self.tolerance, 0.0)
-        _number("guide", self.guide, 0.0)
+        check_number("LutParams", "n_angles", self.n_angles, low=8, high=65536)
+        check_number("LutParams", "sub_lines", self.sub_lines, low=1, high=16)
+        check_number("LutParams", "tolerance", self.tolerance, low=0.0)
+        check_number("LutParams", "guide", self.guide, low=0.0, allow_inf=True)
 
 
 @dataclass(frozen=True, eq=False)
