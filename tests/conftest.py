@@ -1,9 +1,11 @@
-"""Shared fixtures: the real maps in ../shared/maps (skipped when absent) and the bundled maps."""
+"""Shared fixtures: the real maps in ../shared/maps (skipped when absent), the bundled maps, and a small
+in-memory room map (no files, built in milliseconds) for the filter tests."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from racecar_sim.maps import OccupancyMap, bundled, load_map
@@ -31,3 +33,42 @@ def stata_map() -> OccupancyMap:
 def default_map() -> OccupancyMap:
     """The default bundled map (basement_loop)."""
     return load_map(bundled())
+
+
+def room_map(resolution: float = 0.05) -> OccupancyMap:
+    """An asymmetric 12 m x 8 m room (walls 2 cells thick) with three boxes, origin (1, -2, 0).
+
+    Asymmetric so that a scan pins down the pose (no mirror or rotation ambiguity).
+    """
+    h, w = round(8.0 / resolution), round(12.0 / resolution)
+    occ = np.zeros((h, w), dtype=bool)
+    occ[:2, :] = occ[-2:, :] = True
+    occ[:, :2] = occ[:, -2:] = True
+
+    def box(x0: float, y0: float, x1: float, y1: float) -> None:
+        # x along the columns, y up from the bottom row (metres in the map frame).
+        r0, r1 = h - round(y1 / resolution), h - round(y0 / resolution)
+        occ[r0:r1, round(x0 / resolution) : round(x1 / resolution)] = True
+
+    box(2.0, 2.0, 3.0, 3.5)
+    box(7.0, 5.0, 9.5, 5.6)
+    box(9.0, 1.0, 9.4, 3.0)
+    return OccupancyMap(occupied=occ, resolution=resolution, origin=(1.0, -2.0, 0.0), name="room")
+
+
+def lidar_pose(pose: np.ndarray, mount_offset: float) -> np.ndarray:
+    """World pose of a lidar mounted ``mount_offset`` metres ahead of a rear-axle ``pose`` (3,)."""
+    x, y, th = pose
+    return np.array([x + mount_offset * np.cos(th), y + mount_offset * np.sin(th), th])
+
+
+@pytest.fixture(scope="session")
+def room() -> OccupancyMap:
+    """:func:`room_map` at 0.05 m per cell: a 12 m x 8 m asymmetric room with three boxes."""
+    return room_map()
+
+
+@pytest.fixture(scope="session")
+def mount_pose():
+    """:func:`lidar_pose`: the world pose of a lidar mounted ahead of a rear-axle pose."""
+    return lidar_pose

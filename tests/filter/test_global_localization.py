@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-from mcl_helpers import room_map
 
 from mcl.angles import wrap_angle
 from mcl.augmented import AugmentedParams
@@ -20,11 +19,6 @@ from racecar_sim.sensors import Lidar
 TRUTH = np.array([6.0, 0.0, 0.4])  # free, 1.95 m from the nearest wall of the room map
 ELSEWHERE = np.array([3.0, 3.5, -2.0])  # another free pose of the room map
 AUGMENTED = AugmentedParams(alpha_slow=0.01, alpha_fast=0.3)
-
-
-@pytest.fixture(scope="module")
-def room() -> OccupancyMap:
-    return room_map()
 
 
 @pytest.fixture(scope="module")

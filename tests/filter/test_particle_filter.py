@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
-from mcl_helpers import room_map
 
 from mcl.angles import wrap_angle
 from mcl.motion_model import MotionModel, MotionModelParams, compose, twist_to_odometry
@@ -19,11 +18,6 @@ from racecar_sim.config import from_mapping
 from racecar_sim.sensors import Lidar, Odometry
 
 TRUTH = np.array([6.0, 0.0, 0.4])  # free, 1.95 m from the nearest wall of the room map
-
-
-@pytest.fixture(scope="module")
-def room():
-    return room_map()
 
 
 @pytest.fixture(scope="module")
@@ -97,8 +91,8 @@ def test_predict_rejects_bad_input(room, sensor) -> None:
         ),
     )
 )
-def test_weights_sum_to_one_after_any_update(log_lik: np.ndarray) -> None:
-    pf = _FILTER
+def test_weights_sum_to_one_after_any_update(small_filter, log_lik: np.ndarray) -> None:
+    pf = small_filter
     pf.initialize(TRUTH, 0.1)
     pf.update_weights(log_lik)
     w = pf.weights
@@ -112,9 +106,12 @@ def test_weights_sum_to_one_after_any_update(log_lik: np.ndarray) -> None:
         assert w[np.nanargmax(np.where(usable, log_lik, -np.inf))] == w.max()
 
 
-_FILTER = ParticleFilter(
-    room_map(), 50, sensor_model=SensorModel(room_map(), SensorModelParams(raycast_method="exact"))
-)
+@pytest.fixture(scope="module")
+def small_filter(room) -> ParticleFilter:
+    """One 50-particle filter shared by the property test (hypothesis reuses it across examples)."""
+    return ParticleFilter(
+        room, 50, sensor_model=SensorModel(room, SensorModelParams(raycast_method="exact"))
+    )
 
 
 def test_weights_multiply_across_corrections_without_resampling(room, sensor) -> None:

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mcl_helpers import lidar_pose, room_map
 
 from mcl.sensor_model import SensorModel, SensorModelParams, beam_table
 from racecar_sim.config import LidarParams, from_mapping, from_yaml
@@ -20,21 +19,16 @@ TRUTH = np.array([6.0, 0.0, 0.4])  # a free pose in the room map (world frame, r
 
 
 @pytest.fixture(scope="module")
-def room():
-    return room_map()
-
-
-@pytest.fixture(scope="module")
 def model(room) -> SensorModel:
     # The exact caster keeps these tests about the model, not about an approximate caster.
     return SensorModel(room, SensorModelParams(raycast_method="exact"))
 
 
 @pytest.fixture(scope="module")
-def scan(room) -> np.ndarray:
+def scan(room, mount_pose) -> np.ndarray:
     """Noise-free 1080-beam scan from the lidar of a car at TRUTH (exact caster, 10 m)."""
     caster = RayCaster(room, LIDAR.max_range, method="exact")
-    return caster.cast(lidar_pose(TRUTH, LIDAR.mount_offset), LIDAR.angles)[0]
+    return caster.cast(mount_pose(TRUTH, LIDAR.mount_offset), LIDAR.angles)[0]
 
 
 # ---------------------------------------------------------------------------------- table
@@ -129,12 +123,14 @@ def test_true_pose_outweighs_displaced_poses(model: SensorModel, scan: np.ndarra
     assert np.argmax(lik) == 0
 
 
-def test_log_likelihood_matches_a_plain_numpy_sum(room, model: SensorModel, scan) -> None:
+def test_log_likelihood_matches_a_plain_numpy_sum(
+    room, model: SensorModel, scan, mount_pose
+) -> None:
     rng = np.random.default_rng(5)
     particles = TRUTH + rng.normal(0.0, [0.3, 0.3, 0.2], size=(64, 3))
     idx = np.round(np.linspace(0, 1079, 100)).astype(int)
     angles = LIDAR.angles[idx]
-    mounts = np.array([lidar_pose(p, LIDAR.mount_offset) for p in particles])
+    mounts = np.array([mount_pose(p, LIDAR.mount_offset) for p in particles])
     expected = RayCaster(room, 200 * room.resolution, method="exact").cast(mounts, angles)
     to_px = 1.0 / room.resolution
     d = np.floor(np.clip(expected * to_px, 0, 200) + 0.5).astype(int)
@@ -264,7 +260,7 @@ def test_params_validation_and_yaml(tmp_path) -> None:
     assert p.num_beams_per_particle == 60 and p.raycast_method == "exact"
 
 
-def test_parallel_and_serial_scoring_agree(model: SensorModel) -> None:
+def test_parallel_and_serial_scoring_agree(room, model: SensorModel) -> None:
     from mcl.sensor_model import PARALLEL_MIN_LOOKUPS
 
     rng = np.random.default_rng(8)
@@ -274,9 +270,9 @@ def test_parallel_and_serial_scoring_agree(model: SensorModel) -> None:
     big = model.score(expected, z)  # one call over the threshold: parallel kernel
     parts = np.concatenate([model.score(expected[i : i + 1000], z) for i in range(0, n, 1000)])
     np.testing.assert_array_equal(big, parts)
-    forced = SensorModel(room_map(), SensorModelParams(raycast_method="exact", parallel=True))
+    forced = SensorModel(room, SensorModelParams(raycast_method="exact", parallel=True))
     np.testing.assert_array_equal(forced.score(expected[:100], z), big[:100])
-    single = SensorModel(room_map(), SensorModelParams(raycast_method="exact", parallel=False))
+    single = SensorModel(room, SensorModelParams(raycast_method="exact", parallel=False))
     np.testing.assert_array_equal(single.score(expected, z), big)
     assert single.caster.parallel is False
     d = np.floor(np.clip(expected / 0.05, 0, 200) + 0.5).astype(int)

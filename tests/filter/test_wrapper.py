@@ -16,7 +16,6 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mcl_helpers import room_map
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
 from mcl import LocalizationConfig, LocalizationWrapper, ParticleFilter
@@ -33,11 +32,6 @@ pytestmark = pytest.mark.filterwarnings(
     "ignore:.*(symmetric and normalized|infinity. This is probably|different from the unwrapped"
     "|Not able to test alternative render).*:UserWarning"
 )
-
-
-@pytest.fixture(scope="module")
-def room():
-    return room_map()
 
 
 def make(room, config=SMALL, render_mode=None, **kwargs) -> LocalizationWrapper:
@@ -283,10 +277,8 @@ _KILLED_RUN = textwrap.dedent(
     import numpy as np, gymnasium as gym
     import racecar_sim
     from mcl import LocalizationWrapper
-    sys.path.insert(0, {tests!r})
-    from mcl_helpers import room_map
     env = LocalizationWrapper(
-        gym.make("RacecarSim-v0", map=room_map(), n_beams=31, terminate_on_collision=False),
+        gym.make("RacecarSim-v0", map="corridor", n_beams=31, terminate_on_collision=False),
         {{"filter": {{"n_particles": 50}}}},
         log_path=sys.argv[1],
     )
@@ -304,7 +296,7 @@ def test_killed_run_leaves_a_readable_log(tmp_path) -> None:
     """SIGKILL mid-run: the CSV holds every step that had returned, and reads back cleanly."""
     path = tmp_path / "killed.csv"
     script = tmp_path / "run.py"
-    script.write_text(_KILLED_RUN.format(tests=str(REPO / "tests")))
+    script.write_text(_KILLED_RUN.format())
     proc = subprocess.Popen(
         [sys.executable, str(script), str(path)],
         stdout=subprocess.PIPE,
