@@ -25,6 +25,16 @@ Car
     the axle along the exact chord of its arc. While a wall blocks the car its speed is cut to
     what it actually makes along its heading (the wheels do not spin), so backing away from a
     wall starts at once.
+
+Free steps
+    Far from every wall pymunk has nothing to solve: a substep only moves the body by its velocity
+    (``p += v h``, ``a += w h``) and then calls the velocity function. :meth:`RacecarPhysics.step`
+    does exactly these floating-point operations itself, without pymunk, when the car cannot
+    reach a wall within the step: the distance field at the footprint's centre exceeds its half
+    diagonal, the farthest it can move in ``dt`` and a margin; and no contact is cached (pymunk
+    keeps a contact for ``collision_persistence`` steps after it ends, so a few pymunk substeps
+    without contact must have passed). The result is bit for bit what pymunk computes (tested);
+    the body is brought up to date before pymunk is used again.
 """
 
 from __future__ import annotations
@@ -48,7 +58,8 @@ _TWO_PI = 2.0 * math.pi
 _COLLISION_SLOP = 1e-3  # metres of overlap pymunk tolerates before pushing shapes apart
 _WALL_FRICTION = 0.2  # the car scrapes along a wall rather than sticking to it
 _HASH_COUNT = 1000  # spatial hash buckets; pymunk clears them all every step, so keep it small
-_CAR_CATEGORY = 0b10  # pymunk shape-filter category bit of the car  # spatial hash buckets (pymunk advises about 10 x the number of shapes)
+_CAR_CATEGORY = 0b10  # pymunk shape-filter category bit of the car
+_FREE_MARGIN = 0.05  # metres kept between the footprint's reach and the walls on a free step
 
 
 def _wrap(angle: float) -> float:
@@ -183,6 +194,26 @@ class RacecarPhysics:
         self._half_h = 0.0  # seconds, half the current substep
         self._contact = False
         self._twist = np.zeros(3)
+
+        # Free steps (module doc): the body state [x, y, angle, vx, vy, w] kept in Python while
+        # pymunk is not used, whether pymunk's body lags behind it, and pymunk substeps since the
+        # last contact (a contact stays cached for collision_persistence steps).
+        self.free_steps = True
+        """Take free steps without pymunk far from walls (same results; False forces pymunk)."""
+        self._state: list[float] | None = None
+        self._body_stale = False
+        self._quiet_needed = int(self.space.collision_persistence) + 1
+        self._quiet = self._quiet_needed
+        m = occupancy_map
+        self._ahead = c.length / 2 - c.rear_overhang  # metres, rear axle to the footprint centre
+        # Centre-to-centre distances understate the distance from a point to a wall edge by at
+        # most one cell diagonal.
+        self._reach = 0.5 * math.hypot(c.length, c.width) + math.sqrt(2.0) * m.resolution
+        self._centre_speed = 1.0 + abs(self._ahead) * math.tan(c.max_steer) / c.wheelbase
+        self._grid = (
+            m.distance, float(m.origin[0]), float(m.origin[1]), math.cos(m.yaw), math.sin(m.yaw),
+            1.0 / m.resolution, m.height, m.width,
+        )  # fmt: skip
         self._place(self._first_free_pose(), 0.0, 0.0)
 
     # ------------------------------------------------------------------ setup helpers
@@ -213,6 +244,9 @@ class RacecarPhysics:
     @property
     def pose(self) -> np.ndarray:
         """(3,) world [x, y, theta] of the rear axle; metres, radians wrapped to [-pi, pi)."""
+        if self._state is not None:
+            x, y, a = self._state[0], self._state[1], self._state[2]
+            return np.array([x, y, _wrap(a)])
         x, y = self.body.position
         return np.array([x, y, _wrap(self.body.angle)])
 
@@ -283,6 +317,11 @@ class RacecarPhysics:
         self._speed = float(np.clip(speed, -self.car.max_reverse_speed, self.car.max_speed))
         self._omega = self._speed * math.tan(self._steer) / self.car.wheelbase
         body = self.body
+        self._state = None
+        self._body_stale = False
+        # pymunk keeps the body's bias velocity (its push out of a wall) until the next position
+        # update, so the first step after a placement goes through pymunk.
+        self._quiet = self._quiet_needed - 1
         # Re-adding the car drops pymunk's cached contacts, so a reset starts from a clean state
         # (the same reset gives the same motion whatever happened before).
         self.space.remove(body, self.shape)
@@ -349,6 +388,13 @@ class RacecarPhysics:
         accel = car.max_accel * h
         decel = car.max_decel * h
         inv_wheelbase = 1.0 / car.wheelbase
+        if self.free_steps and self._quiet >= self._quiet_needed:
+            reach = dt * max(abs(self._speed), abs(target_speed)) * self._centre_speed
+            if self._is_clear(reach):
+                self._free_step(target_steer, target_speed, n_sub, h, dt)
+                return False
+        self._sync_body()
+        self._state = None
         body = self.body
         x0, y0 = body.position
         a0 = body.angle
@@ -369,11 +415,13 @@ class RacecarPhysics:
             self._speed = speed
             self._omega = speed * math.tan(steer) * inv_wheelbase
             self.space.step(h)
+            self._quiet += 1
             if self._contact:
                 # Blocked by a wall: the wheels turn no faster than the car can move (no wheel
                 # spin), so the speed becomes the solved velocity along the heading.
                 collided = True
                 self._contact = False
+                self._quiet = 0
                 vx, vy = body.velocity
                 heading = body.angle
                 speed = vx * math.cos(heading) + vy * math.sin(heading)
@@ -382,3 +430,80 @@ class RacecarPhysics:
         x1, y1 = body.position
         self._twist[:] = _se2_log_twist(x1 - x0, y1 - y0, a0, body.angle - a0, dt)
         return collided
+
+    # ------------------------------------------------------------------ free steps
+    def _is_clear(self, reach: float) -> bool:
+        """Whether no wall lies within the footprint's half diagonal + ``reach`` + a margin."""
+        if self._state is not None:
+            x, y, a = self._state[0], self._state[1], self._state[2]
+        else:
+            x, y = self.body.position
+            a = self.body.angle
+        dist, ox, oy, c, s, inv_res, height, width = self._grid
+        dx = x + self._ahead * math.cos(a) - ox
+        dy = y + self._ahead * math.sin(a) - oy
+        col = math.floor((c * dx + s * dy) * inv_res)
+        row = height - 1 - math.floor((c * dy - s * dx) * inv_res)
+        if not (0 <= row < height and 0 <= col < width):
+            return False
+        return float(dist[row, col]) > self._reach + reach + _FREE_MARGIN
+
+    def _free_step(
+        self, target_steer: float, target_speed: float, n_sub: int, h: float, dt: float
+    ) -> None:
+        """:meth:`step`'s substeps without pymunk: its position update, then the velocity function.
+
+        pymunk's substep moves the body by the velocity set at the previous substep,
+        ``p + (v + 0) * h`` and ``a + (w + 0) * h`` (no contact: zero bias velocity), then calls
+        :meth:`_set_velocity`; the same operations on the same doubles give the same result.
+        """
+        car = self.car
+        state = self._state
+        if state is None:
+            x, y = self.body.position
+            vx, vy = self.body.velocity
+            state = [x, y, self.body.angle, vx, vy, self.body.angular_velocity]
+        x, y, a, vx, vy, w = state
+        x0, y0, a0 = x, y, a
+        max_dsteer = car.max_steer_rate * h
+        accel = car.max_accel * h
+        decel = car.max_decel * h
+        inv_wheelbase = 1.0 / car.wheelbase
+        half_h = 0.5 * h
+        steer = self._steer
+        speed = self._speed
+        omega = self._omega
+        for _ in range(n_sub):
+            steer += min(max(target_steer - steer, -max_dsteer), max_dsteer)
+            if speed > 0.0 and target_speed < speed:
+                speed = max(speed - decel, target_speed, 0.0)
+            elif speed < 0.0 and target_speed > speed:
+                speed = min(speed + decel, target_speed, 0.0)
+            else:
+                speed += min(max(target_speed - speed, -accel), accel)
+            omega = speed * math.tan(steer) * inv_wheelbase
+            x = x + (vx + 0.0) * h
+            y = y + (vy + 0.0) * h
+            a = a + (w + 0.0) * h
+            heading = a + omega * half_h
+            vx = speed * math.cos(heading)
+            vy = speed * math.sin(heading)
+            w = omega
+        self._steer = steer
+        self._speed = speed
+        self._omega = omega
+        self._half_h = half_h
+        self._state = [x, y, a, vx, vy, w]
+        self._body_stale = True
+        self._twist[:] = _se2_log_twist(x - x0, y - y0, a0, a - a0, dt)
+
+    def _sync_body(self) -> None:
+        """Write the state of free steps into pymunk's body before pymunk is used."""
+        if self._body_stale and self._state is not None:
+            x, y, a, vx, vy, w = self._state
+            body = self.body
+            body.position = (x, y)
+            body.angle = a
+            body.velocity = (vx, vy)
+            body.angular_velocity = w
+        self._body_stale = False

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from racecar_sim.config import CarParams
@@ -324,3 +324,39 @@ def test_bad_arguments_raise(room: OccupancyMap) -> None:
     with pytest.raises(ValueError, match="dt"):
         phys.step((0.0, 1.0), 0.0)
     assert phys.pose == pytest.approx([0.0, 0.0, 0.0])  # nothing moved
+
+
+# ---------------------------------------------------------------------- free steps
+@settings(max_examples=25, deadline=None)
+@example(seed=0, dt=0.025, max_speed=7.0)  # drives into the walls: contacts, then free again
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    dt=st.sampled_from([0.005, 0.01, 0.025, 0.03]),
+    max_speed=st.floats(0.5, 7.0),
+)
+def test_free_steps_equal_pymunk_bit_for_bit(seed: int, dt: float, max_speed: float) -> None:
+    occ = box_room(100).occupied.copy()
+    occ[40:60, 45:55] = True  # a pillar to drive into
+    grid = OccupancyMap(occupied=occ, resolution=RES, origin=(-1.0, 0.5, 0.7))
+    fast, slow = RacecarPhysics(grid), RacecarPhysics(grid)
+    slow.free_steps = False
+    rng = np.random.default_rng(seed)
+    start = np.array([*grid.map_to_world(np.array([1.0, 1.0])), 0.3])
+    for phys in (fast, slow):
+        phys.reset(start)
+    free = 0
+    for k in range(300):
+        if k % 100 == 99:  # a placement mid-run, as after a collision and a reset
+            pose = np.array([*grid.map_to_world(rng.uniform(0.6, 4.2, 2)), rng.uniform(-3, 3)])
+            if fast.pose_is_free(pose):
+                fast.teleport(pose)
+                slow.teleport(pose)
+        command = (rng.uniform(-0.5, 0.5), rng.uniform(-2.0, max_speed))
+        was_free = fast._quiet >= fast._quiet_needed
+        hit = fast.step(command, dt)
+        assert hit == slow.step(command, dt)
+        free += was_free and fast._state is not None
+        assert np.array_equal(fast.pose, slow.pose), f"step {k}"
+        assert np.array_equal(fast.twist, slow.twist)
+        assert (fast.speed, fast.steer) == (slow.speed, slow.steer)
+    assert free > 50, "most steps far from walls are taken without pymunk"
