@@ -28,6 +28,7 @@ import numpy as np
 from racecar_sim.config import LidarParams, OdometryNoise
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
+from racecar_sim.raycast.scan import scan_geometry, scan_with_noise
 
 __all__ = ["Lidar", "Odometry", "check_pose"]
 
@@ -71,6 +72,16 @@ class Lidar:
         self.angles.setflags(write=False)
         self.period: float = 1.0 / params.rate
         self._caster = RayCaster(occupancy_map, params.max_range, method="exact")
+        # measure() casts and adds noise in one kernel call (racecar_sim.raycast.scan).
+        self._n = int(params.n_beams)
+        self._geometry = scan_geometry(occupancy_map, params.max_range, params.mount_offset)
+        self._noise = np.array(
+            [params.sigma, params.max_range, params.p_rand, params.p_max, params.p_short,
+             params.short_lambda]
+        )  # fmt: skip
+        self._cos_a = np.cos(self.angles)
+        self._sin_a = np.sin(self.angles)
+        self._ranges = np.empty(self._n)
 
     # ------------------------------------------------------------------ geometry
     def mount_pose(self, pose: np.ndarray) -> np.ndarray:
@@ -90,8 +101,32 @@ class Lidar:
         return self._caster.cast(self.mount_pose(pose), self.angles)[0]
 
     def measure(self, pose: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """(n_beams,) float32 noisy scan in metres from a car at rear-axle world ``pose`` (3,)."""
-        return self.add_noise(self.true_ranges(pose), rng)
+        """(n_beams,) float32 noisy scan in metres from a car at rear-axle world ``pose`` (3,).
+
+        The same as ``add_noise(true_ranges(pose), rng)`` (same draws, same floats), in one
+        kernel call; :attr:`last_ranges` holds the exact ranges it cast.
+        """
+        arr = np.asarray(pose, dtype=np.float64)
+        if arr.shape != (3,):
+            check_pose(pose)
+        n = self._n
+        u = rng.random(n)
+        z = rng.standard_normal(n)
+        out = np.empty(n, dtype=np.float32)
+        status = scan_with_noise(
+            self._caster.field, arr, self._geometry, self._cos_a, self._sin_a, u, z, self._noise,
+            self._ranges, out,
+        )  # fmt: skip
+        if status == 1:
+            check_pose(pose)  # raises, naming the pose
+        if status != 0:  # pragma: no cover - an exact cast stays within [0, max_range]
+            raise ValueError(f"ranges must be within [0, max_range={self.params.max_range}] metres")
+        return out
+
+    @property
+    def last_ranges(self) -> np.ndarray:
+        """(n_beams,) float64 exact ranges (metres) of the last :meth:`measure` (a copy)."""
+        return self._ranges.copy()
 
     def add_noise(self, ranges: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The beam noise alone: true ``ranges`` (metres, any shape) -> float32 noisy ranges.

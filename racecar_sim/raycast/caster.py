@@ -247,6 +247,11 @@ class RayCaster:
 
     # ------------------------------------------------------------------ info
     @property
+    def field(self) -> np.ndarray:
+        """The pad-frame jump field of the exact traversal (shared through the cache; read-only use)."""
+        return self._field
+
+    @property
     def table(self) -> LutTable | None:
         """The ``"lut"`` table (shared through the cache), None for other methods."""
         return self._lut

@@ -297,3 +297,41 @@ def test_odometry_same_seed_same_reading() -> None:
 def test_odometry_rejects_bad_twist(twist: list) -> None:
     with pytest.raises(ValueError, match="twist"):
         Odometry().measure(np.asarray(twist), np.random.default_rng(0))
+
+
+# ---------------------------------------------------------------------- one-call scan
+@settings(max_examples=30, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    yaw=st.floats(-math.pi, math.pi),
+    max_range=st.floats(0.5, 40.0),
+    mount=st.floats(-0.3, 0.5),
+)
+def test_measure_is_true_ranges_plus_add_noise_exactly(
+    seed: int, yaw: float, max_range: float, mount: float
+) -> None:
+    """measure() (one kernel call) gives the same doubles and floats as the two-step path."""
+    rng = np.random.default_rng(seed)
+    occ = rng.random((60, 80)) < 0.04
+    occ[[0, -1], :] = True
+    grid = OccupancyMap(occupied=occ, resolution=0.05, origin=(-1.0, 2.0, yaw))
+    lidar = lidar_with(
+        grid, n_beams=257, fov=4.7, max_range=max_range, mount_offset=mount, p_short=0.1,
+        p_max=0.05, p_rand=0.05,
+    )  # fmt: skip
+    w, h = grid.extent
+    for _ in range(10):  # poses on and off the map, in free and occupied cells
+        uv = rng.uniform(-0.1, 1.1, 2) * (w, h)
+        pose = np.array([*grid.map_to_world(uv), rng.uniform(-4, 4)])
+        ranges = lidar.true_ranges(pose)
+        expected = lidar.add_noise(ranges, np.random.default_rng(seed + 1))
+        scan = lidar.measure(pose, np.random.default_rng(seed + 1))
+        np.testing.assert_array_equal(lidar.last_ranges, ranges)
+        np.testing.assert_array_equal(scan, expected)
+
+
+def test_measure_rejects_a_bad_pose_naming_it(grid: OccupancyMap) -> None:
+    lidar = Lidar(grid)
+    for bad in ([1.0, math.nan, 0.0], [1.0, 2.0]):
+        with pytest.raises(ValueError, match="pose"):
+            lidar.measure(np.array(bad), np.random.default_rng(0))
