@@ -45,6 +45,7 @@ import numpy as np
 import pymunk
 
 from racecar_sim.config import CarParams
+from racecar_sim.free_steps import free_constants, free_step
 from racecar_sim.maps import OccupancyMap
 
 __all__ = ["CAR_COLLISION_TYPE", "WALL_COLLISION_TYPE", "RacecarPhysics", "wall_segments"]
@@ -195,25 +196,18 @@ class RacecarPhysics:
         self._contact = False
         self._twist = np.zeros(3)
 
-        # Free steps (module doc): the body state [x, y, angle, vx, vy, w] kept in Python while
-        # pymunk is not used, whether pymunk's body lags behind it, and pymunk substeps since the
-        # last contact (a contact stays cached for collision_persistence steps).
+        # Free steps (module doc): the body and wheel state (racecar_sim.free_steps) kept here while
+        # pymunk is not used, whether it is current and pymunk's body lags behind it, and pymunk
+        # substeps since the last contact (a contact stays cached for collision_persistence steps).
         self.free_steps = True
         """Take free steps without pymunk far from walls (same results; False forces pymunk)."""
-        self._state: list[float] | None = None
+        self._free = np.zeros(9)
+        self._free_valid = False
         self._body_stale = False
         self._quiet_needed = int(self.space.collision_persistence) + 1
         self._quiet = self._quiet_needed
-        m = occupancy_map
-        self._ahead = c.length / 2 - c.rear_overhang  # metres, rear axle to the footprint centre
-        # Centre-to-centre distances understate the distance from a point to a wall edge by at
-        # most one cell diagonal.
-        self._reach = 0.5 * math.hypot(c.length, c.width) + math.sqrt(2.0) * m.resolution
-        self._centre_speed = 1.0 + abs(self._ahead) * math.tan(c.max_steer) / c.wheelbase
-        self._grid = (
-            m.distance, float(m.origin[0]), float(m.origin[1]), math.cos(m.yaw), math.sin(m.yaw),
-            1.0 / m.resolution, m.height, m.width,
-        )  # fmt: skip
+        self._free_const = free_constants(c, occupancy_map, _FREE_MARGIN)
+        self._distance = occupancy_map.distance
         self._place(self._first_free_pose(), 0.0, 0.0)
 
     # ------------------------------------------------------------------ setup helpers
@@ -244,9 +238,9 @@ class RacecarPhysics:
     @property
     def pose(self) -> np.ndarray:
         """(3,) world [x, y, theta] of the rear axle; metres, radians wrapped to [-pi, pi)."""
-        if self._state is not None:
-            x, y, a = self._state[0], self._state[1], self._state[2]
-            return np.array([x, y, _wrap(a)])
+        if self._free_valid:
+            f = self._free
+            return np.array([f[0], f[1], _wrap(float(f[2]))])
         x, y = self.body.position
         return np.array([x, y, _wrap(self.body.angle)])
 
@@ -317,7 +311,7 @@ class RacecarPhysics:
         self._speed = float(np.clip(speed, -self.car.max_reverse_speed, self.car.max_speed))
         self._omega = self._speed * math.tan(self._steer) / self.car.wheelbase
         body = self.body
-        self._state = None
+        self._free_valid = False
         self._body_stale = False
         # pymunk keeps the body's bias velocity (its push out of a wall) until the next position
         # update, so the first step after a placement goes through pymunk.
@@ -389,12 +383,25 @@ class RacecarPhysics:
         decel = car.max_decel * h
         inv_wheelbase = 1.0 / car.wheelbase
         if self.free_steps and self._quiet >= self._quiet_needed:
-            reach = dt * max(abs(self._speed), abs(target_speed)) * self._centre_speed
-            if self._is_clear(reach):
-                self._free_step(target_steer, target_speed, n_sub, h, dt)
+            f = self._free
+            if not self._free_valid:
+                body = self.body
+                f[0], f[1] = body.position
+                f[2] = body.angle
+                f[3], f[4] = body.velocity
+                f[5] = body.angular_velocity
+            f[6], f[7], f[8] = self._steer, self._speed, self._omega
+            if free_step(
+                self._distance, self._free_const, f, target_steer, target_speed, n_sub, h, dt,
+                self._twist,
+            ):  # fmt: skip
+                self._steer, self._speed, self._omega = float(f[6]), float(f[7]), float(f[8])
+                self._half_h = 0.5 * h
+                self._free_valid = True
+                self._body_stale = True
                 return False
         self._sync_body()
-        self._state = None
+        self._free_valid = False
         body = self.body
         x0, y0 = body.position
         a0 = body.angle
@@ -432,75 +439,10 @@ class RacecarPhysics:
         return collided
 
     # ------------------------------------------------------------------ free steps
-    def _is_clear(self, reach: float) -> bool:
-        """Whether no wall lies within the footprint's half diagonal + ``reach`` + a margin."""
-        if self._state is not None:
-            x, y, a = self._state[0], self._state[1], self._state[2]
-        else:
-            x, y = self.body.position
-            a = self.body.angle
-        dist, ox, oy, c, s, inv_res, height, width = self._grid
-        dx = x + self._ahead * math.cos(a) - ox
-        dy = y + self._ahead * math.sin(a) - oy
-        col = math.floor((c * dx + s * dy) * inv_res)
-        row = height - 1 - math.floor((c * dy - s * dx) * inv_res)
-        if not (0 <= row < height and 0 <= col < width):
-            return False
-        return float(dist[row, col]) > self._reach + reach + _FREE_MARGIN
-
-    def _free_step(
-        self, target_steer: float, target_speed: float, n_sub: int, h: float, dt: float
-    ) -> None:
-        """:meth:`step`'s substeps without pymunk: its position update, then the velocity function.
-
-        pymunk's substep moves the body by the velocity set at the previous substep,
-        ``p + (v + 0) * h`` and ``a + (w + 0) * h`` (no contact: zero bias velocity), then calls
-        :meth:`_set_velocity`; the same operations on the same doubles give the same result.
-        """
-        car = self.car
-        state = self._state
-        if state is None:
-            x, y = self.body.position
-            vx, vy = self.body.velocity
-            state = [x, y, self.body.angle, vx, vy, self.body.angular_velocity]
-        x, y, a, vx, vy, w = state
-        x0, y0, a0 = x, y, a
-        max_dsteer = car.max_steer_rate * h
-        accel = car.max_accel * h
-        decel = car.max_decel * h
-        inv_wheelbase = 1.0 / car.wheelbase
-        half_h = 0.5 * h
-        steer = self._steer
-        speed = self._speed
-        omega = self._omega
-        for _ in range(n_sub):
-            steer += min(max(target_steer - steer, -max_dsteer), max_dsteer)
-            if speed > 0.0 and target_speed < speed:
-                speed = max(speed - decel, target_speed, 0.0)
-            elif speed < 0.0 and target_speed > speed:
-                speed = min(speed + decel, target_speed, 0.0)
-            else:
-                speed += min(max(target_speed - speed, -accel), accel)
-            omega = speed * math.tan(steer) * inv_wheelbase
-            x = x + (vx + 0.0) * h
-            y = y + (vy + 0.0) * h
-            a = a + (w + 0.0) * h
-            heading = a + omega * half_h
-            vx = speed * math.cos(heading)
-            vy = speed * math.sin(heading)
-            w = omega
-        self._steer = steer
-        self._speed = speed
-        self._omega = omega
-        self._half_h = half_h
-        self._state = [x, y, a, vx, vy, w]
-        self._body_stale = True
-        self._twist[:] = _se2_log_twist(x - x0, y - y0, a0, a - a0, dt)
-
     def _sync_body(self) -> None:
         """Write the state of free steps into pymunk's body before pymunk is used."""
-        if self._body_stale and self._state is not None:
-            x, y, a, vx, vy, w = self._state
+        if self._body_stale and self._free_valid:
+            x, y, a, vx, vy, w = self._free[:6].tolist()
             body = self.body
             body.position = (x, y)
             body.angle = a

@@ -355,7 +355,7 @@ def test_free_steps_equal_pymunk_bit_for_bit(seed: int, dt: float, max_speed: fl
         was_free = fast._quiet >= fast._quiet_needed
         hit = fast.step(command, dt)
         assert hit == slow.step(command, dt)
-        free += was_free and fast._state is not None
+        free += was_free and fast._free_valid
         assert np.array_equal(fast.pose, slow.pose), f"step {k}"
         assert np.array_equal(fast.twist, slow.twist)
         assert (fast.speed, fast.steer) == (slow.speed, slow.steer)
