@@ -157,7 +157,7 @@ class RacecarEnv(gym.Env):
         self._next_scan = 0.0
         self.time = 0.0
         self._scan = np.zeros(self.lidar_params.n_beams, dtype=np.float32)
-        self._scan_pose = np.zeros(3)
+        self._scan_car_pose = np.zeros(3)  # rear-axle pose of the last scan (render draws it)
 
     # ------------------------------------------------------------------ state
     @property
@@ -254,7 +254,7 @@ class RacecarEnv(gym.Env):
         img = renderer.base()
         renderer.draw_scan(
             img,
-            self._scan_pose,
+            self.lidar.mount_pose(self._scan_car_pose),
             self._scan,
             self.lidar.angles,
             max_range=self.lidar_params.max_range,
@@ -291,7 +291,7 @@ class RacecarEnv(gym.Env):
         """Scan from the current pose and schedule the next scan one lidar period later."""
         pose = self.physics.pose
         self._scan = self.lidar.measure(pose, self.np_random)
-        self._scan_pose = self.lidar.mount_pose(pose)
+        self._scan_car_pose = pose
         n_done = math.floor((self.time + _EPS_TIME) / self._period) + 1
         self._next_scan = n_done * self._period
 

@@ -197,6 +197,8 @@ class Odometry:
         self.noise = noise
         self._prop = np.asarray(noise.proportional, dtype=np.float64)
         self._add = np.asarray(noise.additive, dtype=np.float64)
+        self._prop_f = [float(v) for v in noise.proportional]
+        self._add_f = [float(v) for v in noise.additive]
 
     def measure(self, twist: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Noisy (3,) float32 [vx, vy, omega] (m/s, m/s, rad/s, car frame) from the true ``twist``.
@@ -208,7 +210,20 @@ class Odometry:
             ValueError: ``twist`` is not three finite numbers.
         """
         t = np.asarray(twist, dtype=np.float64)
-        if t.shape != (3,) or not np.isfinite(t).all():
+        if t.shape != (3,):
             raise ValueError(f"twist must be three finite numbers [vx, vy, omega], got {twist!r}")
-        z = rng.standard_normal((2, 3))
-        return (t * (1.0 + self._prop * z[0]) + self._add * z[1]).astype(np.float32)
+        vx, vy, om = t.tolist()
+        if not (math.isfinite(vx) and math.isfinite(vy) and math.isfinite(om)):
+            raise ValueError(f"twist must be three finite numbers [vx, vy, omega], got {twist!r}")
+        # Six standard normals, the first three proportional, the last three additive (the same
+        # draws and the same double operations as the array expression, in plain floats).
+        z = rng.standard_normal(6).tolist()
+        p, a = self._prop_f, self._add_f
+        return np.array(
+            [
+                vx * (1.0 + p[0] * z[0]) + a[0] * z[3],
+                vy * (1.0 + p[1] * z[1]) + a[1] * z[4],
+                om * (1.0 + p[2] * z[2]) + a[2] * z[5],
+            ],
+            dtype=np.float32,
+        )
