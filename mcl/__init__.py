@@ -1,36 +1,23 @@
 """mcl: Monte Carlo Localization (particle filter) for racecar_sim.
 
-Depends on ``racecar_sim.maps`` and ``racecar_sim.raycast``; ``racecar_sim`` never imports ``mcl``.
+The main classes are here; helpers live in their modules (``mcl.resampling``, ``mcl.angles``,
+``mcl.motion_model``, ...). The experiment harness is ``mcl.experiments``, the console command
+``mcl.cli``, the benchmarks ``mcl.bench``. Depends on ``racecar_sim``; ``racecar_sim`` never
+imports ``mcl``.
 """
 
-from mcl.angles import circular_mean, wrap_angle
 from mcl.augmented import AugmentedParams
 from mcl.filter_params import DEFAULT_PARTICLES, ParticleFilterParams
 from mcl.kld import KLDParams
-from mcl.motion_model import (
-    MotionModel,
-    MotionModelParams,
-    gaussian_to_uniform,
-    twist_to_odometry,
-    uniform_to_gaussian,
-)
+from mcl.motion_model import MotionModel, MotionModelParams
 from mcl.particle_filter import ParticleFilter
-from mcl.resampling import (
-    RESAMPLERS,
-    effective_sample_size,
-    multinomial,
-    resample,
-    stratified,
-    systematic,
-)
-from mcl.sensor_model import SensorModel, SensorModelParams, beam_table
+from mcl.sensor_model import SensorModel, SensorModelParams
 from mcl.uncertainty import ClusterParams, Uncertainty
 from mcl.wrapper import LocalizationConfig, LocalizationWrapper
 from racecar_sim import __version__
 
 __all__ = [
     "DEFAULT_PARTICLES",
-    "RESAMPLERS",
     "AugmentedParams",
     "ClusterParams",
     "KLDParams",
@@ -44,15 +31,4 @@ __all__ = [
     "SensorModelParams",
     "Uncertainty",
     "__version__",
-    "beam_table",
-    "circular_mean",
-    "effective_sample_size",
-    "gaussian_to_uniform",
-    "multinomial",
-    "resample",
-    "stratified",
-    "systematic",
-    "twist_to_odometry",
-    "uniform_to_gaussian",
-    "wrap_angle",
 ]

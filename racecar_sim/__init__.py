@@ -5,7 +5,7 @@ from gymnasium.envs.registration import register, registry
 from racecar_sim.maps import DEFAULT_MAP, MapError, OccupancyMap, bundled, load_map
 
 __all__ = ["DEFAULT_MAP", "ENV_ID", "MapError", "OccupancyMap", "bundled", "load_map"]
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 ENV_ID = "RacecarSim-v0"
 """Gymnasium id of :class:`racecar_sim.env.RacecarEnv`: ``gymnasium.make(ENV_ID, map=...)``."""
