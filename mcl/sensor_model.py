@@ -277,21 +277,24 @@ class SensorModel:
         z = np.floor(np.clip(ranges / self.m_per_px, 0.0, self.z_max) + 0.5).astype(np.int64)
         return np.ascontiguousarray(angles), z
 
-    def expected_ranges(self, particles: np.ndarray, angles: np.ndarray) -> np.ndarray:
-        """(N, K) ranges in metres the map predicts for each particle's lidar at car-frame angles."""
+    def lidar_poses(self, particles: np.ndarray) -> np.ndarray:
+        """(N, 3) world poses of each particle's lidar (``mount_offset`` ahead of the rear axle)."""
         particles = np.asarray(particles, dtype=np.float64)
         if particles.ndim != 2 or particles.shape[1] != 3:
             raise ValueError(f"particles must have shape (N, 3), got {particles.shape}")
         off = self.params.mount_offset
-        if off != 0.0:
-            th = particles[:, 2]
-            lidar = np.empty_like(particles)
-            lidar[:, 0] = particles[:, 0] + off * np.cos(th)
-            lidar[:, 1] = particles[:, 1] + off * np.sin(th)
-            lidar[:, 2] = th
-        else:
-            lidar = particles
-        return self.caster.cast(lidar, angles)
+        if off == 0.0:
+            return particles
+        th = particles[:, 2]
+        lidar = np.empty_like(particles)
+        lidar[:, 0] = particles[:, 0] + off * np.cos(th)
+        lidar[:, 1] = particles[:, 1] + off * np.sin(th)
+        lidar[:, 2] = th
+        return lidar
+
+    def expected_ranges(self, particles: np.ndarray, angles: np.ndarray) -> np.ndarray:
+        """(N, K) ranges in metres the map predicts for each particle's lidar at car-frame angles."""
+        return self.caster.cast(self.lidar_poses(particles), angles)
 
     def score(self, expected: np.ndarray, z_px: np.ndarray) -> np.ndarray:
         """(N,) log-likelihoods: squash x sum over beams of log table[z_px, expected in pixels].
@@ -325,6 +328,11 @@ class SensorModel:
         angles, z_px = self.observe(scan)
         if z_px.size == 0:
             return np.zeros(np.asarray(particles).shape[0])
+        if self.caster.method == "lut":
+            # Cast and score in one pass (same numbers as score(expected_ranges(...))).
+            return self.caster.cast_score(
+                self.lidar_poses(particles), angles, self._log_table[z_px], 1.0 / self.m_per_px
+            )
         return self.score(self.expected_ranges(particles, angles), z_px)
 
     def evaluate(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:

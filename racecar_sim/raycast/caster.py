@@ -78,7 +78,7 @@ from racecar_sim.raycast.kernels import (
     march_rays,
     padded_occupancy,
 )
-from racecar_sim.raycast.lut import LutParams, LutTable, build_lut, lut_rays
+from racecar_sim.raycast.lut import LutParams, LutTable, build_lut, lut_rays, lut_score
 
 __all__ = [
     "CACHE_BYTES",
@@ -337,4 +337,51 @@ class RayCaster:
                 gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a,
                 max_t, res, self.max_range, out, parallel,
             )  # fmt: skip
+        return out
+
+    def cast_score(self, poses: np.ndarray, angles: np.ndarray, rows: np.ndarray, per_metre: float):
+        """(N,) ``sum_b rows[b, round(clip(range_ib * per_metre, 0, W - 1))]`` over the beams.
+
+        The same ranges as :meth:`cast` (metres, float64) looked up in a per-beam score table
+        ``rows`` (M, W) float64, e.g. a sensor model's log-likelihood row for each beam's measured
+        range. The ``"lut"`` method casts and scores in one pass without storing the (N, M) ranges;
+        the others cast, then score.
+
+        Raises:
+            ValueError: as :meth:`cast`; rows not (M, W) for the M angles.
+        """
+        poses = np.asarray(poses, dtype=np.float64)
+        if poses.ndim == 1:
+            poses = poses[None, :]
+        angles = np.ascontiguousarray(np.asarray(angles, dtype=np.float64).reshape(-1))
+        rows = np.ascontiguousarray(rows, dtype=np.float64)
+        if rows.ndim != 2 or rows.shape[0] != angles.shape[0] or rows.shape[1] < 1:
+            raise ValueError(f"rows must have shape ({angles.shape[0]}, W), got {rows.shape}")
+        if self.method != "lut" or self.dtype != np.float64:
+            ranges = self.cast(poses, angles).astype(np.float64, copy=False)
+            top = rows.shape[1] - 1
+            d = np.floor(np.clip(ranges * per_metre, 0.0, top) + 0.5).astype(np.int64)
+            return rows[np.arange(rows.shape[0])[None, :], d].sum(axis=1)
+        if poses.ndim != 2 or poses.shape[1] != 3:
+            raise ValueError(f"poses must have shape (N, 3) or (3,), got {poses.shape}")
+        if not (np.isfinite(poses).all() and np.isfinite(angles).all()):
+            raise ValueError("poses and angles must be finite (found NaN or inf)")
+        out = np.empty(poses.shape[0], dtype=np.float64)
+        if out.size == 0:
+            return out
+        if angles.size == 0:
+            out[:] = 0.0
+            return out
+        gu, gv, heading, cos_h, sin_h = self._grid_frame(poses)
+        cos_a, sin_a = self._beam_directions(angles)
+        res = self.map.resolution
+        rays = poses.shape[0] * angles.shape[0]
+        parallel = self.parallel if self.parallel is not None else rays >= PARALLEL_MIN_RAYS
+        assert self._lut is not None
+        p = self.lut_params
+        lut_score(
+            self._lut, p.tolerance / res, p.guide / res, self._field,
+            gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a,
+            self._max_cells, res, self.max_range, rows, float(per_metre), out, parallel,
+        )  # fmt: skip
         return out

@@ -39,7 +39,7 @@ import numpy as np
 from racecar_sim.raycast.kernels import CHUNK, cast_ray, cast_ray_from, to_metres
 from racecar_sim.validation import check_number
 
-__all__ = ["PARALLEL_MIN_ENTRIES", "LutParams", "LutTable", "build_lut", "lut_rays"]
+__all__ = ["PARALLEL_MIN_ENTRIES", "LutParams", "LutTable", "build_lut", "lut_rays", "lut_score"]
 
 PARALLEL_MIN_ENTRIES = 4_000_000
 """Tables with fewer entries (free cells x directions) are built on the calling thread."""
@@ -367,6 +367,75 @@ def _foot_hit(cx, cy, c, s, r, sub, inv_sub):
     return cx - dl * s + r * c, cy + dl * c + r * s
 
 
+@nb.njit(cache=True, inline="always")
+def _lut_ray(
+    table, fi, col, rv, x, y, dx, dy, a, unit, sub, inv_sub, cos_k, sin_k, tol_code, saturated,
+    guide, field, max_t,
+):  # fmt: skip
+    """Range in cells of one ray from (x, y) in free cell (col, rv) with table row ``fi``.
+
+    ``(dx, dy)`` the unit direction, ``a`` its angle in units of table directions, wrapped to
+    ``[0, K)`` by the caller's arithmetic up to one period.
+    """
+    n_angles = table.shape[1]
+    if a >= n_angles:
+        a -= n_angles
+    elif a < 0.0:
+        a += n_angles
+    k0 = min(int(a), n_angles - 1)
+    k1 = k0 + 1 if k0 + 1 < n_angles else 0
+    c0 = table[fi, k0]
+    c1 = table[fi, k1]
+    t = -1.0
+    if min(c0, c1) >= saturated:  # both beyond max range (the cap is max_t + _CAP_MARGIN)
+        return max_t
+    if abs(np.int32(c0) - np.int32(c1)) <= tol_code:
+        # Where the true ray meets the line through the two table rays' hit points.
+        r0 = c0 * unit
+        r1 = c1 * unit
+        cx = col + 0.5
+        cy = rv + 0.5
+        h0x, h0y = _foot_hit(cx, cy, cos_k[k0], sin_k[k0], r0, sub, inv_sub)
+        h1x, h1y = _foot_hit(cx, cy, cos_k[k0 + 1], sin_k[k0 + 1], r1, sub, inv_sub)
+        ex = h1x - h0x
+        ey = h1y - h0y
+        wx = h0x - x
+        wy = h0y - y
+        den = dx * ey - dy * ex
+        if abs(den) > 1e-9:
+            t = (wx * ey - wy * ex) / den
+        else:
+            t = wx * dx + wy * dy
+        if not (min(r0, r1) - _SANE <= t <= max(r0, r1) + _SANE):
+            t = -1.0  # the ray runs (nearly) along that line: cast it
+    if t < 0.0:
+        t0 = min(c0, c1) * unit - guide
+        if t0 > 0.0:
+            t = cast_ray_from(field, x, y, dx, dy, t0, max_t)
+        if t < 0.0:
+            t = cast_ray(field, x, y, dx, dy, max_t)
+    return t
+
+
+@nb.njit(cache=True, inline="always")
+def _pose_row(index, x, y):
+    """Table row of the free cell holding (x, y) (pad frame, cells), or -1."""
+    if not (x >= 0.0 and x < index.shape[1] and y >= 0.0 and y < index.shape[0]):
+        return -1
+    return index[int(y), int(x)]
+
+
+@nb.njit(cache=True, inline="always")
+def _touch_next(index, table, gu, gv, i, sink):
+    """Read pose ``i``'s table row now (if any) so its cache misses overlap the current pose's work."""
+    if i < gu.shape[0]:
+        fn = _pose_row(index, gu[i], gv[i])
+        if fn >= 0:
+            for k in range(0, table.shape[1], 32):
+                sink += table[fn, k]
+    return sink
+
+
 @nb.njit(cache=True)
 def _lut_span(
     table, index, unit, sub, cos_k, sin_k, tol, guide, field, gu, gv, hbin, cos_h, sin_h,
@@ -378,78 +447,93 @@ def _lut_span(
     ``0 <= hbin < K`` and ``-K <= abin < K``.
     """
     m = cos_a.shape[0]
-    n = gu.shape[0]
-    n_angles = table.shape[1]
-    h = index.shape[0]
-    w = index.shape[1]
     inv_sub = 1.0 / sub
     saturated = (max_t + _SANE) / unit  # a code at least this large is beyond max_t + _SANE
     tol_code = tol / unit
     sink = 0
-    for q in range(q0, q1):
-        i = q // m
-        b = q - i * m
-        if b == 0 and i + 1 < n:
-            # Touch the next pose's table row now: its cache misses overlap this pose's work.
-            xn = gu[i + 1]
-            yn = gv[i + 1]
-            if xn >= 0.0 and xn < w and yn >= 0.0 and yn < h:
-                fn = index[int(yn), int(xn)]
-                if fn >= 0:
-                    for k in range(0, n_angles, 32):
-                        sink += table[fn, k]
+    i = q0 // m
+    b = q0 - i * m
+    fi = _pose_row(index, gu[i], gv[i])
+    sink = _touch_next(index, table, gu, gv, i + 1, sink)
+    for _ in range(q0, q1):
+        if b == m:
+            b = 0
+            i += 1
+            fi = _pose_row(index, gu[i], gv[i])
+            sink = _touch_next(index, table, gu, gv, i + 1, sink)
+        if fi < 0:
+            out[i, b] = 0.0
+        else:
+            x = gu[i]
+            y = gv[i]
+            dx = cos_h[i] * cos_a[b] - sin_h[i] * sin_a[b]
+            dy = sin_h[i] * cos_a[b] + cos_h[i] * sin_a[b]
+            t = _lut_ray(
+                table, fi, int(x), int(y), x, y, dx, dy, hbin[i] + abin[b], unit, sub, inv_sub,
+                cos_k, sin_k, tol_code, saturated, guide, field, max_t,
+            )  # fmt: skip
+            out[i, b] = to_metres(t, max_t, scale, max_out)
+        b += 1
+    return sink
+
+
+@nb.njit(cache=True)
+def _lut_score_span(
+    table, index, unit, sub, cos_k, sin_k, tol, guide, field, gu, gv, hbin, cos_h, sin_h,
+    abin, cos_a, sin_a, max_t, scale, max_out, rows, per_out, top, out, i0, i1,
+):  # fmt: skip
+    """Poses ``i0 <= i < i1`` of :func:`lut_score`: cast and score in one pass."""
+    m = cos_a.shape[0]
+    inv_sub = 1.0 / sub
+    saturated = (max_t + _SANE) / unit
+    tol_code = tol / unit
+    sink = 0
+    for i in range(i0, i1):
         x = gu[i]
         y = gv[i]
-        if not (x >= 0.0 and x < w and y >= 0.0 and y < h):
-            out[i, b] = 0.0
+        fi = _pose_row(index, x, y)
+        sink = _touch_next(index, table, gu, gv, i + 1, sink)
+        acc = 0.0
+        if fi < 0:
+            for b in range(m):
+                acc += rows[b, 0]
+            out[i] = acc
             continue
         col = int(x)
         rv = int(y)
-        fi = index[rv, col]
-        if fi < 0:
-            out[i, b] = 0.0
-            continue
-        dx = cos_h[i] * cos_a[b] - sin_h[i] * sin_a[b]
-        dy = sin_h[i] * cos_a[b] + cos_h[i] * sin_a[b]
-        a = hbin[i] + abin[b]
-        if a >= n_angles:
-            a -= n_angles
-        elif a < 0.0:
-            a += n_angles
-        k0 = min(int(a), n_angles - 1)
-        k1 = k0 + 1 if k0 + 1 < n_angles else 0
-        c0 = table[fi, k0]
-        c1 = table[fi, k1]
-        t = -1.0
-        if min(c0, c1) >= saturated:  # both beyond max range (the cap is max_t + _CAP_MARGIN)
-            t = max_t
-        elif abs(np.int32(c0) - np.int32(c1)) <= tol_code:
-            # Where the true ray meets the line through the two table rays' hit points.
-            r0 = c0 * unit
-            r1 = c1 * unit
-            cx = col + 0.5
-            cy = rv + 0.5
-            h0x, h0y = _foot_hit(cx, cy, cos_k[k0], sin_k[k0], r0, sub, inv_sub)
-            h1x, h1y = _foot_hit(cx, cy, cos_k[k0 + 1], sin_k[k0 + 1], r1, sub, inv_sub)
-            ex = h1x - h0x
-            ey = h1y - h0y
-            wx = h0x - x
-            wy = h0y - y
-            den = dx * ey - dy * ex
-            if abs(den) > 1e-9:
-                t = (wx * ey - wy * ex) / den
-            else:
-                t = wx * dx + wy * dy
-            if not (min(r0, r1) - _SANE <= t <= max(r0, r1) + _SANE):
-                t = -1.0  # the ray runs (nearly) along that line: cast it
-        if t < 0.0:
-            t0 = min(c0, c1) * unit - guide
-            if t0 > 0.0:
-                t = cast_ray_from(field, x, y, dx, dy, t0, max_t)
-            if t < 0.0:
-                t = cast_ray(field, x, y, dx, dy, max_t)
-        out[i, b] = to_metres(t, max_t, scale, max_out)
+        ch = cos_h[i]
+        sh = sin_h[i]
+        hb = hbin[i]
+        for b in range(m):
+            dx = ch * cos_a[b] - sh * sin_a[b]
+            dy = sh * cos_a[b] + ch * sin_a[b]
+            t = _lut_ray(
+                table, fi, col, rv, x, y, dx, dy, hb + abin[b], unit, sub, inv_sub, cos_k,
+                sin_k, tol_code, saturated, guide, field, max_t,
+            )  # fmt: skip
+            d = to_metres(t, max_t, scale, max_out) * per_out
+            if d > top:
+                d = top
+            elif d < 0.0:
+                d = 0.0
+            acc += rows[b, int(d + 0.5)]
+        out[i] = acc
     return sink
+
+
+@nb.njit(cache=True, parallel=True)
+def _lut_score_parallel(
+    table, index, unit, sub, cos_k, sin_k, tol, guide, field, gu, gv, hbin, cos_h, sin_h,
+    abin, cos_a, sin_a, max_t, scale, max_out, rows, per_out, top, out,
+):  # fmt: skip
+    n = gu.shape[0]
+    blk = 64
+    for c in nb.prange((n + blk - 1) // blk):
+        _lut_score_span(
+            table, index, unit, sub, cos_k, sin_k, tol, guide, field, gu, gv, hbin, cos_h,
+            sin_h, abin, cos_a, sin_a, max_t, scale, max_out, rows, per_out, top, out,
+            c * blk, min(n, (c + 1) * blk),
+        )  # fmt: skip
 
 
 @nb.njit(cache=True, parallel=True)
@@ -491,10 +575,7 @@ def lut_rays(
     as angles relative to the heading with their cos/sin. ``tol``, ``guide``, ``max_t`` in cells.
     ``field`` is the exact kernel's field, for the fallback casts.
     """
-    per_radian = lut.n_angles / (2.0 * math.pi)
-    hbin = np.mod(heading * per_radian, lut.n_angles)
-    hbin[hbin >= lut.n_angles] = 0.0  # np.mod can round up to the modulus itself
-    abin = np.mod(angles * per_radian + lut.n_angles / 2, lut.n_angles) - lut.n_angles / 2
+    hbin, abin = _bins(lut, heading, angles)
     args = (
         lut.table, lut.index, lut.unit, lut.sub_lines, lut.cos_k, lut.sin_k, tol, guide, field,
         gu, gv, hbin, cos_h, sin_h, abin, cos_a, sin_a, max_t, scale, max_out,
@@ -503,3 +584,52 @@ def lut_rays(
         _lut_parallel(*args, out)
     else:
         _lut_span(*args, out, 0, out.size)
+
+
+def _bins(lut: LutTable, heading: np.ndarray, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Headings in [0, K) and beam angles in [-K/2, K/2) in units of table directions."""
+    per_radian = lut.n_angles / (2.0 * math.pi)
+    hbin = np.mod(heading * per_radian, lut.n_angles)
+    hbin[hbin >= lut.n_angles] = 0.0  # np.mod can round up to the modulus itself
+    abin = np.mod(angles * per_radian + lut.n_angles / 2, lut.n_angles) - lut.n_angles / 2
+    return hbin, abin
+
+
+def lut_score(
+    lut: LutTable,
+    tol: float,
+    guide: float,
+    field: np.ndarray,
+    gu: np.ndarray,
+    gv: np.ndarray,
+    heading: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    angles: np.ndarray,
+    cos_a: np.ndarray,
+    sin_a: np.ndarray,
+    max_t: float,
+    scale: float,
+    max_out: float,
+    rows: np.ndarray,
+    per_out: float,
+    out: np.ndarray,
+    parallel: bool,
+) -> None:
+    """``out[i] = sum_b rows[b, round(clip(range_ib * per_out, 0, W - 1))]`` without storing ranges.
+
+    ``range_ib`` is exactly what :func:`lut_rays` writes for pose ``i`` and beam ``b`` (same
+    arguments); ``rows`` is a float64 (M, W) table of per-beam scores (a sensor model's log
+    likelihood row of each beam's measured range), ``per_out`` converts the output unit to row
+    columns. Cast and score share one pass over the poses, so the (N, M) ranges never reach memory.
+    """
+    hbin, abin = _bins(lut, heading, angles)
+    args = (
+        lut.table, lut.index, lut.unit, lut.sub_lines, lut.cos_k, lut.sin_k, tol, guide, field,
+        gu, gv, hbin, cos_h, sin_h, abin, cos_a, sin_a, max_t, scale, max_out, rows,
+        per_out, float(rows.shape[1] - 1), out,
+    )  # fmt: skip
+    if parallel:
+        _lut_score_parallel(*args)
+    else:
+        _lut_score_span(*args, 0, gu.shape[0])

@@ -1,0 +1,208 @@
+"""The range_libc peer: a kctess5-style MCL update on range_libc's giant lookup table (GLT).
+
+range_libc (Walsh & Karaman, the MIT RSS particle filter's caster) is an *optional* peer: it is
+imported only here, only when installed (``pip install "cython<3" setuptools wheel`` then
+``pip install --no-build-isolation pyrangelibc-danieldugas``); :func:`available` says whether it is.
+None of its code is copied here; this module calls its Python API.
+
+Frames. range_libc's ``PyOMap(array)`` reads ``array[y, x]`` and casts in that array's pixel frame:
+``x`` along columns, ``y`` along rows, heading 0 = +x, pi/2 = +y, ranges in pixels. We hand it the
+occupancy grid with row 0 at the *bottom* (the map frame's v axis up), so a world pose becomes
+``(u / res, v / res, theta - yaw)`` with ``(u, v)`` the map-frame metres of
+:meth:`~racecar_sim.maps.OccupancyMap.world_to_map` (the Stata basement's origin yaw 3.14 rotates
+the heading, the grid stays as is). :func:`accuracy` checks this against the exact caster.
+
+The PyPI build (``pyrangelibc-danieldugas`` 0.0.2) compiles range_libc without its ROS helpers:
+``calc_range_repeat_angles`` and ``eval_sensor_model`` are empty (they leave their output arrays
+untouched), so the update builds its (N K, 3) queries with numpy and calls ``calc_range_many`` as
+kctess5's ``particle_filter.py`` does in its ``calc_range_many`` variant, and evaluates the sensor
+table with a numba kernel doing what range_libc's C++ ``eval_sensor_model`` does (product over beams
+of ``table[int(z), int(d)]``), so the peer is measured at its best rather than with numpy indexing.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import time
+
+import numba as nb
+import numpy as np
+
+from mcl.sensor_model import SensorModelParams, beam_table
+from racecar_sim.maps import OccupancyMap
+
+__all__ = [
+    "INSTALL_HINT",
+    "THETA_DISC",
+    "GltUpdate",
+    "accuracy",
+    "available",
+    "pixel_poses",
+    "range_libc_omap",
+]
+
+THETA_DISC = 112
+"""GLT heading bins: kctess5's particle filter default (``theta_discretization``)."""
+
+INSTALL_HINT = (
+    'range_libc is not installed: .venv/bin/pip install "cython<3" setuptools wheel && '
+    ".venv/bin/pip install --no-build-isolation pyrangelibc-danieldugas"
+)
+
+STAGES = ("predict", "cast", "weigh", "resample", "estimate")
+
+
+def available() -> bool:
+    """Whether ``range_libc`` can be imported."""
+    return importlib.util.find_spec("range_libc") is not None
+
+
+def range_libc_omap(grid: OccupancyMap):
+    """A ``range_libc.PyOMap`` of ``grid``'s occupied cells (unknown counts as occupied), row 0 at
+    the bottom (see the module docstring)."""
+    import range_libc
+
+    return range_libc.PyOMap(np.ascontiguousarray(grid.occupied[::-1]).astype(bool))
+
+
+def pixel_poses(grid: OccupancyMap, poses: np.ndarray) -> np.ndarray:
+    """(N, 3) world poses -> float64 range_libc pixel poses ``[x px, y px, heading rad]``."""
+    poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    uv = grid.world_to_map(poses[:, :2]) / grid.resolution
+    return np.column_stack([uv, poses[:, 2] - grid.yaw])
+
+
+def _queries(px: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """(N K, 3) float32 queries: each pixel pose repeated for every beam angle (kctess5's way)."""
+    n, k = px.shape[0], angles.shape[0]
+    q = np.empty((n * k, 3), dtype=np.float32)
+    q[:, 0] = np.repeat(px[:, 0], k)
+    q[:, 1] = np.repeat(px[:, 1], k)
+    q[:, 2] = np.repeat(px[:, 2], k)
+    q[:, 2] += np.tile(angles, n)
+    return q
+
+
+@nb.njit(cache=True)
+def _eval_sensor_model(obs_px, ranges_px, table, out):
+    """range_libc's ``eval_sensor_model``: out[i] = prod_j table[int(z_j), int(d_ij)], clamped."""
+    n = out.shape[0]
+    k = obs_px.shape[0]
+    top = table.shape[0] - 1.0
+    for i in range(n):
+        w = 1.0
+        for j in range(k):
+            r = min(max(obs_px[j], 0.0), top)
+            d = min(max(ranges_px[i * k + j], 0.0), top)
+            w *= table[int(r), int(d)]
+        out[i] = w
+
+
+def accuracy(
+    grid: OccupancyMap,
+    method,
+    exact_caster,
+    poses: np.ndarray,
+    angles: np.ndarray,
+) -> np.ndarray:
+    """|range_libc range - exact range| (N, K) metres for world ``poses`` and car-frame ``angles``.
+
+    ``method`` is a built range_libc caster (``PyGiantLUTCast``, ``PyRayMarching``, ...);
+    ``exact_caster`` a :class:`racecar_sim.raycast.RayCaster` with method ``"exact"`` whose
+    ``max_range`` equals the range_libc caster's max range times the resolution.
+    """
+    px = pixel_poses(grid, poses)
+    q = _queries(px, np.asarray(angles, dtype=np.float64))
+    out = np.empty(q.shape[0], dtype=np.float32)
+    method.calc_range_many(q, out)
+    ours = exact_caster.cast(poses, angles)
+    return np.abs(out.reshape(ours.shape).astype(np.float64) * grid.resolution - ours)
+
+
+class GltUpdate:
+    """A kctess5-style particle filter update on range_libc's GLT, one thread.
+
+    Stages (seconds each, returned by :meth:`step`): ``predict`` (odometry composed with Gaussian
+    noise in numpy), ``cast`` (queries in numpy + ``calc_range_many``), ``weigh`` (the sensor table
+    as range_libc evaluates it, ``** squash``, normalised), ``resample`` (``Generator.choice``, the
+    lab's multinomial), ``estimate`` (weighted mean pose, kctess5's ``expected_pose``).
+
+    Args:
+        grid: the map.
+        params: the beam model (the same table as ours; ``z_max`` pixels of range).
+        theta_disc: GLT heading bins.
+        rng: the generator for the motion noise and the resampling.
+        method: ``"glt"`` (default), ``"rm"`` (ray marching) or ``"cddt"``.
+    """
+
+    def __init__(
+        self,
+        grid: OccupancyMap,
+        params: SensorModelParams,
+        rng: np.random.Generator,
+        theta_disc: int = THETA_DISC,
+        method: str = "glt",
+    ) -> None:
+        import range_libc
+
+        self.grid = grid
+        self.params = params
+        self.rng = rng
+        self.m_per_px = grid.resolution * params.lidar_scale_to_map_scale
+        start = time.perf_counter()
+        self.omap = range_libc_omap(grid)
+        if method == "glt":
+            self.caster = range_libc.PyGiantLUTCast(self.omap, float(params.z_max), theta_disc)
+        elif method == "cddt":
+            self.caster = range_libc.PyCDDTCast(self.omap, float(params.z_max), theta_disc)
+        elif method == "rm":
+            self.caster = range_libc.PyRayMarching(self.omap, float(params.z_max))
+        else:
+            raise ValueError(f"method must be glt, cddt or rm, got {method!r}")
+        self.build_seconds = time.perf_counter() - start
+        self.table = np.ascontiguousarray(beam_table(params))
+        self.noise = np.array([0.05, 0.025, 0.1])  # kctess5's motion dispersion x, y, theta
+
+    def step(
+        self, particles: np.ndarray, odometry: np.ndarray, scan: np.ndarray, angles: np.ndarray
+    ) -> tuple[np.ndarray, dict[str, float]]:
+        """One update; returns the resampled particles and the seconds per stage.
+
+        Args:
+            particles: (N, 3) world poses.
+            odometry: car-frame displacement ``[dx, dy, dtheta]`` (metres, radians).
+            scan: (K,) measured ranges (metres) of the beams at ``angles``.
+            angles: (K,) car-frame beam angles (radians).
+        """
+        p = self.params
+        n = particles.shape[0]
+        t0 = time.perf_counter()
+        c, s = np.cos(particles[:, 2]), np.sin(particles[:, 2])
+        moved = np.empty_like(particles)
+        moved[:, 0] = particles[:, 0] + c * odometry[0] - s * odometry[1]
+        moved[:, 1] = particles[:, 1] + s * odometry[0] + c * odometry[1]
+        moved[:, 2] = particles[:, 2] + odometry[2]
+        moved += self.rng.normal(0.0, self.noise, size=(n, 3))
+        t1 = time.perf_counter()
+        lidar = moved.copy()
+        lidar[:, 0] += p.mount_offset * np.cos(moved[:, 2])
+        lidar[:, 1] += p.mount_offset * np.sin(moved[:, 2])
+        q = _queries(pixel_poses(self.grid, lidar), angles)
+        ranges = np.empty(q.shape[0], dtype=np.float32)
+        self.caster.calc_range_many(q, ranges)
+        t2 = time.perf_counter()
+        weights = np.empty(n)
+        _eval_sensor_model(scan / self.m_per_px, ranges, self.table, weights)
+        weights **= p.squash_exponent
+        weights /= weights.sum()
+        t3 = time.perf_counter()
+        out = moved[self.rng.choice(n, n, p=weights)]
+        t4 = time.perf_counter()
+        np.dot(moved.T, weights)
+        t5 = time.perf_counter()
+        return out, dict(zip(STAGES, (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4), strict=True))
+
+
+def max_range_m(params: SensorModelParams, grid: OccupancyMap) -> float:
+    """The peer's max range in metres: ``z_max`` pixels."""
+    return params.z_max * grid.resolution * params.lidar_scale_to_map_scale
