@@ -12,7 +12,6 @@ and writes into ``--out``:
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
@@ -22,6 +21,20 @@ from typing import Any
 import cv2
 import numpy as np
 
+from mcl.cli.common import (
+    ENV_HELP,
+    MAP_HELP,
+    Parser,
+    check_env,
+    check_map,
+    check_out,
+    compile_notice,
+    non_negative_float,
+    non_negative_int,
+    output_folder,
+    positive_float,
+    positive_int,
+)
 from mcl.error_log import read_error_log
 from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.plots import plot_error_vs_time
@@ -43,41 +56,87 @@ def _caption(frame: np.ndarray, info: dict[str, Any]) -> np.ndarray:
     return frame
 
 
-def main(argv: list[str] | None = None) -> Path:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--map", default=DEFAULT_MAP, help="bundled map name or map YAML path")
-    parser.add_argument("--out", type=Path, default=Path("out/drive"), help="output folder")
-    parser.add_argument("--seed", type=int, default=0, help="start pose and noise seed")
-    parser.add_argument("--duration", type=float, default=60.0, help="simulated seconds")
-    parser.add_argument("--particles", type=int, default=DEFAULT_PARTICLES)
-    parser.add_argument("--driver", choices=sorted(DRIVERS), default="wall")
+EXAMPLES = """\
+examples:
+  racecar-sim drive                                   60 s on basement_loop into out/drive
+  racecar-sim drive --map office --duration 30 --out out/office
+  racecar-sim drive --map ../shared/maps/stata_basement.yaml --driver pursuit
+  racecar-sim drive --env lidar_rate=20 --env range_sigma=0.05 --video-fps 0 --quiet
+"""
+
+
+def build_parser() -> Parser:
+    """The ``racecar-sim drive`` options."""
+    parser = Parser("racecar-sim drive", __doc__, EXAMPLES)
+    parser.add_argument("--map", default=DEFAULT_MAP, metavar="NAME|YAML", help=MAP_HELP)
     parser.add_argument(
-        "--video-fps", type=float, default=10.0, help="frames per simulated second (0: no video)"
+        "--out", type=Path, default=Path("out/drive"), metavar="DIR", help="output folder"
+    )
+    parser.add_argument(
+        "--seed", type=non_negative_int, default=0, metavar="N", help="start pose and noise seed"
+    )
+    parser.add_argument(
+        "--duration", type=positive_float, default=60.0, metavar="S", help="simulated seconds"
+    )
+    parser.add_argument(
+        "--particles",
+        type=positive_int,
+        default=DEFAULT_PARTICLES,
+        metavar="N",
+        help="particles of the filter",
+    )
+    parser.add_argument(
+        "--driver",
+        choices=sorted(DRIVERS),
+        default="wall",
+        help="wall: follow the right wall; pursuit: pure pursuit around the loop the wall "
+        "follower records first",
+    )
+    parser.add_argument("--env", action="append", default=[], metavar="NAME=VALUE", help=ENV_HELP)
+    parser.add_argument(
+        "--video-fps",
+        type=non_negative_float,
+        default=10.0,
+        metavar="FPS",
+        help="video frames per simulated second (0: no video)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    args = parser.parse_args(argv)
-    if args.video_fps < 0:
-        parser.error("--video-fps must be >= 0")
+    return parser
 
-    spec = RunSpec(
-        map=str(args.map),
-        driver=args.driver,
-        motion=MotionModelParams(),
-        seed=args.seed,
-        duration=args.duration,
-        n_particles=args.particles,
-        series="drive",
-    )
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``racecar-sim drive``; returns the exit code (a user mistake exits with 2)."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    check_map(parser, args.map)
+    env = check_env(parser, args.env)
+    out: Path = check_out(parser, args.out)
+    try:
+        spec = RunSpec(
+            map=str(args.map),
+            driver=args.driver,
+            motion=MotionModelParams(),
+            seed=args.seed,
+            duration=args.duration,
+            n_particles=args.particles,
+            series="drive",
+            env=env,
+        )
+    except ValueError as exc:
+        parser.error(str(exc))
+    compile_notice()
+    with output_folder(parser, out):
+        return _drive(spec, out, args.video_fps, progress=not args.quiet)
+
+
+def _drive(spec: RunSpec, out: Path, video_fps: float, progress: bool) -> int:
+    """The drive into the existing folder ``out``, then the summary."""
     log_path = out / "error_log.csv"
     video = None
     on_frame = None
     frame_every = 1
-    if args.video_fps > 0:
-        frame_every = max(1, round(1.0 / (args.video_fps * spec.dt)))
+    if video_fps > 0:
+        frame_every = max(1, round(1.0 / (video_fps * spec.dt)))
         video = FrameWriter(out / "drive.mp4", fps=1.0 / (frame_every * spec.dt))
 
         def on_frame(frame: np.ndarray, info: dict[str, Any]) -> None:
@@ -86,7 +145,7 @@ def main(argv: list[str] | None = None) -> Path:
     t0 = time.perf_counter()
     try:
         result = run_one(
-            spec, log_path, on_frame=on_frame, frame_every=frame_every, progress=not args.quiet
+            spec, log_path, on_frame=on_frame, frame_every=frame_every, progress=progress
         )
     finally:
         if video is not None:
@@ -120,8 +179,8 @@ def main(argv: list[str] | None = None) -> Path:
         kind = "mp4" if video.kind == "mp4" else "PNG frames"
         print(f", {video.path.name} ({video.n_frames} frames, {kind})", end="")
     print(f"\noutput folder: {out.resolve()}")
-    return out
+    return 0
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    sys.exit(main(sys.argv[1:]))

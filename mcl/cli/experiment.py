@@ -1,24 +1,31 @@
 """MCL experiments: the odometry-noise sweep (scenario ``tracking``, see mcl.experiments.noise_sweep), and
 global localization / kidnapping (scenarios ``global`` and ``kidnap``, see mcl.experiments.recovery).
 
-Examples (the full runs of the README):
-
-    .venv/bin/python scripts/experiment.py --map ../shared/maps/stata_basement.yaml \
-        --seeds 3 --duration 60 --out runs/stata
-    .venv/bin/python scripts/experiment.py --scenario global --map basement_loop \
-        --seeds 20 --out runs/global_basement_loop
-    .venv/bin/python scripts/experiment.py --scenario kidnap --map basement_loop \
-        --seeds 20 --out runs/kidnap_basement_loop
+Every run writes its CSV error log as it goes into ``<out>/logs``; then ``<out>`` gets runs.csv,
+summary.md and plots. The map, the env settings and every flag are checked before the first run.
 """
 
 from __future__ import annotations
 
-import argparse
+import re
 import sys
 from pathlib import Path
 
-import yaml
-
+from mcl.cli.common import (
+    ENV_HELP,
+    MAP_HELP,
+    Parser,
+    check_env,
+    check_map,
+    check_out,
+    check_resume,
+    compile_notice,
+    non_negative_float,
+    number_list,
+    output_folder,
+    positive_float,
+    positive_int,
+)
 from mcl.experiments.noise_sweep import (
     GAUSSIAN_SIGMAS,
     UNIFORM_COEFFICIENTS,
@@ -36,128 +43,162 @@ from mcl.experiments.scenarios import SCENARIOS
 from mcl.filter_params import DEFAULT_PARTICLES
 from racecar_sim.maps import DEFAULT_MAP
 
+EXAMPLES = """\
+examples (the README's runs):
+  racecar-sim experiment --map ../shared/maps/stata_basement.yaml --seeds 3 --duration 60 \\
+      --out runs/stata
+  racecar-sim experiment --scenario global --map basement_loop --seeds 20 \\
+      --out runs/global_basement_loop
+  racecar-sim experiment --scenario kidnap --map basement_loop --seeds 20 \\
+      --out runs/kidnap_basement_loop
+a quick look (2 coefficients, 1 seed, 10 s, fewer beams):
+  racecar-sim experiment --uniform 0.01,0.5 --gaussian 0.01,0.5 --no-matched --seeds 1 \\
+      --duration 10 --env n_beams=181 --out runs/quick
+"""
 
-def _floats(text: str) -> tuple[float, ...]:
-    try:
-        return tuple(float(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected comma-separated numbers, got {text!r}"
-        ) from None
+_FLAGS = {
+    "n_particles": "--particles",
+    "kidnap_time": "--kidnap-time",
+    "time_limit": "--time-limit",
+    "env": "--env",
+}
+"""Config field -> its flag, where the two are not spelled alike."""
 
 
-def _setting(text: str) -> tuple[str, object]:
-    """``NAME=VALUE`` (VALUE read as YAML: numbers, booleans, lists) for an env setting."""
-    name, sep, value = text.partition("=")
-    if not sep or not name.strip():
-        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
-    return name.strip(), yaml.safe_load(value)
+def build_parser() -> Parser:
+    """The ``racecar-sim experiment`` options."""
+    parser = Parser("racecar-sim experiment", __doc__, EXAMPLES)
+    add = parser.add_argument
+    add("--map", default=DEFAULT_MAP, metavar="NAME|YAML", help=MAP_HELP)
+    add("--driver", choices=sorted(DRIVERS), default="wall", help="who drives the car")
+    add(
+        "--scenario",
+        choices=sorted(SCENARIOS),
+        default="tracking",
+        help="tracking: the noise sweep from a known start; global: start lost; kidnap: moved "
+        "without telling the filter",
+    )
+    add("--seeds", type=positive_int, default=3, metavar="N", help="number of seeds (0, 1, ...)")
+    add(
+        "--duration",
+        type=positive_float,
+        default=None,
+        metavar="S",
+        help="simulated seconds per run (default: 60; global: 20; kidnap: kidnap time + 20)",
+    )
+    add(
+        "--particles",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help=f"particles per run (default: {DEFAULT_PARTICLES}); global/kidnap: particles of the "
+        "global start (default: 300 per m² of free floor)",
+    )
+    add(
+        "--kidnap-time",
+        type=non_negative_float,
+        default=5.0,
+        metavar="S",
+        help="kidnap: seconds before the car is moved",
+    )
+    add(
+        "--time-limit",
+        type=positive_float,
+        default=None,
+        metavar="S",
+        help="global/kidnap: seconds to converge for a success (default: 10 global, 15 kidnap)",
+    )
+    add(
+        "--uniform",
+        type=number_list,
+        default=UNIFORM_COEFFICIENTS,
+        metavar="C,C,...",
+        help="tracking: uniform half-widths c, comma-separated ('' for none)",
+    )
+    add(
+        "--gaussian",
+        type=number_list,
+        default=GAUSSIAN_SIGMAS,
+        metavar="S,S,...",
+        help="tracking: Gaussian sigmas, comma-separated ('' for none)",
+    )
+    add(
+        "--no-matched",
+        action="store_true",
+        help="tracking: skip the Gaussian runs at sigma = c/sqrt(3) (variance of each uniform c)",
+    )
+    add("--env", action="append", default=[], metavar="NAME=VALUE", help=ENV_HELP)
+    add(
+        "--workers",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="processes (default: the number of cores)",
+    )
+    add("--resume", action="store_true", help="skip runs whose log is complete")
+    add("--no-plots", action="store_true", help="write no PNG plots")
+    add("--out", type=Path, default=Path("runs/experiment"), metavar="DIR", help="output folder")
+    return parser
+
+
+def _config_error(parser: Parser, exc: ValueError) -> None:
+    """Stop with a config's ValueError, named by the flag of the field it names."""
+    text = str(exc)
+    match = re.search(r"\b(?:ExperimentConfig|RecoveryConfig|RunSpec)\.(\w+)", text)
+    if match is None:
+        parser.error(text)
+    field = match.group(1)
+    parser.fail(_FLAGS.get(field, "--" + field.replace("_", "-")), text)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--map", default=DEFAULT_MAP, help="bundled map name or map YAML path")
-    parser.add_argument("--driver", choices=sorted(DRIVERS), default="wall")
-    parser.add_argument("--scenario", choices=sorted(SCENARIOS), default="tracking")
-    parser.add_argument("--seeds", type=int, default=3, help="number of seeds (0, 1, ...)")
-    parser.add_argument(
-        "--duration",
-        type=float,
-        default=None,
-        help="simulated seconds per run (default: 60; global: 20; kidnap: kidnap time + 20)",
-    )
-    parser.add_argument(
-        "--particles",
-        type=int,
-        default=None,
-        help=f"particles per run (default {DEFAULT_PARTICLES}); global/kidnap: particles of the "
-        "global start (default: 300 per m² of free floor)",
-    )
-    parser.add_argument(
-        "--kidnap-time", type=float, default=5.0, help="kidnap: seconds before the car is moved"
-    )
-    parser.add_argument(
-        "--time-limit",
-        type=float,
-        default=None,
-        help="global/kidnap: seconds to converge for a success (default: 10 global, 15 kidnap)",
-    )
-    parser.add_argument(
-        "--uniform",
-        type=_floats,
-        default=UNIFORM_COEFFICIENTS,
-        help="uniform half-widths c, comma-separated (empty: none)",
-    )
-    parser.add_argument(
-        "--gaussian",
-        type=_floats,
-        default=GAUSSIAN_SIGMAS,
-        help="Gaussian sigmas, comma-separated (empty: none)",
-    )
-    parser.add_argument(
-        "--no-matched",
-        action="store_true",
-        help="skip the Gaussian runs at sigma = c/sqrt(3) (variance of each uniform c)",
-    )
-    parser.add_argument(
-        "--env",
-        type=_setting,
-        action="append",
-        default=[],
-        metavar="NAME=VALUE",
-        help="a RacecarEnv setting for every run, e.g. --env lidar_rate=20 (repeatable)",
-    )
-    parser.add_argument("--workers", type=int, default=None, help="processes (default: cores)")
-    parser.add_argument("--resume", action="store_true", help="skip runs whose log is complete")
-    parser.add_argument("--no-plots", action="store_true")
-    parser.add_argument("--out", type=Path, default=Path("runs/experiment"), help="output folder")
+    """Run ``racecar-sim experiment``; returns the exit code (1: a run failed; 2: a user mistake)."""
+    parser = build_parser()
     args = parser.parse_args(argv)
-    if args.scenario in RECOVERY_SCENARIOS:
-        return _recovery(parser, args)
-
+    check_map(parser, args.map)
+    env = check_env(parser, args.env)
+    out: Path = check_out(parser, args.out)
+    config: ExperimentConfig | RecoveryConfig
     try:
-        config = ExperimentConfig(
-            map=args.map,
-            driver=args.driver,
-            scenario=args.scenario,
-            seeds=args.seeds,
-            duration=args.duration if args.duration is not None else 60.0,
-            n_particles=args.particles if args.particles is not None else DEFAULT_PARTICLES,
-            uniform=args.uniform,
-            gaussian=args.gaussian,
-            matched=not args.no_matched,
-            env=tuple(args.env),
-        )
+        if args.scenario in RECOVERY_SCENARIOS:
+            config = RecoveryConfig(
+                map=args.map,
+                scenario=args.scenario,
+                driver=args.driver,
+                seeds=args.seeds,
+                duration=args.duration,
+                kidnap_time=args.kidnap_time,
+                time_limit=args.time_limit,
+                localization=recovery_localization(global_particles=args.particles),
+                env=env,
+            )
+        else:
+            if not args.uniform and not args.gaussian:
+                parser.fail("--uniform/--gaussian", "both are empty: there is no run to make")
+            config = ExperimentConfig(
+                map=args.map,
+                driver=args.driver,
+                scenario=args.scenario,
+                seeds=args.seeds,
+                duration=args.duration if args.duration is not None else 60.0,
+                n_particles=args.particles if args.particles is not None else DEFAULT_PARTICLES,
+                uniform=args.uniform,
+                gaussian=args.gaussian,
+                matched=not args.no_matched,
+                env=env,
+            )
+        config.runs()  # every run's settings are valid
     except ValueError as exc:
-        parser.error(str(exc))
-    report = run_experiment(
-        config, args.out, workers=args.workers, resume=args.resume, plots=not args.no_plots
-    )
-    return _finish(args.out, [r.status for r in report.results], report.failed)
-
-
-def _recovery(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
-    """The global-localization / kidnapping experiment (mcl.experiments.recovery)."""
-    try:
-        config = RecoveryConfig(
-            map=args.map,
-            scenario=args.scenario,
-            driver=args.driver,
-            seeds=args.seeds,
-            duration=args.duration,
-            kidnap_time=args.kidnap_time,
-            time_limit=args.time_limit,
-            localization=recovery_localization(global_particles=args.particles),
-            env=tuple(args.env),
-        )
-    except ValueError as exc:
-        parser.error(str(exc))
-    report = run_recovery_experiment(
-        config, args.out, workers=args.workers, resume=args.resume, plots=not args.no_plots
-    )
-    return _finish(args.out, [r.result.status for r in report.runs], report.failed)
+        _config_error(parser, exc)
+    check_resume(parser, config, out, args.resume)
+    compile_notice()
+    with output_folder(parser, out):
+        options = {"workers": args.workers, "resume": args.resume, "plots": not args.no_plots}
+        if isinstance(config, RecoveryConfig):
+            report = run_recovery_experiment(config, out, **options)
+            return _finish(out, [r.result.status for r in report.runs], report.failed)
+        sweep = run_experiment(config, out, **options)
+        return _finish(out, [r.status for r in sweep.results], sweep.failed)
 
 
 def _finish(out: Path, statuses: list[str], failed: list[RunResult]) -> int:

@@ -7,12 +7,16 @@ localization, kidnapping), ``ablation`` (the recovery ablation), ``bench`` (benc
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import sys
 from collections.abc import Sequence
 
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
-    "drive": ("mcl.cli.drive", "a headless localized drive on a map, with error log, plot and video"),
+    "drive": (
+        "mcl.cli.drive",
+        "a headless localized drive on a map, with error log, plot and video",
+    ),
     "experiment": ("mcl.cli.experiment", "the noise sweep, or global localization / kidnapping"),
     "ablation": ("mcl.cli.recovery_ablation", "the recovery experiment with one part switched off"),
     "bench": ("mcl.cli.bench", "benchmarks: raycast, sim, mcl, uncertainty"),
@@ -26,7 +30,11 @@ def _usage() -> str:
     rows = "\n".join(f"  {n:<{width}}  {d}" for n, (_, d) in SUBCOMMANDS.items())
     return (
         "usage: racecar-sim SUBCOMMAND [options]   (racecar-sim SUBCOMMAND --help for its options)\n\n"
-        f"subcommands:\n{rows}\n"
+        f"subcommands:\n{rows}\n\n"
+        "examples:\n"
+        "  racecar-sim drive --map office --duration 30 --out out/office\n"
+        "  racecar-sim experiment --scenario global --seeds 20 --out runs/global\n"
+        "  racecar-sim bench sim --quick\n"
     )
 
 
@@ -36,10 +44,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not args or args[0] in ("-h", "--help"):
         print(_usage(), end="")
         return 0
+    if args[0] == "--version":
+        from racecar_sim import __version__
+
+        print(f"racecar-sim {__version__}")
+        return 0
     name, rest = args[0], args[1:]
     if name not in SUBCOMMANDS:
-        print(_usage(), end="", file=sys.stderr)
-        print(f"racecar-sim: error: unknown subcommand {name!r}", file=sys.stderr)
+        close = difflib.get_close_matches(name, list(SUBCOMMANDS), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        print(
+            f"racecar-sim: error: unknown subcommand {name!r}{hint}; choose from "
+            f"{', '.join(SUBCOMMANDS)} (racecar-sim --help)",
+            file=sys.stderr,
+        )
         return 2
     module = importlib.import_module(SUBCOMMANDS[name][0])
     result = module.main(rest)

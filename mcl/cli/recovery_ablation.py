@@ -11,8 +11,7 @@ to choose), each into ``<out>/<variant>``, and prints one summary line per varia
 * ``every_scan``: every scan used (40 Hz) instead of one every 0.1 m / 0.2 rad;
 * ``no_recovery``: augmented MCL off (both alphas 0).
 
-    .venv/bin/python scripts/recovery_ablation.py --scenario global --map basement_loop \\
-        --seeds 20 --out runs/ablation_global
+Each variant's runs, logs and summary go to ``<out>/<variant>``.
 """
 
 from __future__ import annotations
@@ -22,10 +21,26 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from mcl.cli.common import (
+    MAP_HELP,
+    Parser,
+    check_map,
+    check_out,
+    check_resume,
+    compile_notice,
+    output_folder,
+    positive_int,
+)
 from mcl.experiments.recovery import RecoveryConfig, recovery_localization, run_recovery_experiment
 from mcl.sensor_model import SensorModelParams
 from mcl.wrapper import LocalizationConfig
 from racecar_sim.maps import DEFAULT_MAP
+
+EXAMPLES = """\
+examples:
+  racecar-sim ablation --scenario global --map basement_loop --seeds 20 --out runs/ablation_global
+  racecar-sim ablation --variants full no_recovery --seeds 5 --out runs/ablation_quick
+"""
 
 VARIANTS = {
     "full": lambda: recovery_localization(),
@@ -37,27 +52,59 @@ VARIANTS = {
 }
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+def build_parser() -> Parser:
+    """The ``racecar-sim ablation`` options."""
+    parser = Parser("racecar-sim ablation", __doc__, EXAMPLES)
+    add = parser.add_argument
+    add("--map", default=DEFAULT_MAP, metavar="NAME|YAML", help=MAP_HELP)
+    add("--scenario", choices=["global", "kidnap"], default="global", help="how the car is lost")
+    add("--seeds", type=positive_int, default=20, metavar="N", help="number of seeds (0, 1, ...)")
+    add(
+        "--variants",
+        nargs="+",
+        choices=list(VARIANTS),
+        default=list(VARIANTS),
+        metavar="NAME",
+        help=f"variants to run, from: {', '.join(VARIANTS)}",
     )
-    parser.add_argument("--map", default=DEFAULT_MAP)
-    parser.add_argument("--scenario", choices=["global", "kidnap"], default="global")
-    parser.add_argument("--seeds", type=int, default=20)
-    parser.add_argument("--variants", nargs="+", choices=sorted(VARIANTS), default=list(VARIANTS))
-    parser.add_argument("--workers", type=int, default=None)
-    parser.add_argument("--resume", action="store_true")
-    parser.add_argument("--out", type=Path, default=Path("runs/ablation"))
+    add(
+        "--workers",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="processes (default: the number of cores)",
+    )
+    add("--resume", action="store_true", help="skip runs whose log is complete")
+    add("--out", type=Path, default=Path("runs/ablation"), metavar="DIR", help="output folder")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``racecar-sim ablation``; returns the exit code (1: a run failed; 2: a user mistake)."""
+    parser = build_parser()
     args = parser.parse_args(argv)
+    check_map(parser, args.map)
+    out: Path = check_out(parser, args.out)
     base = RecoveryConfig(map=args.map, scenario=args.scenario, seeds=args.seeds)
+    configs = {name: replace(base, localization=VARIANTS[name]()) for name in args.variants}
+    for name, config in configs.items():
+        check_resume(parser, config, out / name, args.resume)
+    compile_notice()
+    with output_folder(parser, out):
+        return _run(args, base, configs, out)
+
+
+def _run(
+    args: argparse.Namespace, base: RecoveryConfig, configs: dict[str, RecoveryConfig], out: Path
+) -> int:
+    """Every variant in turn, one table row each."""
     print(f"{args.scenario} on {Path(args.map).stem}, {args.seeds} seeds, limit {base.limit:g} s")
     print("| variant | success | median s | never | confidently wrong | wall s per run |")
     print("|---|---|---|---|---|---|")
     failed = 0
-    for name in args.variants:
-        config = replace(base, localization=VARIANTS[name]())
+    for name, config in configs.items():
         report = run_recovery_experiment(
-            config, args.out / name, workers=args.workers, resume=args.resume, progress=False
+            config, out / name, workers=args.workers, resume=args.resume, progress=False
         )
         failed += len(report.failed)
         stats = [r.stats for r in report.runs if r.stats is not None]

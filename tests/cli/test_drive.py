@@ -35,7 +35,7 @@ drive = _load_script()
 def test_main_job_writes_log_plot_and_video(tmp_path, capsys) -> None:
     out = tmp_path / "drive"
     args = ["--out", str(out), "--duration", "2", "--particles", "150", "--quiet"]
-    assert drive.main([*args, "--video-fps", "10"]) == out
+    assert drive.main([*args, "--video-fps", "10"]) == 0
     printed = capsys.readouterr().out
     assert "position error: mean" in printed
     assert f"output folder: {out.resolve()}" in printed

@@ -1,0 +1,376 @@
+"""What every ``racecar-sim`` subcommand shares: a parser whose errors are one line, help that shows
+the defaults, and checks that turn a user's mistake into one line naming the flag, before anything
+is written.
+
+A mistake ends the command with ``racecar-sim SUBCOMMAND: error: --flag: the problem`` on stderr and
+exit code 2 (argparse's convention), no traceback, and no output folder created: subcommands check
+their map, env settings and flags first, then create ``--out`` with :func:`output_folder`, which
+removes the folder again if the command fails before writing anything into it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+import difflib
+import math
+import os
+import shutil
+import sys
+import tempfile
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any, NoReturn, TextIO
+
+import yaml
+
+__all__ = [
+    "ENV_HELP",
+    "MAP_HELP",
+    "HelpFormatter",
+    "Parser",
+    "check_env",
+    "check_map",
+    "check_out",
+    "check_resume",
+    "compile_notice",
+    "kernels_cached",
+    "non_negative_float",
+    "non_negative_int",
+    "number_list",
+    "output_folder",
+    "positive_float",
+    "positive_int",
+]
+
+
+# ---------------------------------------------------------------------- parser
+class HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Keeps the description's and epilog's line breaks (examples) and appends each option's
+    default to its help, unless the default is None (the help says what happens) or a flag's False.
+    """
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        if (
+            "%(default)" in text
+            or "default" in text
+            or not action.option_strings
+            or default is None
+            or default is False
+            or default == []
+            or default is argparse.SUPPRESS
+            or isinstance(action, argparse._HelpAction | argparse._VersionAction)
+        ):
+            return text
+        if isinstance(default, tuple | list):
+            shown = ",".join(f"{v:g}" if isinstance(v, float) else str(v) for v in default)
+            shown = shown or "none"
+        else:
+            shown = str(default)
+        return f"{text} (default: {shown.replace('%', '%%')})"
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one line (``PROG: error: PROBLEM``) and exit code 2."""
+
+    def __init__(self, prog: str, description: str | None, epilog: str | None = None) -> None:
+        super().__init__(
+            prog=prog, description=description, epilog=epilog, formatter_class=HelpFormatter
+        )
+
+    def error(self, message: str) -> NoReturn:
+        one_line = " ".join(message.split())
+        self.exit(2, f"{self.prog}: error: {one_line}\n")
+
+    def fail(self, flag: str, problem: str) -> NoReturn:
+        """Stop with ``FLAG: PROBLEM`` (exit code 2)."""
+        self.error(f"{flag}: {problem}")
+
+
+def _env_names() -> str:
+    from racecar_sim.config import EnvConfig
+
+    return ", ".join(f.name for f in dataclasses.fields(EnvConfig) if f.name != "map")
+
+
+def _map_names() -> str:
+    from racecar_sim.maps import bundled_names
+
+    return ", ".join(bundled_names())
+
+
+MAP_HELP = f"a bundled map ({_map_names()}) or a map_server YAML path"
+"""Help of every ``--map``."""
+ENV_HELP = (
+    "a RacecarEnv setting for the run, repeatable, e.g. --env lidar_rate=20 --env range_sigma=0.05; "
+    f"NAME is one of {_env_names()} (racecar_sim.config.EnvConfig)"
+)
+"""Help of every ``--env``."""
+
+
+# ---------------------------------------------------------------------- argument types
+def _number(text: str, kind: type, what: str, ok, rule: str) -> Any:
+    try:
+        value = kind(text)
+    except (TypeError, ValueError):
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}") from None
+    if not (math.isfinite(value) and ok(value)):
+        raise argparse.ArgumentTypeError(f"must be {rule}, got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    return _number(text, float, "a number", lambda v: v > 0, "a number > 0")
+
+
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    return _number(text, float, "a number", lambda v: v >= 0, "a number >= 0")
+
+
+def positive_int(text: str) -> int:
+    """argparse type: a whole number >= 1."""
+    return _number(text, int, "a whole number", lambda v: v >= 1, "a whole number >= 1")
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: a whole number >= 0."""
+    return _number(text, int, "a whole number", lambda v: v >= 0, "a whole number >= 0")
+
+
+def number_list(text: str) -> tuple[float, ...]:
+    """argparse type: comma-separated numbers > 0 (empty text: none)."""
+    values = []
+    for part in (p.strip() for p in text.split(",")):
+        if not part:
+            continue
+        try:
+            value = float(part)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected comma-separated numbers, got {part!r} in {text!r}"
+            ) from None
+        if not (math.isfinite(value) and value > 0):
+            raise argparse.ArgumentTypeError(f"every number must be > 0, got {part!r}")
+        values.append(value)
+    return tuple(values)
+
+
+# ---------------------------------------------------------------------- checks
+def _did_you_mean(word: str, choices: Sequence[str]) -> str:
+    close = difflib.get_close_matches(word, list(choices), n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def check_map(parser: Parser, spec: str, flag: str = "--map") -> str:
+    """Load the map ``spec`` (bundled name or YAML path) once, or stop naming ``flag``."""
+    from racecar_sim.maps import MapError, bundled_names, resolve_map
+
+    try:
+        resolve_map(spec)
+    except (MapError, OSError, ValueError) as exc:
+        hint = (
+            ""
+            if os.sep in spec or spec.endswith((".yaml", ".yml"))
+            else _did_you_mean(spec, bundled_names())
+        )
+        parser.fail(flag, f"{exc}{hint}")
+    return spec
+
+
+def _env_fields() -> dict[str, tuple[str, Any]]:
+    """RacecarEnv setting name -> (its annotation, its default) (the map is set with ``--map``)."""
+    from racecar_sim.config import EnvConfig
+
+    out: dict[str, tuple[str, Any]] = {}
+    for f in dataclasses.fields(EnvConfig):
+        if f.name == "map":
+            continue
+        default: Any = None
+        if f.default is not dataclasses.MISSING:
+            default = f.default
+        elif f.default_factory is not dataclasses.MISSING:
+            default = f.default_factory()
+        kind = f.type if isinstance(f.type, str) else getattr(f.type, "__name__", "")
+        out[f.name] = (kind, default)
+    return out
+
+
+def _env_value(text: str, kind: str, default: Any) -> Any:
+    """A setting's value from its text, by its annotation ``kind`` (or the type of its default);
+    ValueError says what was expected."""
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        value = text
+    if kind == "bool" or (kind not in ("int", "float") and isinstance(default, bool)):
+        if not isinstance(value, bool):
+            raise ValueError(f"must be true or false, got {text!r}")
+    elif kind == "int" or (kind != "float" and isinstance(default, int)):
+        if isinstance(value, str):
+            with contextlib.suppress(ValueError):
+                value = int(value)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ValueError(f"must be a whole number, got {text!r}")
+    elif kind == "float" or isinstance(default, float):
+        if isinstance(value, str):  # YAML reads 1e3 as text
+            with contextlib.suppress(ValueError):
+                value = float(value)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ValueError(f"must be a number, got {text!r}")
+    elif isinstance(default, tuple):
+        ok = isinstance(value, list | tuple) and len(value) == len(default)
+        if not ok or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+            example = "[" + ", ".join(f"{v:g}" for v in default) + "]"
+            raise ValueError(f"must be {len(default)} numbers like {example}, got {text!r}")
+        value = tuple(value)
+    elif dataclasses.is_dataclass(default):
+        if not isinstance(value, dict):
+            raise ValueError(f"must be a mapping like {{wheelbase: 0.33}}, got {text!r}")
+    return value
+
+
+def check_env(
+    parser: Parser, items: Sequence[str], flag: str = "--env"
+) -> tuple[tuple[str, Any], ...]:
+    """``NAME=VALUE`` texts -> validated RacecarEnv settings, or stop with ``--env NAME: problem``.
+
+    Each value is read as YAML and must have the type of the setting's default; then the settings
+    are checked by :class:`racecar_sim.config.EnvConfig`, one by one (so a bad value is named) and
+    together.
+    """
+    from racecar_sim.config import EnvConfig
+
+    fields = _env_fields()
+    settings: dict[str, Any] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            parser.fail(flag, f"expected NAME=VALUE, e.g. {flag} lidar_rate=20, got {item!r}")
+        if name == "map":
+            parser.fail(f"{flag} map", "set the map with --map")
+        if name not in fields:
+            parser.fail(
+                f"{flag} {name}",
+                f"unknown setting{_did_you_mean(name, list(fields))}; "
+                f"settings: {', '.join(fields)}",
+            )
+        try:
+            settings[name] = _env_value(text.strip(), *fields[name])
+            EnvConfig(**{name: settings[name]})
+        except (TypeError, ValueError) as exc:
+            parser.fail(f"{flag} {name}", str(exc))
+    try:
+        EnvConfig(**settings)
+    except (TypeError, ValueError) as exc:
+        parser.fail(flag, str(exc))
+    return tuple(settings.items())
+
+
+def check_out(parser: Parser, path: Path, flag: str = "--out") -> Path:
+    """Check that folder ``path`` can be created or written into (nothing is created here)."""
+    if path.exists() and not path.is_dir():
+        parser.fail(flag, f"{path} exists and is not a folder")
+    parent = path
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        parser.fail(flag, f"{parent} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        parser.fail(flag, f"cannot write into {parent}")
+    return path
+
+
+def check_resume(parser: Parser, config: object, out: Path, resume: bool) -> None:
+    """With ``--resume``, refuse a folder made with other settings before anything runs (the
+    experiment's own check, :func:`mcl.experiments.runner.record_settings`, on a copy)."""
+    from mcl.experiments.runner import record_settings
+
+    recorded = out / "config.json"
+    if not (resume and recorded.is_file()):
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        copy = Path(tmp) / "config.json"
+        shutil.copyfile(recorded, copy)
+        try:
+            record_settings(config, copy, resume=True)
+        except ValueError as exc:
+            parser.error(str(exc).replace(str(Path(tmp)), str(out)))
+
+
+@contextlib.contextmanager
+def output_folder(parser: Parser, path: Path, flag: str = "--out") -> Iterator[Path]:
+    """Create folder ``path`` (and its parents) for the body (stop naming ``flag`` if it cannot be
+    made); if the body raises while nothing was written into the folders it created, remove them
+    again. Whatever was written is kept."""
+    first_new: Path | None = None
+    for folder in [path, *path.parents]:
+        if folder.exists():
+            break
+        first_new = folder
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        parser.fail(flag, f"cannot create folder {path}: {exc.strerror or exc}")
+    try:
+        yield path
+    except BaseException:
+        if first_new is not None and not any(p.is_file() for p in first_new.rglob("*")):
+            shutil.rmtree(first_new, ignore_errors=True)
+        raise
+
+
+# ---------------------------------------------------------------------- numba's first compile
+_KERNEL_MODULES = (
+    "racecar_sim.raycast.kernels",
+    "racecar_sim.raycast.lut",
+    "racecar_sim.sensors",
+    "mcl.sensor_model",
+    "mcl.uncertainty",
+)
+COMPILE_SECONDS = 20
+"""About how long numba takes to compile the kernels of a drive the first time (2 cores)."""
+
+
+def kernels_cached() -> bool:
+    """Whether numba's on-disk cache (``cache=True``) holds compiled code for every kernel module.
+
+    A module counts as compiled when one of its kernels has a cache index matching the source
+    (numba's own check of the source file's time stamp). Any surprise counts as not compiled.
+    """
+    import importlib
+
+    try:
+        from numba.core.registry import CPUDispatcher
+
+        for name in _KERNEL_MODULES:
+            module = importlib.import_module(name)
+            kernels = [
+                v
+                for v in vars(module).values()
+                if isinstance(v, CPUDispatcher)
+                and v.__module__ == name
+                and v.targetoptions.get("inline") != "always"
+            ]
+            if not any(k._cache._cache_file._load_index() for k in kernels):
+                return False
+        return True
+    except Exception:
+        return False
+
+
+def compile_notice(stream: TextIO | None = None) -> bool:
+    """Say so when the numba kernels have to be compiled first; returns whether it said so."""
+    if kernels_cached():
+        return False
+    print(
+        f"compiling numba kernels (first run only, about {COMPILE_SECONDS} s)...",
+        file=stream if stream is not None else sys.stderr,
+        flush=True,
+    )
+    return True
