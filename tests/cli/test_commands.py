@@ -1,0 +1,220 @@
+"""The ``racecar-sim`` command: help with defaults and examples that parse, the shared checks, the
+compile notice, output folders on failure, and real runs of the installed console command."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import mcl.cli.common as common
+import mcl.cli.drive
+from mcl.cli import drive, experiment, recovery_ablation
+from mcl.cli.common import Parser, check_env, output_folder
+from mcl.cli.main import SUBCOMMANDS, main
+from mcl.error_log import read_error_log
+
+REPO = Path(__file__).resolve().parents[2]
+PARSERS = {
+    "drive": drive.build_parser,
+    "experiment": experiment.build_parser,
+    "ablation": recovery_ablation.build_parser,
+}
+
+
+def _option_help(parser: argparse.ArgumentParser) -> dict[str, str]:
+    """Option string -> its help text as printed by --help (joined lines)."""
+    text = parser.format_help().split("options:", 1)[1].split("examples", 1)[0]
+    blocks = re.split(r"\n  (?=-)", "\n" + text)
+    out = {}
+    for block in blocks:
+        block = " ".join(block.split())
+        if block.startswith("-"):
+            out[block.split()[0].rstrip(",")] = block
+    return out
+
+
+def _shown(default: object) -> str:
+    if isinstance(default, tuple):
+        return ",".join(f"{v:g}" for v in default)
+    if isinstance(default, list):
+        return ",".join(map(str, default))
+    return str(default)
+
+
+@pytest.mark.parametrize("sub", sorted(PARSERS))
+def test_help_shows_every_default(sub: str) -> None:
+    parser = PARSERS[sub]()
+    helps = _option_help(parser)
+    for action in parser._actions:
+        if not action.option_strings or action.dest == "help":
+            continue
+        text = helps[action.option_strings[0]]
+        assert action.help, f"{sub} {action.option_strings[0]} has no help"
+        if action.default not in (None, False, []):
+            assert f"(default: {_shown(action.default)})" in text, text
+        elif action.default is None:
+            assert "default" in text, f"{sub} {action.option_strings[0]}: say what None means"
+
+
+@pytest.mark.parametrize("sub", sorted(PARSERS))
+def test_help_examples_parse(sub: str) -> None:
+    parser = PARSERS[sub]()
+    epilog = (parser.epilog or "").replace("\\\n", " ")
+    examples = [
+        line.strip() for line in epilog.splitlines() if line.strip().startswith("racecar-sim")
+    ]
+    assert examples, f"{sub} --help has no examples"
+    for example in examples:
+        words = shlex.split(re.split(r"\s{2,}", example)[0])
+        assert words[:2] == ["racecar-sim", sub]
+        parser.parse_args(words[2:])  # exits (fails the test) on a bad example
+
+
+def test_top_level_help_lists_every_subcommand(capsys) -> None:
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    for name in SUBCOMMANDS:
+        assert f"  {name} " in out
+    assert "examples:" in out
+
+
+def test_subcommand_help_exits_0_with_examples(capsys) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(["drive", "--help"])
+    assert exit_.value.code == 0
+    out = capsys.readouterr().out
+    assert "(default: basement_loop)" in out and "examples:" in out
+
+
+def test_env_values_get_the_type_of_their_setting() -> None:
+    parser = Parser("test", None)
+    settings = dict(
+        check_env(
+            parser,
+            [
+                "lidar_rate=20",
+                "max_range=1e1",  # YAML reads 1e1 as text; it is still a number
+                "n_beams=181",
+                "terminate_on_collision=false",
+                "odom_additive=[0, 0, 0.01]",
+                "car={wheelbase: 0.3}",
+            ],
+        )
+    )
+    assert settings["lidar_rate"] == 20 and settings["max_range"] == 10.0
+    assert settings["n_beams"] == 181 and isinstance(settings["n_beams"], int)
+    assert settings["terminate_on_collision"] is False
+    assert settings["odom_additive"] == (0, 0, 0.01)
+    assert settings["car"] == {"wheelbase": 0.3}
+
+
+def test_output_folder_is_removed_when_nothing_was_written(tmp_path) -> None:
+    parser = Parser("test", None)
+    out = tmp_path / "a" / "b"
+    with pytest.raises(RuntimeError), output_folder(parser, out):
+        assert out.is_dir()
+        raise RuntimeError("failed before writing")
+    assert not (tmp_path / "a").exists()
+    with pytest.raises(RuntimeError), output_folder(parser, out):
+        (out / "log.csv").write_text("step\n")
+        raise RuntimeError("failed half-way")
+    assert (out / "log.csv").is_file()  # what was written is kept
+
+
+def test_output_folder_keeps_a_folder_that_was_there(tmp_path) -> None:
+    parser = Parser("test", None)
+    with pytest.raises(RuntimeError), output_folder(parser, tmp_path):
+        raise RuntimeError("boom")
+    assert tmp_path.is_dir()
+
+
+def test_a_drive_that_fails_half_way_keeps_its_log(tmp_path, monkeypatch, capsys) -> None:
+    real = mcl.cli.drive.run_one
+
+    class Stop(Exception):
+        pass
+
+    def stop_after_some_steps(spec, log_path, **kwargs):
+        frames = []
+
+        def on_frame(frame, info):
+            frames.append(info)
+            if len(frames) > 10:
+                raise Stop("wheel fell off")
+
+        return real(spec, log_path, on_frame=on_frame, frame_every=1)
+
+    monkeypatch.setattr(mcl.cli.drive, "run_one", stop_after_some_steps)
+    out = tmp_path / "half"
+    with pytest.raises(Stop):
+        drive.main(["--out", str(out), "--duration", "1", "--particles", "50", "--video-fps", "0"])
+    log = read_error_log(out / "error_log.csv")
+    assert len(log) == 10  # the rows written before the failure
+
+
+def test_compile_notice_only_when_the_cache_is_cold(monkeypatch, capsys) -> None:
+    monkeypatch.setattr(common, "kernels_cached", lambda: False)
+    assert common.compile_notice() is True
+    err = capsys.readouterr().err
+    assert "compiling numba kernels" in err and "first run only" in err
+    monkeypatch.setattr(common, "kernels_cached", lambda: True)
+    assert common.compile_notice() is False
+    assert capsys.readouterr().err == ""
+
+
+def test_kernel_modules_are_found_and_a_fresh_cache_is_cold(tmp_path) -> None:
+    names = common.kernel_modules()
+    assert "mcl.sensor_model" in names and "racecar_sim.raycast.lut" in names
+    assert "mcl.cli.common" not in names
+    code = "from mcl.cli.common import kernels_cached; print(kernels_cached())"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}  # an empty cache
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"
+
+
+# ---------------------------------------------------------------------- real processes
+def _console_command() -> Path:
+    path = Path(sys.executable).parent / "racecar-sim"
+    if not path.is_file():
+        pytest.skip(f"{path} not installed (pip install -e . makes it)")
+    return path
+
+
+def test_console_command_reports_a_mistake_in_one_line(tmp_path) -> None:
+    out = tmp_path / "out"
+    done = subprocess.run(
+        [str(_console_command()), "drive", "--map", "basment_loop", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    assert done.returncode == 2
+    assert done.stderr.splitlines() == [
+        line for line in done.stderr.splitlines() if line.startswith("racecar-sim drive: error:")
+    ]
+    assert len(done.stderr.splitlines()) == 1 and "--map" in done.stderr
+    assert not out.exists()
+
+
+def test_experiment_script_with_a_missing_map_starts_no_run(tmp_path) -> None:
+    out = tmp_path / "runs"
+    cmd = [sys.executable, str(REPO / "scripts" / "experiment.py"), "--map", "nope.yaml"]
+    done = subprocess.run(
+        [*cmd, "--out", str(out)], capture_output=True, text=True, cwd=tmp_path, timeout=120
+    )
+    assert done.returncode == 2
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and "--map" in lines[0] and "not found" in lines[0], done.stderr
+    assert done.stdout == ""
+    assert not out.exists()
