@@ -33,13 +33,17 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from mcl.likelihood_field import likelihood_table, score_endpoints
 from racecar_sim.config import LidarParams
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
 
-__all__ = ["SensorModel", "SensorModelParams", "beam_table"]
+__all__ = ["MODELS", "SensorModel", "SensorModelParams", "beam_table"]
 
 _LIDAR = LidarParams()
+
+MODELS: tuple[str, ...] = ("beam", "likelihood_field")
+"""Names accepted by :attr:`SensorModelParams.model`."""
 
 
 @dataclass(frozen=True)
@@ -65,6 +69,15 @@ class SensorModelParams:
             ``PARALLEL_MIN_RAYS``, :data:`PARALLEL_MIN_LOOKUPS`); False keeps one thread, which is
             faster when other processes keep the cores busy (e.g. a pool of experiment workers);
             True always uses every thread.
+        model: ``"beam"`` (the table above, with ray casting) or ``"likelihood_field"`` (beam end
+            points scored on the map's distance field, no casting; :mod:`mcl.likelihood_field`).
+            The ``likelihood_*`` fields are the latter's (amcl's defaults); it reads as many beams
+            as ``num_beams_per_particle`` allows, so set that to the scan's length for all beams.
+        likelihood_sigma: metres, standard deviation of the end point's distance to a wall.
+        likelihood_z_hit: weight of the Gaussian term.
+        likelihood_z_rand: weight of random returns (density ``z_rand / likelihood_max_range``).
+        likelihood_max_distance: metres; distances to a wall are clipped to it.
+        likelihood_max_range: metres; beams at or beyond it (no return) are skipped.
     """
 
     alpha_hit: float = 0.74
@@ -80,6 +93,12 @@ class SensorModelParams:
     mount_offset: float = _LIDAR.mount_offset
     fov: float = _LIDAR.fov
     parallel: bool | None = None
+    model: str = "beam"
+    likelihood_sigma: float = 0.2
+    likelihood_z_hit: float = 0.95
+    likelihood_z_rand: float = 0.05
+    likelihood_max_distance: float = 2.0
+    likelihood_max_range: float = _LIDAR.max_range
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -93,6 +112,11 @@ class SensorModelParams:
             "lidar_scale_to_map_scale",
             "mount_offset",
             "fov",
+            "likelihood_sigma",
+            "likelihood_z_hit",
+            "likelihood_z_rand",
+            "likelihood_max_distance",
+            "likelihood_max_range",
         ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float):
@@ -107,7 +131,20 @@ class SensorModelParams:
                 "SensorModelParams: alpha_hit, alpha_max and alpha_rand must not all be zero "
                 "(the d = 0 column of the table would be empty)"
             )
-        for name in ("sigma_hit", "squash_exponent", "lidar_scale_to_map_scale", "fov"):
+        if self.model not in MODELS:
+            raise bad("model", f"must be one of {MODELS}")
+        if self.likelihood_z_rand < 0:
+            raise bad("likelihood_z_rand", "must be >= 0")
+        for name in (
+            "sigma_hit",
+            "squash_exponent",
+            "lidar_scale_to_map_scale",
+            "fov",
+            "likelihood_sigma",
+            "likelihood_z_hit",
+            "likelihood_max_distance",
+            "likelihood_max_range",
+        ):
             if getattr(self, name) <= 0:
                 raise bad(name, "must be > 0")
         for name, low in (("table_width", 2), ("num_beams_per_particle", 1)):
@@ -197,8 +234,10 @@ class SensorModel:
 
     Attributes:
         table: the (W, W) beam-model table (see :func:`beam_table`), read-only.
-        caster: the :class:`~racecar_sim.raycast.RayCaster` for the expected ranges.
-        max_range: metres, z_max pixels x resolution x lidar_scale_to_map_scale.
+        caster: the :class:`~racecar_sim.raycast.RayCaster` for the expected ranges (None for
+            the likelihood field, which casts nothing).
+        max_range: metres, z_max pixels x resolution x lidar_scale_to_map_scale for the beam
+            model; ``likelihood_max_range`` for the likelihood field (a beam there is skipped).
     """
 
     def __init__(
@@ -227,9 +266,21 @@ class SensorModel:
             if not np.isfinite(beam_angles).all():
                 raise ValueError("beam_angles must be finite")
         self.beam_angles = beam_angles
-        self.caster = RayCaster(
-            occupancy_map, self.max_range, method=p.raycast_method, parallel=p.parallel
-        )
+        self.caster: RayCaster | None = None
+        if p.model == "likelihood_field":
+            self.max_range = float(p.likelihood_max_range)
+            self._field_table, self._field_off_map = likelihood_table(
+                occupancy_map,
+                p.likelihood_sigma,
+                p.likelihood_z_hit,
+                p.likelihood_z_rand,
+                p.likelihood_max_distance,
+                p.likelihood_max_range,
+            )
+        else:
+            self.caster = RayCaster(
+                occupancy_map, self.max_range, method=p.raycast_method, parallel=p.parallel
+            )
         self._subsample_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     # ------------------------------------------------------------------ stages
@@ -250,13 +301,8 @@ class SensorModel:
         self._subsample_cache[n_ranges] = out
         return out
 
-    def observe(self, scan: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The beams of ``scan`` that are used: (car-frame angles (K,) radians, ranges (K,) pixels).
-
-        Raises:
-            ValueError: the scan is not 1-D and non-empty, its length differs from ``beam_angles``,
-                or a range is negative.
-        """
+    def _validated(self, scan: np.ndarray) -> np.ndarray:
+        """``scan`` as float64 after the checks :meth:`observe` documents."""
         scan = np.asarray(scan, dtype=np.float64)
         if scan.ndim != 1 or scan.size == 0:
             raise ValueError(
@@ -269,6 +315,16 @@ class SensorModel:
             )
         if (scan < 0).any():  # NaN compares False, so only real negative numbers land here
             raise ValueError(f"scan has negative ranges (min {np.nanmin(scan)} m)")
+        return scan
+
+    def observe(self, scan: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The beams of ``scan`` that are used: (car-frame angles (K,) radians, ranges (K,) pixels).
+
+        Raises:
+            ValueError: the scan is not 1-D and non-empty, its length differs from ``beam_angles``,
+                or a range is negative.
+        """
+        scan = self._validated(scan)
         idx, angles = self._subsample(scan.size)
         ranges = scan[idx]
         keep = np.isfinite(ranges)
@@ -294,6 +350,8 @@ class SensorModel:
 
     def expected_ranges(self, particles: np.ndarray, angles: np.ndarray) -> np.ndarray:
         """(N, K) ranges in metres the map predicts for each particle's lidar at car-frame angles."""
+        if self.caster is None:
+            raise ValueError("the likelihood-field model casts no rays (model='likelihood_field')")
         return self.caster.cast(self.lidar_poses(particles), angles)
 
     def score(self, expected: np.ndarray, z_px: np.ndarray) -> np.ndarray:
@@ -325,6 +383,8 @@ class SensorModel:
     # ------------------------------------------------------------------ API
     def log_evaluate(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
         """(N,) natural-log likelihoods of ``scan`` (metres) from each particle (see module doc)."""
+        if self.caster is None:
+            return self._log_evaluate_field(particles, scan)
         angles, z_px = self.observe(scan)
         if z_px.size == 0:
             return np.zeros(np.asarray(particles).shape[0])
@@ -334,6 +394,26 @@ class SensorModel:
                 self.lidar_poses(particles), angles, self._log_table[z_px], 1.0 / self.m_per_px
             )
         return self.score(self.expected_ranges(particles, angles), z_px)
+
+    def _log_evaluate_field(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
+        """The likelihood-field model's log-likelihoods (see :mod:`mcl.likelihood_field`)."""
+        scan = self._validated(scan)
+        idx, all_angles = self._subsample(scan.size)
+        ranges = scan[idx]
+        keep = np.isfinite(ranges) & (ranges < self.max_range)
+        lidar = self.lidar_poses(particles)
+        if not keep.any():
+            return np.zeros(lidar.shape[0])
+        return score_endpoints(
+            self.map,
+            self._field_table,
+            self._field_off_map,
+            lidar,
+            np.ascontiguousarray(all_angles[keep]),
+            np.ascontiguousarray(ranges[keep]),
+            self.params.squash_exponent,
+            self.params.parallel,
+        )
 
     def evaluate(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
         """(N,) unnormalised likelihoods ``prod_b table[z_b, d_b] ** squash`` (may underflow to 0;

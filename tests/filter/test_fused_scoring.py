@@ -6,18 +6,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from mcl_helpers import room_map
 
 from mcl.sensor_model import SensorModel, SensorModelParams
 from racecar_sim.config import LidarParams
 from racecar_sim.raycast import RayCaster
 
 LIDAR = LidarParams()
-
-
-@pytest.fixture(scope="module")
-def room():
-    return room_map()
 
 
 @pytest.fixture(scope="module")
