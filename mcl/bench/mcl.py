@@ -45,15 +45,18 @@ DT = 0.025  # seconds (40 Hz)
 
 # -------------------------------------------------------------------------- the library
 def mcl_update(pf: ParticleFilter, scan: np.ndarray) -> dict[str, float]:
-    """One update with the library, stage by stage; seconds per stage."""
+    """One update with the library, stage by stage; seconds per stage.
+
+    ``cast`` is the sensor model's whole scan evaluation (the ``lut`` caster casts and scores in
+    one pass), ``weigh`` the Bayes update of the weights (normalisation, effective sample size).
+    """
     sm = pf.sensor_model
     t0 = time.perf_counter()
     pf.predict(TWIST, DT)
     t1 = time.perf_counter()
-    angles, z_px = sm.observe(scan)
-    expected = sm.expected_ranges(pf.particles, angles)
+    log_likelihood = sm.log_evaluate(pf.particles, scan)  # the lut casts and scores in one pass
     t2 = time.perf_counter()
-    pf.update_weights(sm.score(expected, z_px))
+    pf.update_weights(log_likelihood)
     t3 = time.perf_counter()
     if pf.needs_resampling():
         pf.resample()

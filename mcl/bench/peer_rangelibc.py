@@ -23,6 +23,8 @@ of ``table[int(z), int(d)]``), so the peer is measured at its best rather than w
 from __future__ import annotations
 
 import importlib.util
+import math
+import statistics
 import time
 
 import numba as nb
@@ -37,6 +39,7 @@ __all__ = [
     "GltUpdate",
     "accuracy",
     "available",
+    "compare",
     "pixel_poses",
     "range_libc_omap",
 ]
@@ -206,3 +209,143 @@ class GltUpdate:
 def max_range_m(params: SensorModelParams, grid: OccupancyMap) -> float:
     """The peer's max range in metres: ``z_max`` pixels."""
     return params.z_max * grid.resolution * params.lidar_scale_to_map_scale
+
+
+# ---------------------------------------------------------------------------- the comparison
+def _rss_mb() -> float:
+    """Resident memory of this process (MB), from /proc (NaN elsewhere)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return float("nan")
+
+
+def _median_total(runs: list[dict[str, float]]) -> dict[str, float]:
+    out = {s: statistics.median(r[s] for r in runs) for s in STAGES}
+    out["total"] = statistics.median(sum(r.values()) for r in runs)
+    return out
+
+
+def compare(
+    grid: OccupancyMap,
+    n_particles: int = 4000,
+    n_beams: int = 100,
+    updates: int = 20,
+    warmup: int = 3,
+    seed: int = 0,
+    threads: tuple[int, ...] = (1, 2),
+    accuracy_poses: int = 1500,
+    out=print,
+) -> dict[str, float]:
+    """Our full MCL update against the kctess5-style GLT update, interleaved in one run.
+
+    Prints (through ``out``) the workload, build time and memory of both tables, the p99 error of
+    both casters against our exact caster, and the median ms per stage with the ratios; returns the
+    headline numbers. Ours: :class:`mcl.ParticleFilter` with the ``lut`` caster (cast and score in
+    one pass), resampling every update (the lab's policy, like the peer), on ``threads`` numba
+    threads; the peer on its one thread.
+    """
+    import numba
+
+    from mcl.bench.mcl import DT, TWIST, mcl_update
+    from mcl.motion_model import twist_to_odometry
+    from mcl.particle_filter import ParticleFilter, ParticleFilterParams
+    from mcl.sensor_model import SensorModel
+    from racecar_sim.raycast import RayCaster, clear_cache
+    from racecar_sim.sensors import Lidar
+
+    rng = np.random.default_rng(seed)
+    truth = grid.sample_free_poses(rng, 1, clearance=1.0)[0]
+    scan = Lidar(grid).measure(truth, rng).astype(np.float64)
+    results: dict[str, float] = {}
+
+    clear_cache()
+    rss = _rss_mb()
+    start = time.perf_counter()
+    ours = SensorModel(grid, SensorModelParams(num_beams_per_particle=n_beams, parallel=False))
+    results["ours_build_s"] = time.perf_counter() - start
+    assert ours.caster is not None and ours.caster.table is not None
+    results["ours_table_mb"] = ours.caster.table.nbytes / 1e6
+    rss_ours = _rss_mb()
+    peer = GltUpdate(grid, ours.params, np.random.default_rng(seed + 1))
+    results["glt_build_s"] = peer.build_seconds
+    results["glt_rss_mb"] = _rss_mb() - rss_ours
+    out(
+        f"workload: {n_particles} particles x {n_beams} beams (of a {scan.size}-beam scan), "
+        f"max range {ours.max_range:.2f} m, map {grid.name} {grid.width}x{grid.height} cells at "
+        f"{grid.resolution} m, every update resamples"
+    )
+    out(
+        f"tables: ours (lut) {results['ours_build_s']:.2f} s, {results['ours_table_mb']:.0f} MB "
+        f"(process grew {rss_ours - rss:.0f} MB); range_libc GLT (theta_disc {THETA_DISC}) "
+        f"{results['glt_build_s']:.2f} s, process grew {results['glt_rss_mb']:.0f} MB"
+    )
+
+    # Accuracy against the exact caster: the project's standard check (poses uniform over free
+    # space, beams over the full turn) and the workload's own cloud and beams.
+    exact = RayCaster(grid, ours.max_range, method="exact")
+    uniform = grid.sample_free_poses(rng, accuracy_poses, clearance=0.0)
+    full_turn = np.linspace(-math.pi, math.pi, 100, endpoint=False)
+    angles, _ = ours.observe(scan)
+    cloud = truth + rng.normal(0.0, [0.3, 0.3, 0.1], size=(accuracy_poses, 3))
+    cloud = cloud[grid.is_free(cloud[:, :2])]
+    for label, poses, beams in (("uniform", uniform, full_turn), ("cloud", cloud, angles)):
+        ex = exact.cast(poses, beams)
+        ours_err = np.abs(ours.caster.cast(poses, beams) - ex)
+        glt_err = accuracy(grid, peer.caster, exact, poses, beams)
+        results[f"ours_p99_{label}"] = float(np.quantile(ours_err, 0.99))
+        results[f"glt_p99_{label}"] = float(np.quantile(glt_err, 0.99))
+        out(
+            f"error vs exact ({label} poses): ours mean {ours_err.mean():.3f} m p99 "
+            f"{results[f'ours_p99_{label}']:.3f} m; GLT mean {glt_err.mean():.3f} m p99 "
+            f"{results[f'glt_p99_{label}']:.3f} m"
+        )
+
+    # Timing, interleaved: one update of each in turn, medians over `updates`.
+    idx, _ = ours._subsample(scan.size)
+    odometry = twist_to_odometry(TWIST, DT)
+    filters = {}
+    for t in threads:
+        sm = SensorModel(grid, SensorModelParams(num_beams_per_particle=n_beams, parallel=t > 1))
+        pf = ParticleFilter(
+            grid,
+            n_particles,
+            sensor_model=sm,
+            params=ParticleFilterParams(resample_threshold="always"),
+            rng=seed,
+        )
+        pf.initialize(truth, spread=(0.5, 0.5, 0.2))
+        filters[t] = pf
+    state = {"p": truth + rng.normal(0.0, [0.5, 0.5, 0.2], size=(n_particles, 3))}
+    runs: dict[str, list[dict[str, float]]] = {"glt": [], **{f"ours/{t}": [] for t in threads}}
+    default_threads = numba.get_num_threads()
+    try:
+        for k in range(warmup + updates):
+            for t, pf in filters.items():
+                numba.set_num_threads(min(t, numba.config.NUMBA_NUM_THREADS))
+                r = mcl_update(pf, scan)
+                if k >= warmup:
+                    runs[f"ours/{t}"].append(r)
+            state["p"], r = peer.step(state["p"], odometry, scan[idx], angles)
+            if k >= warmup:
+                runs["glt"].append(r)
+    finally:
+        numba.set_num_threads(default_threads)
+    med = {name: _median_total(r) for name, r in runs.items()}
+    glt_total = med["glt"]["total"]
+    out("median ms per update (stages; 'cast' = cast + sensor model), ratio = GLT time / time")
+    out(f"{'impl':<12}" + "".join(f"{s:>10}" for s in (*STAGES, "total")) + f"{'x GLT':>8}")
+    for name, m in med.items():
+        label = "GLT (1 thr)" if name == "glt" else f"ours ({name.split('/')[-1]} thr)"
+        out(
+            f"{label:<12}"
+            + "".join(f"{1e3 * m[s]:10.2f}" for s in (*STAGES, "total"))
+            + f"{glt_total / m['total']:8.2f}"
+        )
+        results[f"{name}_ms"] = 1e3 * m["total"]
+        results[f"{name}_ratio"] = glt_total / m["total"]
+    return results

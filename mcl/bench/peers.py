@@ -1,0 +1,87 @@
+"""Benchmarks against the real peers, measured in the same run: ``racecar-sim bench peers``.
+
+* range_libc (:mod:`mcl.bench.peer_rangelibc`): our full MCL update against a kctess5-style update
+  on range_libc's giant lookup table, Stata basement, 4 000 particles x 100 beams by default;
+  skipped with a message when ``range_libc`` is not importable.
+
+Other peers add their part as a function ``part(args) -> int`` in :data:`PARTS` and their options
+in :func:`add_arguments`. Every part prints its workload (particles, beams, range, threads) and
+ratios from the same run.
+
+    .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+from mcl.bench import STATA
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The range_libc part's options."""
+    parser.add_argument("--map", type=Path, default=STATA, help="map YAML (default: Stata)")
+    parser.add_argument("--particles", type=int, default=4000, help="particles (MCL part)")
+    parser.add_argument("--beams", type=int, default=100, help="beams per particle (MCL part)")
+    parser.add_argument("--updates", type=int, default=20, help="timed updates (median)")
+    parser.add_argument("--warmup", type=int, default=3, help="untimed updates first")
+    parser.add_argument(
+        "--threads", type=int, nargs="+", default=[1, 2], help="numba threads for ours"
+    )
+    parser.add_argument("--seed", type=int, default=0)
+
+
+def rangelibc_part(args: argparse.Namespace) -> int:
+    """The MCL update against range_libc's GLT (skipped when range_libc is missing)."""
+    from mcl.bench import peer_rangelibc
+
+    print("== MCL update vs range_libc (giant lookup table), one run ==")
+    if not peer_rangelibc.available():
+        print(f"skipped: {peer_rangelibc.INSTALL_HINT}")
+        return 0
+    if not args.map.is_file():
+        print(f"skipped: map {args.map} not found (the Stata map lives in ../shared/maps)")
+        return 0
+    from racecar_sim.maps import load_map
+
+    peer_rangelibc.compare(
+        load_map(args.map),
+        n_particles=args.particles,
+        n_beams=args.beams,
+        updates=args.updates,
+        warmup=args.warmup,
+        seed=args.seed,
+        threads=tuple(args.threads),
+    )
+    return 0
+
+
+PARTS: list[Callable[[argparse.Namespace], int]] = [rangelibc_part]
+"""The peer comparisons run by :func:`main`, in order."""
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawTextHelpFormatter
+    )
+    add_arguments(parser)
+    args = parser.parse_args(argv)
+    for name in ("particles", "beams", "updates"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name} must be at least 1")
+    if any(t < 1 for t in args.threads):
+        parser.error("--threads must be at least 1")
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"{os.cpu_count()} CPUs, load average {load:.1f} before the run")
+    status = 0
+    for part in PARTS:
+        status = max(status, part(args))
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
