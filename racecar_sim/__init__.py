@@ -8,7 +8,13 @@ __all__ = ["DEFAULT_MAP", "ENV_ID", "MapError", "OccupancyMap", "bundled", "load
 __version__ = "0.2.0"
 
 ENV_ID = "RacecarSim-v0"
-"""Gymnasium id of :class:`racecar_sim.env.RacecarEnv`: ``gymnasium.make(ENV_ID, map=...)``."""
+"""Gymnasium id of :class:`racecar_sim.env.RacecarEnv`: ``gymnasium.make(ENV_ID, map=...)``; many
+cars in one process: ``gymnasium.make_vec(ENV_ID, num_envs=N, vectorization_mode="vector_entry_point")``
+(:class:`racecar_sim.vector_env.RacecarVectorEnv`)."""
 
 if ENV_ID not in registry:  # importing the package twice (or reloading it) must not fail
-    register(id=ENV_ID, entry_point="racecar_sim.env:RacecarEnv")
+    register(
+        id=ENV_ID,
+        entry_point="racecar_sim.env:RacecarEnv",
+        vector_entry_point="racecar_sim.vector_env:RacecarVectorEnv",
+    )

@@ -225,14 +225,10 @@ class RacecarEnv(gym.Env):
         steer = min(max(steer, self._steer_lo), self._steer_hi)
         speed = min(max(speed, self._speed_lo), self._speed_hi)
 
-        physics = self.physics
-        collided = physics.step((steer, speed), self.dt)
-        self._n_steps += 1
-        self.time = self._n_steps * self.dt
-        fresh = self.time + _EPS_TIME >= self._next_scan
+        collided, fresh = self._advance(steer, speed)
         if fresh:
             self._take_scan()
-        twist = physics.twist
+        twist = self.physics.twist
         progress = float(twist[0]) * self.dt
         penalty = -self._penalty if collided else 0.0
         obs = {"scan": self._scan.copy(), "odom": self.odometry.measure(twist, self.np_random)}
@@ -287,10 +283,21 @@ class RacecarEnv(gym.Env):
         self._render_hooks.remove(fn)
 
     # ------------------------------------------------------------------ internals
+    def _advance(self, steer: float, speed: float) -> tuple[bool, bool]:
+        """Physics and clock of one step (clipped command); returns (collided, a scan is due)."""
+        collided = self.physics.step((steer, speed), self.dt)
+        self._n_steps += 1
+        self.time = self._n_steps * self.dt
+        return collided, self.time + _EPS_TIME >= self._next_scan
+
     def _take_scan(self) -> None:
         """Scan from the current pose and schedule the next scan one lidar period later."""
         pose = self.physics.pose
-        self._scan = self.lidar.measure(pose, self.np_random)
+        self._store_scan(pose, self.lidar.measure(pose, self.np_random))
+
+    def _store_scan(self, pose: np.ndarray, scan: np.ndarray) -> None:
+        """Keep ``scan`` (taken at rear-axle ``pose``) and schedule the next one."""
+        self._scan = scan
         self._scan_car_pose = pose
         n_done = math.floor((self.time + _EPS_TIME) / self._period) + 1
         self._next_scan = n_done * self._period

@@ -21,7 +21,14 @@ import numpy as np
 
 from racecar_sim.raycast.kernels import OCCUPIED
 
-__all__ = ["GEOMETRY_FIELDS", "NOISE_FIELDS", "scan_geometry", "scan_with_noise"]
+__all__ = [
+    "GEOMETRY_FIELDS",
+    "NOISE_FIELDS",
+    "scan_geometry",
+    "scan_with_noise",
+    "scans_serial_nogil",
+    "scans_with_noise",
+]
 
 _BIG = 1e30
 
@@ -140,27 +147,9 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
         ranges[b] = max_out if r >= max_t else r * scale
 
 
-@nb.njit(cache=True)
-def scan_with_noise(field, pose, geometry, cos_a, sin_a, u, z, noise, ranges, out) -> int:
-    """Cast a scan from the car at rear-axle world ``pose`` and add the beam noise.
-
-    Args:
-        field: the exact caster's pad-frame jump field (:func:`~racecar_sim.raycast.kernels.field_from_occupancy`).
-        pose: float64 (3,) world [x, y, theta] of the rear axle (metres, radians).
-        geometry: float64 array laid out as :data:`GEOMETRY_FIELDS`.
-        cos_a, sin_a: (M,) cos and sin of the beam angles (car frame).
-        u, z: (M,) one uniform in [0, 1) and one standard normal per beam.
-        noise: float64 array laid out as :data:`NOISE_FIELDS`.
-        ranges: float64 (M,) output, exact ranges in metres.
-        out: float32 (M,) output, the noisy scan in metres (see :mod:`racecar_sim.sensors`).
-
-    Returns:
-        0 on success, 1 when the pose is not finite (outputs untouched), 2 when an exact range
-        falls outside [0, max_range] (cannot happen for a finite pose).
-    """
-    x = pose[0]
-    y = pose[1]
-    th = pose[2]
+@nb.njit(cache=True, inline="always")
+def _scan_one(field, x, y, th, geometry, cos_a, sin_a, u, z, noise, ranges, out):
+    """Mount pose, exact cast and noise of one scan (see :func:`scan_with_noise`); a status."""
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(th)):
         return 1
     # Lidar mount (Lidar.mount_pose), then RayCaster._grid_frame: map frame / resolution + 1 cell.
@@ -204,3 +193,66 @@ def scan_with_noise(field, pose, geometry, cos_a, sin_a, u, z, noise, ranges, ou
             v = ri + sigma * z[i]
         out[i] = min(max(v, 0.0), max_range)
     return 0
+
+
+@nb.njit(cache=True)
+def scan_with_noise(field, pose, geometry, cos_a, sin_a, u, z, noise, ranges, out) -> int:
+    """Cast a scan from the car at rear-axle world ``pose`` and add the beam noise.
+
+    Args:
+        field: the exact caster's pad-frame jump field (:attr:`RayCaster.field`).
+        pose: float64 (3,) world [x, y, theta] of the rear axle (metres, radians).
+        geometry: float64 array laid out as :data:`GEOMETRY_FIELDS`.
+        cos_a, sin_a: (M,) cos and sin of the beam angles (car frame).
+        u, z: (M,) one uniform in [0, 1) and one standard normal per beam.
+        noise: float64 array laid out as :data:`NOISE_FIELDS`.
+        ranges: float64 (M,) output, exact ranges in metres.
+        out: float32 (M,) output, the noisy scan in metres (see :mod:`racecar_sim.sensors`).
+
+    Returns:
+        0 on success, 1 when the pose is not finite (outputs untouched), 2 when an exact range
+        falls outside [0, max_range] (cannot happen for a finite pose).
+    """
+    return _scan_one(
+        field, pose[0], pose[1], pose[2], geometry, cos_a, sin_a, u, z, noise, ranges, out
+    )
+
+
+@nb.njit(cache=True, parallel=True)
+def _scans_parallel(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status):
+    for k in nb.prange(poses.shape[0]):
+        status[k] = _scan_one(
+            field, poses[k, 0], poses[k, 1], poses[k, 2], geometry, cos_a, sin_a, u[k], z[k],
+            noise, ranges[k], out[k],
+        )  # fmt: skip
+
+
+@nb.njit(cache=True, nogil=True)
+def _scans_serial(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status):
+    for k in range(poses.shape[0]):
+        status[k] = _scan_one(
+            field, poses[k, 0], poses[k, 1], poses[k, 2], geometry, cos_a, sin_a, u[k], z[k],
+            noise, ranges[k], out[k],
+        )  # fmt: skip
+
+
+def scans_with_noise(
+    field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, parallel: bool
+) -> np.ndarray:
+    """:func:`scan_with_noise` for K cars at once: poses (K, 3), u, z, ranges, out (K, M).
+
+    ``parallel`` spreads the cars over numba's threads. Returns the (K,) statuses. The serial
+    kernel releases the GIL (:func:`scans_serial_nogil`), so Python threads can also share the
+    cars out.
+    """
+    status = np.zeros(poses.shape[0], dtype=np.int64)
+    if parallel:
+        _scans_parallel(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status)
+    else:
+        _scans_serial(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status)
+    return status
+
+
+def scans_serial_nogil(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status):
+    """:func:`scans_with_noise` on the calling thread, without holding the GIL."""
+    _scans_serial(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status)

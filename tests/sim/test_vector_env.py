@@ -1,0 +1,89 @@
+"""Tests of racecar_sim.vector_env: N cars in one process equal N single envs, step for step."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+import racecar_sim  # noqa: F401  (registers RacecarSim-v0 with its vector entry point)
+from racecar_sim.vector_env import RacecarVectorEnv
+
+SETTINGS = {"map": "corridor", "dt": 0.03, "terminate_on_collision": True, "max_range": 12.0}
+
+
+def assert_same(a, b, path: str = "") -> None:
+    """Equal nested dicts of arrays: same keys, dtypes, shapes and values (bit for bit)."""
+    if isinstance(a, tuple):
+        assert isinstance(b, tuple) and len(a) == len(b), path
+        for k, (x, y) in enumerate(zip(a, b, strict=True)):
+            assert_same(x, y, f"{path}[{k}]")
+        return
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and set(a) == set(b), f"{path}: keys {set(a) ^ set(b)}"
+        for key in a:
+            assert_same(a[key], b[key], f"{path}/{key}")
+        return
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.dtype == b.dtype, f"{path}: dtype {a.dtype} vs {b.dtype}"
+    np.testing.assert_array_equal(a, b, err_msg=path)
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_vector_env_equals_sync_vector_env_of_single_envs(parallel: bool) -> None:
+    n = 4
+    fast = gym.make_vec(
+        "RacecarSim-v0", num_envs=n, vectorization_mode="vector_entry_point",
+        max_episode_steps=40, parallel=parallel, workers=2, **SETTINGS,
+    )  # fmt: skip
+    assert isinstance(fast, RacecarVectorEnv)
+    sync = gym.make_vec(
+        "RacecarSim-v0", num_envs=n, vectorization_mode="sync", max_episode_steps=40, **SETTINGS
+    )
+    assert fast.observation_space == sync.observation_space
+    assert fast.action_space == sync.action_space
+    assert fast.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    assert_same(fast.reset(seed=11), sync.reset(seed=11))
+    rng = np.random.default_rng(0)
+    ends = 0
+    for t in range(150):
+        # Fast and twisting: cars hit walls (terminations), others run out of time (truncations).
+        actions = np.column_stack([rng.uniform(-0.5, 0.5, n), rng.uniform(-1.0, 6.0, n)])
+        got, want = fast.step(actions), sync.step(actions)
+        assert_same(got, want, f"step {t}")
+        ends += int(got[2].sum() + got[3].sum())
+    assert ends >= 5, "the run covered episode ends and next-step autoresets"
+    fast.close()
+    sync.close()
+
+
+def test_reset_seeds_per_car_lists_and_mask() -> None:
+    env = RacecarVectorEnv(3, **SETTINGS)
+    single = gym.make("RacecarSim-v0", **SETTINGS)
+    obs, info = env.reset(seed=[5, 6, 7])
+    for i, seed in enumerate([5, 6, 7]):
+        o, inf = single.reset(seed=seed)
+        np.testing.assert_array_equal(obs["scan"][i], o["scan"])
+        np.testing.assert_array_equal(info["pose"][i], inf["pose"])
+    assert not np.array_equal(obs["scan"][0], obs["scan"][1])  # seeded per car
+    env.step(np.zeros((3, 2)))
+    before = env.envs[1].pose
+    obs, info = env.reset(seed=[8, None, 9], options={"reset_mask": np.array([True, False, True])})
+    np.testing.assert_array_equal(env.envs[1].pose, before)  # the masked-out car kept its state
+    assert list(info["_pose"]) == [True, False, True]
+    o, inf = single.reset(seed=9)
+    np.testing.assert_array_equal(obs["scan"][2], o["scan"])
+
+
+def test_bad_actions_and_settings_raise() -> None:
+    env = RacecarVectorEnv(2, **SETTINGS)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros((3, 2)))
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([[0.0, np.nan], [0.0, 1.0]]))
+    with pytest.raises(ValueError, match="num_envs"):
+        RacecarVectorEnv(0, **SETTINGS)
+    with pytest.raises(ValueError, match="unknown"):
+        RacecarVectorEnv(2, map="corridor", wheel_count=4)
