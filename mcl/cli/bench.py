@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
+import argparse
+import contextlib
 import difflib
 import importlib
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from types import ModuleType
+from typing import Any, NoReturn
+
+from mcl.cli.common import HelpFormatter
 
 BENCHMARKS: dict[str, str] = {
     "raycast": "ray casting rates and errors per method",
@@ -14,6 +20,47 @@ BENCHMARKS: dict[str, str] = {
     "uncertainty": "cost of the uncertainty report and KLD count",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
+
+
+class _CommandParser(argparse.ArgumentParser):
+    """A benchmark's parser as ``racecar-sim bench NAME``: help with defaults, one-line errors."""
+
+    command = "racecar-sim bench"
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs["prog"] = self.command
+        kwargs["formatter_class"] = HelpFormatter
+        super().__init__(*args, **kwargs)
+
+    def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
+        default = kwargs.get("default")
+        if not kwargs.get("help") and default is not None and default is not False:
+            kwargs["help"] = "(default: %(default)s)"
+        return super().add_argument(*args, **kwargs)
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
+
+
+@contextlib.contextmanager
+def _command_parsers(module: ModuleType, prog: str) -> Iterator[None]:
+    """While ``module`` (a benchmark) runs, the ``argparse`` it sees builds :class:`_CommandParser`.
+
+    The benchmark modules build plain parsers (they also run as ``scripts/bench_*.py``); only the
+    name ``argparse`` inside ``module`` is swapped, for one ``racecar-sim bench`` call.
+    """
+    plain = getattr(module, "argparse", None)
+    if plain is not argparse:
+        yield
+        return
+    view = ModuleType("argparse")
+    view.__dict__.update(vars(argparse))
+    view.ArgumentParser = type("CommandParser", (_CommandParser,), {"command": prog})  # type: ignore[attr-defined]
+    module.argparse = view  # type: ignore[attr-defined]
+    try:
+        yield
+    finally:
+        module.argparse = plain  # type: ignore[attr-defined]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -37,5 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    result = importlib.import_module(f"mcl.bench.{args[0]}").main(args[1:])
+    module = importlib.import_module(f"mcl.bench.{args[0]}")
+    with _command_parsers(module, f"racecar-sim bench {args[0]}"):
+        result = module.main(args[1:])
     return result if isinstance(result, int) else 0

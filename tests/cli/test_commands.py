@@ -4,6 +4,7 @@ compile notice, output folders on failure, and real runs of the installed consol
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import re
 import shlex
@@ -218,3 +219,25 @@ def test_experiment_script_with_a_missing_map_starts_no_run(tmp_path) -> None:
     assert len(lines) == 1 and "--map" in lines[0] and "not found" in lines[0], done.stderr
     assert done.stdout == ""
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name", ["raycast", "sim", "mcl", "uncertainty"])
+def test_bench_help_names_the_command_and_shows_defaults(name: str, capsys) -> None:
+    module = importlib.import_module(f"mcl.bench.{name}")
+    with pytest.raises(SystemExit) as exit_:
+        main(["bench", name, "--help"])
+    assert exit_.value.code == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"usage: racecar-sim bench {name} ")
+    assert "(default: " in out
+    assert module.argparse is argparse  # the benchmark's own parser is back as it was
+
+
+def test_bench_mistake_is_one_line(capsys) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        main(["bench", "sim", "--steps", "many"])
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2
+    assert err.splitlines() == [
+        "racecar-sim bench sim: error: argument --steps: invalid int value: 'many'"
+    ]
