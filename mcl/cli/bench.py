@@ -18,6 +18,7 @@ BENCHMARKS: dict[str, str] = {
     "sim": "simulator steps per second",
     "mcl": "particle filter update rate per stage",
     "uncertainty": "cost of the uncertainty report and KLD count",
+    "peers": "the full MCL update against real peers (range_libc), in the same run",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 

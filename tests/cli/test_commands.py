@@ -221,7 +221,18 @@ def test_experiment_script_with_a_missing_map_starts_no_run(tmp_path) -> None:
     assert not out.exists()
 
 
-@pytest.mark.parametrize("name", ["raycast", "sim", "mcl", "uncertainty"])
+def test_every_benchmark_module_is_a_bench_subcommand() -> None:
+    import mcl.bench
+    from mcl.cli.bench import BENCHMARKS
+
+    folder = Path(mcl.bench.__file__).parent
+    with_main = {
+        p.stem for p in folder.glob("*.py") if "\ndef main(" in p.read_text(encoding="utf-8")
+    }
+    assert with_main == set(BENCHMARKS)
+
+
+@pytest.mark.parametrize("name", ["raycast", "sim", "mcl", "uncertainty", "peers"])
 def test_bench_help_names_the_command_and_shows_defaults(name: str, capsys) -> None:
     module = importlib.import_module(f"mcl.bench.{name}")
     with pytest.raises(SystemExit) as exit_:
