@@ -206,8 +206,9 @@ def _finish(out: Path, statuses: list[str], failed: list[RunResult]) -> int:
     print((out / "summary.md").read_text())
     ok, skipped = statuses.count("ok"), statuses.count("skipped")
     print(f"{ok} runs done, {skipped} skipped (complete logs), {len(failed)} failed")
-    for r in failed:
-        print(f"FAILED {r.spec.run_id}: {r.error}", file=sys.stderr)
+    if failed:  # each failure was reported as it happened; name them once more, on one line
+        ids = ", ".join(r.spec.run_id for r in failed)
+        print(f"failed runs: {ids} (errors above and in summary.md)", file=sys.stderr)
     print(f"output folder: {out.resolve()}")
     return 1 if failed else 0
 

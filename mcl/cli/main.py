@@ -60,7 +60,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         return 2
     module = importlib.import_module(SUBCOMMANDS[name][0])
-    result = module.main(rest)
+    try:
+        result = module.main(rest)
+    except KeyboardInterrupt:
+        print(f"racecar-sim {name}: interrupted", file=sys.stderr)
+        return 130
     return result if isinstance(result, int) else 0
 
 

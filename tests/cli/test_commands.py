@@ -252,3 +252,41 @@ def test_bench_mistake_is_one_line(capsys) -> None:
     assert err.splitlines() == [
         "racecar-sim bench sim: error: argument --steps: invalid int value: 'many'"
     ]
+
+
+def test_experiment_with_a_failing_run_keeps_the_others_and_exits_1(
+    tmp_path, monkeypatch, capsys
+) -> None:
+    import mcl.experiments.runner as runner
+
+    real = runner.run_one
+
+    def flaky(spec, log_path, **kwargs):
+        if spec.series == "gaussian":
+            raise RuntimeError("wheel fell off")
+        return real(spec, log_path, **kwargs)
+
+    monkeypatch.setattr(runner, "run_one", flaky)
+    out = tmp_path / "sweep"
+    args = [
+        "experiment", "--uniform", "0.01", "--gaussian", "0.5", "--no-matched", "--seeds", "1",
+        "--duration", "0.5", "--particles", "50", "--env", "n_beams=61", "--workers", "1",
+        "--no-plots", "--out", str(out),
+    ]  # fmt: skip
+    assert main(args) == 1
+    captured = capsys.readouterr()
+    assert "1 runs done, 0 skipped (complete logs), 1 failed" in captured.out
+    assert "failed runs: gaussian_c0.5_seed0" in captured.err
+    assert captured.err.count("wheel fell off") == 1  # reported once, as it happened
+    assert len(read_error_log(out / "logs" / "uniform_c0.01_seed0.csv")) == 20
+
+
+def test_ctrl_c_is_one_line_and_leaves_no_empty_folder(tmp_path, monkeypatch, capsys) -> None:
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(mcl.cli.drive, "run_one", interrupted)
+    out = tmp_path / "out"
+    assert main(["drive", "--out", str(out), "--video-fps", "0"]) == 130
+    assert capsys.readouterr().err.splitlines()[-1] == "racecar-sim drive: interrupted"
+    assert not out.exists()
