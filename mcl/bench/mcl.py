@@ -240,7 +240,42 @@ def main(argv: list[str] | None = None) -> int:
                 + f" {n * args.beams / r['cast'] / 1e6:8.1f}"
                 + f" {rows['numpy']['total'] / r['total'] if 'numpy' in rows else math.nan:8.1f}"
             )
+    likelihood_field_timing(grid, scan, truth, rng, args.updates, parallel)
     return 0
+
+
+def likelihood_field_timing(
+    grid: OccupancyMap,
+    scan: np.ndarray,
+    truth: np.ndarray,
+    rng: np.random.Generator,
+    updates: int,
+    parallel: bool | None,
+    n: int = 10_000,
+) -> float:
+    """Scan evaluation: the likelihood field on every beam against the beam model on 100, for
+    ``n`` particles around ``truth``, interleaved; prints medians and returns their ratio."""
+    beam = SensorModel(grid, SensorModelParams(num_beams_per_particle=100, parallel=parallel))
+    field = SensorModel(
+        grid,
+        SensorModelParams(
+            model="likelihood_field", num_beams_per_particle=scan.size, parallel=parallel
+        ),
+    )
+    particles = truth + rng.normal(0.0, [0.3, 0.3, 0.1], size=(n, 3))
+    times: dict[str, list[float]] = {"beam": [], "field": []}
+    for k in range(updates + 2):
+        for name, sm in (("beam", beam), ("field", field)):
+            t = time.perf_counter()
+            sm.log_evaluate(particles, scan)
+            if k >= 2:
+                times[name].append(time.perf_counter() - t)
+    b, f = (statistics.median(times[k]) for k in ("beam", "field"))
+    print(
+        f"scan evaluation, {n} particles: likelihood field on all {scan.size} beams "
+        f"{1e3 * f:.2f} ms, beam model (lut) on 100 beams {1e3 * b:.2f} ms: field/beam = {f / b:.2f}"
+    )
+    return f / b
 
 
 if __name__ == "__main__":
