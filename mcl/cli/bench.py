@@ -19,6 +19,7 @@ BENCHMARKS: dict[str, str] = {
     "mcl": "particle filter update rate per stage",
     "uncertainty": "cost of the uncertainty report and KLD count",
     "peers": "the full MCL update against real peers (range_libc), in the same run",
+    "sensor_models": "beam model vs likelihood field: localization error in the same drives",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 
@@ -76,6 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "  racecar-sim bench raycast --quick"
         )
         return 0
+    args[0] = args[0].replace("-", "_")  # sensor-models = sensor_models
     if args[0] not in BENCHMARKS:
         close = difflib.get_close_matches(args[0], list(BENCHMARKS), n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""

@@ -19,7 +19,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     ),
     "experiment": ("mcl.cli.experiment", "the noise sweep, or global localization / kidnapping"),
     "ablation": ("mcl.cli.recovery_ablation", "the recovery experiment with one part switched off"),
-    "bench": ("mcl.cli.bench", "benchmarks: raycast, sim, mcl, uncertainty, peers"),
+    "bench": ("mcl.cli.bench", "benchmarks (racecar-sim bench lists them)"),
     "make-maps": ("mcl.cli.make_maps", "draw the bundled maps"),
 }
 """Subcommand name -> (module with ``main(argv)``, one-line description)."""

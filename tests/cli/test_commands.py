@@ -17,6 +17,7 @@ import pytest
 import mcl.cli.common as common
 import mcl.cli.drive
 from mcl.cli import drive, experiment, recovery_ablation
+from mcl.cli.bench import BENCHMARKS
 from mcl.cli.common import Parser, check_env, output_folder
 from mcl.cli.main import SUBCOMMANDS, main
 from mcl.error_log import read_error_log
@@ -223,7 +224,6 @@ def test_experiment_script_with_a_missing_map_starts_no_run(tmp_path) -> None:
 
 def test_every_benchmark_module_is_a_bench_subcommand() -> None:
     import mcl.bench
-    from mcl.cli.bench import BENCHMARKS
 
     folder = Path(mcl.bench.__file__).parent
     with_main = {
@@ -232,7 +232,7 @@ def test_every_benchmark_module_is_a_bench_subcommand() -> None:
     assert with_main == set(BENCHMARKS)
 
 
-@pytest.mark.parametrize("name", ["raycast", "sim", "mcl", "uncertainty", "peers"])
+@pytest.mark.parametrize("name", sorted(BENCHMARKS))
 def test_bench_help_names_the_command_and_shows_defaults(name: str, capsys) -> None:
     module = importlib.import_module(f"mcl.bench.{name}")
     with pytest.raises(SystemExit) as exit_:
