@@ -1,0 +1,200 @@
+"""PPO on the lap task with stable-baselines3 (the optional extra ``[rl]``).
+
+:func:`train` writes into its output folder::
+
+    config.json      the task and the PPO settings
+    learning.csv     one row per finished training episode: timesteps, wall_s, return (m of
+                     progress minus penalties), length (steps), progress (m), collisions
+    model.zip        the policy (saved every ``save_every`` timesteps and at the end)
+    train.json       timesteps done, wall seconds, steps per second
+
+The envs of one process are stepped by stable-baselines3's ``DummyVecEnv`` (a sync vector env):
+the simulator has no batched env yet. Torch and numba use one thread each (the cores are shared).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mcl.agents.lap_env import LapTaskConfig, make_lap_env
+
+__all__ = ["PPOSettings", "TrainReport", "load_policy", "require_sb3", "train"]
+
+
+def require_sb3() -> None:
+    """Raise ``ImportError`` with the install hint when stable-baselines3 is missing."""
+    try:
+        import stable_baselines3  # noqa: F401
+    except ImportError as exc:
+        raise ImportError(
+            "the agent needs stable-baselines3 and torch: pip install torch==2.13.0 "
+            "-e '.[rl]' (a CPU torch is enough)"
+        ) from exc
+
+
+@dataclass(frozen=True)
+class PPOSettings:
+    """PPO hyper-parameters (stable-baselines3 names; steps per env per update, etc.)."""
+
+    n_envs: int = 8
+    n_steps: int = 256
+    batch_size: int = 256
+    n_epochs: int = 10
+    learning_rate: float = 3e-4
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_range: float = 0.2
+    ent_coef: float = 0.0
+    net_arch: tuple[int, ...] = (128, 128)
+
+    def __post_init__(self) -> None:
+        for name in ("n_envs", "n_steps", "batch_size", "n_epochs"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"PPOSettings.{name} = {value!r} must be a positive integer")
+
+
+@dataclass(frozen=True)
+class TrainReport:
+    """What :func:`train` did: timesteps, wall seconds and the files written."""
+
+    timesteps: int
+    wall_s: float
+    model_path: Path
+    learning_path: Path
+
+
+def _one_thread() -> None:
+    import numba
+    import torch
+
+    torch.set_num_threads(1)
+    numba.set_num_threads(1)
+
+
+def train(
+    task: LapTaskConfig,
+    timesteps: int,
+    out_dir: str | os.PathLike[str],
+    *,
+    settings: PPOSettings | None = None,
+    seed: int = 0,
+    save_every: int = 50_000,
+    progress: bool = False,
+) -> TrainReport:
+    """Train PPO on ``task`` for ``timesteps`` env steps (all envs together) into ``out_dir``."""
+    require_sb3()
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
+
+    if isinstance(timesteps, bool) or not isinstance(timesteps, int) or timesteps < 1:
+        raise ValueError(f"timesteps = {timesteps!r} must be a positive integer")
+    settings = settings if settings is not None else PPOSettings()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    _one_thread()
+    (out / "config.json").write_text(
+        json.dumps(
+            {"task": asdict(task), "ppo": asdict(settings), "seed": seed, "timesteps": timesteps},
+            indent=1,
+            default=str,
+        )
+        + "\n",
+        encoding="utf-8",
+    )
+    venv = VecMonitor(DummyVecEnv([lambda: make_lap_env(task)] * settings.n_envs))
+    model = PPO(
+        "MlpPolicy",
+        venv,
+        n_steps=settings.n_steps,
+        batch_size=settings.batch_size,
+        n_epochs=settings.n_epochs,
+        learning_rate=settings.learning_rate,
+        gamma=settings.gamma,
+        gae_lambda=settings.gae_lambda,
+        clip_range=settings.clip_range,
+        ent_coef=settings.ent_coef,
+        policy_kwargs={"net_arch": list(settings.net_arch)},
+        seed=seed,
+        device="cpu",
+        verbose=0,
+    )
+    learning_path, model_path = out / "learning.csv", out / "model.zip"
+    t0 = time.perf_counter()
+
+    class Record(BaseCallback):
+        """Write every finished episode to learning.csv; save the model now and then."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.file = learning_path.open("w", newline="", encoding="utf-8")
+            self.writer = csv.writer(self.file)
+            self.writer.writerow(
+                ["timesteps", "wall_s", "return", "length", "progress", "collisions", "laps"]
+            )
+            self.next_save = save_every
+
+        def _on_step(self) -> bool:
+            for info in self.locals["infos"]:
+                episode = info.get("episode")
+                if episode is None:
+                    continue
+                lap = info.get("lap", {})
+                self.writer.writerow(
+                    [
+                        self.num_timesteps,
+                        round(time.perf_counter() - t0, 2),
+                        round(float(episode["r"]), 3),
+                        int(episode["l"]),
+                        round(float(lap.get("progress", np.nan)), 3),
+                        int(lap.get("collisions", -1)),
+                        int(lap.get("laps", -1)),
+                    ]
+                )
+                self.file.flush()
+            if self.num_timesteps >= self.next_save:
+                self.model.save(model_path)
+                self.next_save += save_every
+            return True
+
+        def _on_training_end(self) -> None:
+            self.file.close()
+
+    model.learn(total_timesteps=timesteps, callback=Record(), progress_bar=progress)
+    wall = time.perf_counter() - t0
+    model.save(model_path)
+    done = int(model.num_timesteps)
+    (out / "train.json").write_text(
+        json.dumps(
+            {"timesteps": done, "wall_s": round(wall, 1), "steps_per_s": round(done / wall, 1)},
+            indent=1,
+        )
+        + "\n",
+        encoding="utf-8",
+    )
+    venv.close()
+    return TrainReport(done, wall, model_path, learning_path)
+
+
+def load_policy(model_path: str | os.PathLike[str]) -> Any:
+    """``policy(obs) -> action`` (deterministic) of a saved PPO model."""
+    require_sb3()
+    from stable_baselines3 import PPO
+
+    _one_thread()
+    model = PPO.load(str(model_path), device="cpu")
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        action, _ = model.predict(obs, deterministic=True)
+        return np.asarray(action)
+
+    return policy
