@@ -38,6 +38,7 @@ from mcl.experiments.recovery import (
     recovery_localization,
     run_recovery_experiment,
 )
+from mcl.experiments.runner import EXECUTORS, make_executor
 from mcl.experiments.runs import DRIVERS, RunResult
 from mcl.experiments.scenarios import SCENARIOS
 from mcl.filter_params import DEFAULT_PARTICLES
@@ -133,7 +134,19 @@ def build_parser() -> Parser:
         type=positive_int,
         default=None,
         metavar="N",
-        help="processes (default: the number of cores)",
+        help="processes, or Ray runs in flight (default: the number of cores)",
+    )
+    add(
+        "--executor",
+        choices=EXECUTORS,
+        default="pool",
+        help="where the runs execute: a process pool on this machine, or Ray (extra [ray])",
+    )
+    add(
+        "--ray-address",
+        default=None,
+        metavar="auto|HOST:PORT",
+        help="join this Ray cluster (default with --executor ray: start Ray on this machine)",
     )
     add("--resume", action="store_true", help="skip runs whose log is complete")
     add("--no-plots", action="store_true", help="write no PNG plots")
@@ -155,6 +168,12 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``racecar-sim experiment``; returns the exit code (1: a run failed; 2: a user mistake)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    if args.ray_address is not None and args.executor != "ray":
+        parser.fail("--ray-address", "needs --executor ray")
+    try:
+        executor = make_executor(args.executor, args.workers, args.ray_address)
+    except ValueError as exc:
+        parser.fail("--executor", str(exc))
     check_map(parser, args.map)
     env = check_env(parser, args.env)
     out: Path = check_out(parser, args.out)
@@ -193,7 +212,12 @@ def main(argv: list[str] | None = None) -> int:
     check_resume(parser, config, out, args.resume)
     compile_notice()
     with output_folder(parser, out):
-        options = {"workers": args.workers, "resume": args.resume, "plots": not args.no_plots}
+        options = {
+            "workers": args.workers,
+            "resume": args.resume,
+            "plots": not args.no_plots,
+            "executor": executor,
+        }
         if isinstance(config, RecoveryConfig):
             report = run_recovery_experiment(config, out, **options)
             return _finish(out, [r.result.status for r in report.runs], report.failed)

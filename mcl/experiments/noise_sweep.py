@@ -34,7 +34,7 @@ from typing import Any, TextIO
 from mcl.error_log import count_rows
 from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.noise_report import SummaryRow, summarize, write_plots, write_summary
-from mcl.experiments.runner import run_pending, skipped_result
+from mcl.experiments.runner import Executor, run_pending, skipped_result
 from mcl.experiments.runs import RunResult, RunSpec
 from mcl.filter_params import DEFAULT_PARTICLES
 from mcl.motion_model import MotionModelParams, uniform_to_gaussian
@@ -163,6 +163,7 @@ def run_experiment(
     progress: bool = True,
     plots: bool = True,
     stream: TextIO | None = None,
+    executor: Executor | None = None,
 ) -> ExperimentReport:
     """Run the sweep into ``out_dir`` and write the summaries and plots (see the module docstring).
 
@@ -175,6 +176,8 @@ def run_experiment(
         progress: show a tqdm bar over the runs on ``stream``.
         plots: draw the PNG plots.
         stream: where progress and failures are reported (default: stderr).
+        executor: where the runs execute (default: a process pool of ``workers``; see
+            :func:`mcl.experiments.runner.make_executor`, e.g. Ray).
 
     Failed runs are listed on ``stream``, in runs.csv and in summary.md; they do not stop the
     others.
@@ -194,6 +197,7 @@ def run_experiment(
         reuse=reuse,
         progress=progress,
         stream=stream if stream is not None else sys.stderr,
+        executor=executor,
         diverged_m=config.diverged_m,
     )
     summary = summarize(results)

@@ -45,7 +45,7 @@ from mcl.experiments.convergence import ConvergenceCriteria, RecoveryStats, reco
 from mcl.experiments.metrics import DIVERGED_M, error_stats
 from mcl.experiments.recovery_plots import write_recovery_plots
 from mcl.experiments.recovery_report import write_tables
-from mcl.experiments.runner import run_pending, run_spec_safely
+from mcl.experiments.runner import Executor, run_pending, run_spec_safely
 from mcl.experiments.runs import DRIVERS, RunResult, RunSpec
 from mcl.kld import KLDParams
 from mcl.particle_filter import ParticleFilterParams
@@ -289,6 +289,7 @@ def run_recovery_experiment(
     progress: bool = True,
     plots: bool = True,
     stream: TextIO | None = None,
+    executor: Executor | None = None,
 ) -> RecoveryReport:
     """Run every seed into ``out_dir``, judge the runs, write runs.csv, summary.md and the plots.
 
@@ -301,6 +302,8 @@ def run_recovery_experiment(
         progress: show a tqdm bar over the runs on ``stream``.
         plots: draw the PNG plots.
         stream: where progress and failures are reported (default: stderr).
+        executor: where the runs execute (default: a process pool of ``workers``; see
+            :func:`mcl.experiments.runner.make_executor`, e.g. Ray).
     """
     out = Path(out_dir)
 
@@ -325,6 +328,7 @@ def run_recovery_experiment(
         reuse=reuse,
         progress=progress,
         stream=stream if stream is not None else sys.stderr,
+        executor=executor,
         runner=run_recovery_safely,
     )
     runs = [_judge(config, r) for r in results]

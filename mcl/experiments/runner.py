@@ -11,25 +11,36 @@ import json
 import multiprocessing
 import os
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import as_completed as futures_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Protocol, TextIO
 
 from mcl.error_log import read_error_log
 from mcl.experiments.metrics import DIVERGED_M, error_stats
 from mcl.experiments.runs import RunResult, RunSpec, run_one
 
 __all__ = [
+    "EXECUTORS",
+    "Executor",
+    "InlineExecutor",
+    "PoolExecutor",
+    "Runner",
     "execute_runs",
     "log_path",
+    "make_executor",
     "record_settings",
     "run_pending",
     "run_spec_safely",
     "skipped_result",
+    "worker_died",
 ]
+
+
+_RETRIES = 1  # times a run whose worker process died is tried again
 
 
 def log_path(out_dir: Path, spec: RunSpec) -> Path:
@@ -58,6 +69,109 @@ def skipped_result(spec: RunSpec, log_path: Path, diverged_m: float) -> RunResul
     return RunResult(spec=spec, status="skipped", stats=stats, log_path=log_path)
 
 
+Runner = Callable[[RunSpec, Path, float], RunResult]
+"""``runner(spec, log_path, diverged_m) -> RunResult``: one run (a module-level function, so that
+worker processes, local or on a Ray cluster, can import it)."""
+
+
+class Executor(Protocol):
+    """Where runs execute: :class:`InlineExecutor`, :class:`PoolExecutor` or
+    :class:`mcl.experiments.ray_executor.RayExecutor`.
+
+    ``run_all(runner, todo, diverged_m)`` runs ``runner(spec, path, diverged_m)`` for every
+    ``(spec, path)`` of ``todo`` and yields each :class:`RunResult` as it finishes. A run whose
+    worker process died comes back as a ``"failed"`` result; the others go on.
+    """
+
+    def run_all(
+        self, runner: Runner, todo: Sequence[tuple[RunSpec, Path]], diverged_m: float
+    ) -> Iterator[RunResult]: ...
+
+
+def worker_died(spec: RunSpec, path: Path, why: str) -> RunResult:
+    """The ``"failed"`` result of a run whose worker process died (its log keeps its rows)."""
+    return RunResult(spec=spec, status="failed", stats=None, log_path=path, error=why)
+
+
+class InlineExecutor:
+    """Every run in this process, one after the other."""
+
+    def run_all(
+        self, runner: Runner, todo: Sequence[tuple[RunSpec, Path]], diverged_m: float
+    ) -> Iterator[RunResult]:
+        for spec, path in todo:
+            yield runner(spec, path, diverged_m)
+
+
+class PoolExecutor:
+    """A spawn process pool of ``workers`` processes on this machine, one numba thread each.
+
+    When a worker process dies, the pool breaks and every unfinished run fails with it (the
+    standard library cannot tell which run killed it): those runs are tried once more in a
+    fresh pool, then reported as failed.
+    """
+
+    def __init__(self, workers: int) -> None:
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ValueError(f"workers must be a positive integer, got {workers!r}")
+        self.workers = workers
+
+    def run_all(
+        self, runner: Runner, todo: Sequence[tuple[RunSpec, Path]], diverged_m: float
+    ) -> Iterator[RunResult]:
+        tries = dict.fromkeys(range(len(todo)), 0)
+        pending = list(range(len(todo)))
+        context = multiprocessing.get_context("spawn")
+        while pending:
+            broken: list[int] = []
+            workers = min(self.workers, len(pending))
+            with ProcessPoolExecutor(workers, mp_context=context, initializer=_init_worker) as pool:
+                futures: dict[Future[RunResult], int] = {
+                    pool.submit(runner, *todo[i], diverged_m): i for i in pending
+                }
+                for future in futures_completed(futures):
+                    i = futures[future]
+                    try:
+                        yield future.result()
+                    except BrokenProcessPool as exc:  # a worker process died
+                        tries[i] += 1
+                        if tries[i] > _RETRIES:
+                            yield worker_died(*todo[i], f"worker process died: {exc}")
+                        else:
+                            broken.append(i)
+                    except Exception as exc:  # the result could not come back
+                        yield worker_died(*todo[i], f"worker failed: {type(exc).__name__}: {exc}")
+            pending = sorted(broken)
+
+
+def make_executor(
+    name: str = "pool", workers: int | None = None, address: str | None = None
+) -> Executor:
+    """The executor called ``name``: ``"pool"`` (``workers`` processes, default the CPU count;
+    inline when 1) or ``"ray"`` (Ray on this machine, or the cluster at ``address``: ``"auto"``
+    or ``HOST:PORT``; ``workers`` caps the runs in flight).
+
+    Raises:
+        ValueError: an unknown name, ``address`` without Ray, workers < 1, or Ray not installed.
+    """
+    if workers is not None and (isinstance(workers, bool) or workers < 1):
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    if name == "pool":
+        if address is not None:
+            raise ValueError("a Ray address needs the ray executor (--executor ray)")
+        n = workers if workers is not None else (os.cpu_count() or 1)
+        return InlineExecutor() if n <= 1 else PoolExecutor(n)
+    if name == "ray":
+        from mcl.experiments.ray_executor import RayExecutor
+
+        return RayExecutor(address=address, workers=workers)
+    raise ValueError(f"unknown executor {name!r}; choose one of {list(EXECUTORS)}")
+
+
+EXECUTORS: tuple[str, ...] = ("pool", "ray")
+"""Names :func:`make_executor` knows."""
+
+
 def execute_runs(
     todo: Sequence[tuple[RunSpec, Path]],
     workers: int = 1,
@@ -67,9 +181,11 @@ def execute_runs(
     total: int | None = None,
     done_already: int = 0,
     stream: TextIO | None = None,
-    runner: Callable[[RunSpec, Path, float], RunResult] | None = None,
+    runner: Runner | None = None,
+    executor: Executor | None = None,
 ) -> list[RunResult]:
-    """Run ``todo`` = [(spec, log path)]: inline when ``workers`` is 1, else in a spawn process pool.
+    """Run ``todo`` = [(spec, log path)] on ``executor`` (default: inline when ``workers`` is 1,
+    else a :class:`PoolExecutor` of ``workers`` processes).
 
     Each run is ``runner(spec, log_path, diverged_m)`` (default :func:`run_spec_safely`; another
     runner must be a module-level function so that worker processes can import it).
@@ -80,39 +196,16 @@ def execute_runs(
     """
     from tqdm import tqdm
 
+    if executor is None:
+        executor = InlineExecutor() if workers <= 1 else PoolExecutor(workers)
     bar = tqdm(total=total, initial=done_already, unit="run", disable=not progress, file=stream)
-    run = runner if runner is not None else run_spec_safely
     results: list[RunResult] = []
-
-    def finished(result: RunResult) -> None:
-        results.append(result)
-        if result.status == "failed":
-            bar.write(f"run {result.spec.run_id} FAILED: {result.error}", file=stream)
-        bar.update(1)
-
     try:
-        if workers <= 1:
-            for spec, path in todo:
-                finished(run(spec, path, diverged_m))
-            return results
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(workers, mp_context=context, initializer=_init_worker) as pool:
-            futures: dict[Future[RunResult], tuple[RunSpec, Path]] = {
-                pool.submit(run, spec, path, diverged_m): (spec, path) for spec, path in todo
-            }
-            for future in futures_completed(futures):
-                spec, path = futures[future]
-                try:
-                    result = future.result()
-                except Exception as exc:  # the worker process itself died
-                    result = RunResult(
-                        spec=spec,
-                        status="failed",
-                        stats=None,
-                        log_path=path,
-                        error=f"worker process failed: {type(exc).__name__}: {exc}",
-                    )
-                finished(result)
+        for result in executor.run_all(runner or run_spec_safely, todo, diverged_m):
+            results.append(result)
+            if result.status == "failed":
+                bar.write(f"run {result.spec.run_id} FAILED: {result.error}", file=stream)
+            bar.update(1)
     finally:
         bar.close()
     return results
@@ -148,13 +241,15 @@ def run_pending(
     progress: bool,
     stream: TextIO,
     diverged_m: float = DIVERGED_M,
-    runner: Callable[[RunSpec, Path, float], RunResult] | None = None,
+    runner: Runner | None = None,
+    executor: Executor | None = None,
 ) -> list[RunResult]:
     """Run ``specs`` into ``out/logs/<run_id>.csv``; the results in the order of ``specs``.
 
     The folder's ``config.json`` records ``config`` (see :func:`record_settings`). With ``resume``,
     ``reuse(spec, log_path)`` may return a ``"skipped"`` result for a run whose output is complete;
-    every other run goes to :func:`execute_runs` over ``workers`` processes (default: the CPU count).
+    every other run goes to :func:`execute_runs` on ``executor`` (default: a pool of ``workers``
+    processes, the CPU count by default).
     """
     ids = [s.run_id for s in specs]
     if len(set(ids)) != len(ids):
@@ -182,6 +277,7 @@ def run_pending(
         done_already=len(by_id),
         stream=stream,
         runner=runner,
+        executor=executor,
     )
     by_id.update({r.spec.run_id: r for r in done})
     return [by_id[i] for i in ids]
