@@ -158,7 +158,7 @@ def learning_curve(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from mcl.plots import save_figure
+    from mcl.experiments.plots import save_figure
 
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
     for name, csv_path in curves.items():

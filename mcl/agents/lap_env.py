@@ -34,7 +34,7 @@ import numpy as np
 from gymnasium import spaces
 
 from mcl.agents.track import Track, track_for_map
-from mcl.particle_filter import ParticleFilterParams
+from mcl.filter_params import ParticleFilterParams
 from mcl.sensor_model import SensorModel, SensorModelParams
 from mcl.wrapper import LocalizationConfig, LocalizationWrapper
 from racecar_sim.env import RacecarEnv

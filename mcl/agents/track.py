@@ -76,7 +76,9 @@ class Track:
     def heading_at(self, s: float) -> float:
         """Direction of the loop (radians, world) at arc length ``s``."""
         s = float(np.mod(s, self.length))
-        i = int(np.clip(np.searchsorted(self._start_s, s, side="right") - 1, 0, len(self.points) - 1))
+        i = int(
+            np.clip(np.searchsorted(self._start_s, s, side="right") - 1, 0, len(self.points) - 1)
+        )
         return math.atan2(self._seg[i, 1], self._seg[i, 0])
 
     def ahead(self, pose: np.ndarray, s: float, distances: np.ndarray) -> np.ndarray:

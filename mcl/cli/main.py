@@ -2,7 +2,7 @@
 
 Subcommands: ``drive`` (a headless localized drive), ``experiment`` (noise sweep, global
 localization, kidnapping), ``ablation`` (the recovery ablation), ``bench`` (benchmarks),
-``make-maps`` (draw the bundled maps).
+``make-maps`` (draw the bundled maps), ``train-agent`` (PPO on the localized pose).
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "ablation": ("mcl.cli.recovery_ablation", "the recovery experiment with one part switched off"),
     "bench": ("mcl.cli.bench", "benchmarks (racecar-sim bench lists them)"),
     "make-maps": ("mcl.cli.make_maps", "draw the bundled maps"),
+    "train-agent": ("mcl.cli.train_agent", "PPO laps on the scan and a pose (extra [rl])"),
 }
 """Subcommand name -> (module with ``main(argv)``, one-line description)."""
 
