@@ -19,7 +19,14 @@ import numpy as np
 
 from mcl.agents.lap_env import LapTaskConfig, make_lap_env
 
-__all__ = ["EpisodeResult", "evaluate_policy", "learning_curve", "summary_table", "write_results"]
+__all__ = [
+    "EpisodeResult",
+    "evaluate_policy",
+    "learning_curve",
+    "summary_table",
+    "tested_on",
+    "write_results",
+]
 
 Policy = Callable[[np.ndarray], np.ndarray]
 
@@ -29,7 +36,8 @@ class EpisodeResult:
     """One test episode.
 
     Attributes:
-        policy: the policy's name. pose_source: the pose its observations were built from.
+        policy: the policy's name. tested_on: the pose its observations were built from in the
+            test (``truth``, or ``estimate (N particles)``).
         seed: reset seed. seconds: simulated seconds driven.
         laps: completed laps. lap_times: seconds of each (the first from a standing start).
         progress_per_min: metres along the loop per minute (truth).
@@ -38,7 +46,7 @@ class EpisodeResult:
     """
 
     policy: str
-    pose_source: str
+    tested_on: str
     seed: int
     seconds: float
     laps: int
@@ -48,6 +56,13 @@ class EpisodeResult:
     contacts: int
     mean_error: float
     max_error: float
+
+
+def tested_on(task: LapTaskConfig) -> str:
+    """How a test builds the pose: ``"truth"`` or ``"estimate (N particles)"``."""
+    if task.pose_source == "truth":
+        return "truth"
+    return f"estimate ({task.n_particles} particles)"
 
 
 def evaluate_policy(
@@ -89,7 +104,7 @@ def evaluate_policy(
         results.append(
             EpisodeResult(
                 policy=name,
-                pose_source=task.pose_source,
+                tested_on=tested_on(task),
                 seed=int(seed),
                 seconds=t,
                 laps=int(lap["laps"]),
@@ -106,16 +121,17 @@ def evaluate_policy(
 
 
 def summary_table(results: Sequence[EpisodeResult]) -> str:
-    """Markdown: per policy, laps, lap time (mean of completed laps after the first, else all),
-    contacts, progress per minute, localization error; means over seeds."""
+    """Markdown, one row per policy and test: laps, first lap (from a standing start) and
+    flying laps (the later ones), wall contacts, progress per minute, localization error; totals
+    or means over the seeds."""
     head = (
         "| policy (trained on) | tested on | episodes | laps | lap time (s) | flying lap (s) "
         "| wall contacts | steps in contact | progress (m/min) | MCL error (m) |"
     )
     lines = [head, "|" + "---|" * 10]
-    names = list(dict.fromkeys(r.policy for r in results))
-    for name in names:
-        group = [r for r in results if r.policy == name]
+    keys = list(dict.fromkeys((r.policy, r.tested_on) for r in results))
+    for name, test in keys:
+        group = [r for r in results if (r.policy, r.tested_on) == (name, test)]
         firsts = [r.lap_times[0] for r in group if r.lap_times]
         flying = [x for r in group for x in r.lap_times[1:]]
 
@@ -123,7 +139,7 @@ def summary_table(results: Sequence[EpisodeResult]) -> str:
             return f"{np.mean(values):.{digits}f}" if len(values) else "–"
 
         lines.append(
-            f"| {name} | {group[0].pose_source} | {len(group)} | "
+            f"| {name} | {test} | {len(group)} | "
             f"{sum(r.laps for r in group)} | {fmt(firsts)} | {fmt(flying)} | "
             f"{sum(r.contacts for r in group)} | {sum(r.collision_steps for r in group)} | "
             f"{fmt([r.progress_per_min for r in group], 1)} | "

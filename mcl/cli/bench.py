@@ -20,6 +20,7 @@ BENCHMARKS: dict[str, str] = {
     "uncertainty": "cost of the uncertainty report and KLD count",
     "peers": "the full MCL update against real peers (range_libc), in the same run",
     "sensor_models": "beam model vs likelihood field: localization error in the same drives",
+    "executors": "the same sweep on the process pool and on a local Ray",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 

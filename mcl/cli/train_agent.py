@@ -3,8 +3,9 @@ estimate (needs the extra [rl]: pip install torch==2.13.0 -e '.[rl]').
 
 For each pose source in --pose (truth: the simulator's pose; estimate: obs["pose_estimate"] of MCL
 in the loop) it trains a policy into OUT/<source>/ (skipped when OUT/<source>/model.zip exists and
---retrain is not given), then tests every policy with MCL in the loop and writes OUT/eval.csv,
-OUT/eval.md, OUT/learning_curve.png and OUT/agent.mp4 (the last policy, --video-seconds).
+--retrain is not given), then tests every policy on the true pose and on MCL's estimate (with each particle count of
+--eval-particles; fewer particles, larger errors) and writes OUT/eval.csv, OUT/eval.md,
+OUT/learning_curve.png and OUT/agent.mp4 (the last policy on the estimate, --video-seconds).
 
 Example (the README's run):
 
@@ -30,6 +31,18 @@ def _sources(text: str) -> tuple[str, ...]:
     return names
 
 
+def _counts(text: str) -> tuple[int, ...]:
+    try:
+        counts = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        counts = ()
+    if not counts or min(counts) < 1:
+        raise argparse.ArgumentTypeError(
+            f"expected positive integers, comma-separated; got {text!r}"
+        )
+    return counts
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
@@ -42,6 +55,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-eval", action="store_true", help="train only")
     parser.add_argument("--eval-seeds", type=int, default=5, help="test episodes per policy")
     parser.add_argument("--eval-seconds", type=float, default=60.0, help="seconds per test")
+    parser.add_argument(
+        "--eval-particles",
+        type=_counts,
+        default=(300,),
+        help="particle counts of the tests on the estimate, comma-separated (e.g. 300,30)",
+    )
     parser.add_argument("--video-seconds", type=float, default=20.0, help="0: no video")
     parser.add_argument("--out", type=Path, default=Path("runs/agent"))
     args = parser.parse_args(argv)
@@ -81,17 +100,18 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _evaluate(args: argparse.Namespace, models: dict[str, Path], load_policy) -> int:
-    from mcl.agents.evaluate import evaluate_policy, learning_curve, write_results
+    from mcl.agents.evaluate import evaluate_policy, learning_curve, tested_on, write_results
     from mcl.experiments.video import FrameWriter
 
     results = []
     seeds = list(range(1000, 1000 + args.eval_seeds))  # not the training seeds
-    tested = LapTaskConfig(pose_source="estimate")  # both policies act on MCL's estimate
+    tests = [LapTaskConfig(pose_source="truth")]
+    tests += [LapTaskConfig(pose_source="estimate", n_particles=n) for n in args.eval_particles]
     for source, model in models.items():
-        print(f"testing the policy trained on the {source} pose, on the estimate")
-        results += evaluate_policy(
-            load_policy(model), f"{source} pose", tested, seeds, args.eval_seconds
-        )
+        policy = load_policy(model)
+        for test in tests:
+            print(f"testing the policy trained on the {source} pose on the {tested_on(test)}")
+            results += evaluate_policy(policy, f"{source} pose", test, seeds, args.eval_seconds)
     files = write_results(results, args.out)
     curves = {f"trained on the {s} pose": args.out / s / "learning.csv" for s in models}
     files.append(learning_curve(curves, args.out / "learning_curve.png"))
@@ -102,7 +122,7 @@ def _evaluate(args: argparse.Namespace, models: dict[str, Path], load_policy) ->
             evaluate_policy(
                 load_policy(models[source]),
                 source,
-                tested,
+                tests[1],
                 [seeds[0]],
                 args.video_seconds,
                 on_frame=writer.write,
