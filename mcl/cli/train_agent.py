@@ -3,13 +3,9 @@ estimate (needs the extra [rl]: pip install torch==2.13.0 -e '.[rl]').
 
 For each pose source in --pose (truth: the simulator's pose; estimate: obs["pose_estimate"] of MCL
 in the loop) it trains a policy into OUT/<source>/ (skipped when OUT/<source>/model.zip exists and
---retrain is not given), then tests every policy on the true pose and on MCL's estimate (with each particle count of
---eval-particles; fewer particles, larger errors) and writes OUT/eval.csv, OUT/eval.md,
-OUT/learning_curve.png and OUT/agent.mp4 (the last policy on the estimate, --video-seconds).
-
-Example (the README's run):
-
-    .venv/bin/racecar-sim train-agent --timesteps 400000 --out runs/agent
+--retrain is not given), then tests every policy on the true pose and on MCL's estimate (with
+each particle count of --eval-particles; fewer particles, larger errors) and writes OUT/eval.csv,
+OUT/eval.md, OUT/learning_curve.png and OUT/agent.mp4 (the last policy on the estimate).
 """
 
 from __future__ import annotations
@@ -19,6 +15,12 @@ import sys
 from pathlib import Path
 
 from mcl.agents.lap_env import POSE_SOURCES, LapTaskConfig
+from mcl.cli.common import Parser, non_negative_float, positive_float, positive_int
+
+EXAMPLES = """\
+example (the README's run, about 12 + 25 minutes of training on 2 busy cores):
+  racecar-sim train-agent --timesteps 150000 --eval-particles 300,30 --out runs/agent
+"""
 
 
 def _sources(text: str) -> tuple[str, ...]:
@@ -26,7 +28,7 @@ def _sources(text: str) -> tuple[str, ...]:
     bad = [n for n in names if n not in POSE_SOURCES]
     if bad or not names:
         raise argparse.ArgumentTypeError(
-            f"--pose takes {' and/or '.join(POSE_SOURCES)}, comma-separated; got {text!r}"
+            f"takes {' and/or '.join(POSE_SOURCES)}, comma-separated; got {text!r}"
         )
     return names
 
@@ -44,39 +46,33 @@ def _counts(text: str) -> tuple[int, ...]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--timesteps", type=int, default=300_000, help="env steps per policy")
-    parser.add_argument("--pose", type=_sources, default=POSE_SOURCES, help="truth,estimate")
-    parser.add_argument("--envs", type=int, default=8, help="envs stepped together")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--retrain", action="store_true", help="train even if a model exists")
-    parser.add_argument("--no-eval", action="store_true", help="train only")
-    parser.add_argument("--eval-seeds", type=int, default=5, help="test episodes per policy")
-    parser.add_argument("--eval-seconds", type=float, default=60.0, help="seconds per test")
+    """Run ``racecar-sim train-agent``; returns the exit code (2: a user mistake)."""
+    parser = Parser("racecar-sim train-agent", __doc__, EXAMPLES)
+    add = parser.add_argument
+    add("--timesteps", type=positive_int, default=150_000, help="env steps per policy")
+    add("--pose", type=_sources, default=POSE_SOURCES, help="pose sources to train on")
+    add("--envs", type=positive_int, default=8, help="envs stepped together")
+    add("--seed", type=int, default=0, help="training seed")
+    add("--retrain", action="store_true", help="train even if OUT/<source>/model.zip exists")
+    add("--no-eval", action="store_true", help="train only")
+    add("--eval-seeds", type=positive_int, default=5, help="test episodes per policy and test")
+    add("--eval-seconds", type=positive_float, default=60.0, help="seconds per test episode")
     parser.add_argument(
         "--eval-particles",
         type=_counts,
         default=(300,),
         help="particle counts of the tests on the estimate, comma-separated (e.g. 300,30)",
     )
-    parser.add_argument("--video-seconds", type=float, default=20.0, help="0: no video")
-    parser.add_argument("--out", type=Path, default=Path("runs/agent"))
+    add("--video-seconds", type=non_negative_float, default=20.0, help="0: no video")
+    add("--out", type=Path, default=Path("runs/agent"), metavar="DIR", help="output folder")
     args = parser.parse_args(argv)
-    for name in ("timesteps", "envs", "eval_seeds"):
-        if getattr(args, name) < 1:
-            parser.error(f"--{name.replace('_', '-')} must be >= 1")
-    if args.eval_seconds <= 0 or args.video_seconds < 0:
-        parser.error("--eval-seconds must be > 0 and --video-seconds >= 0")
 
     from mcl.agents.ppo import PPOSettings, load_policy, require_sb3, train
 
     try:
         require_sb3()
     except ImportError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        parser.error(str(exc))
     settings = PPOSettings(n_envs=args.envs)
     models: dict[str, Path] = {}
     for source in args.pose:

@@ -161,7 +161,7 @@ def test_executor_choice_errors_are_one_line(monkeypatch, capsys) -> None:
     with pytest.raises(SystemExit) as exit_info:
         main(["--ray-address", "auto"])
     assert exit_info.value.code == 2
-    assert "--ray-address needs --executor ray" in capsys.readouterr().err
+    assert "--ray-address: needs --executor ray" in capsys.readouterr().err
     monkeypatch.setitem(sys.modules, "ray", None)  # as if Ray were not installed
     with pytest.raises(SystemExit) as exit_info:
         main(["--executor", "ray"])
