@@ -4,11 +4,19 @@
   on range_libc's giant lookup table, Stata basement, 4 000 particles x 100 beams by default;
   skipped with a message when ``range_libc`` is not importable.
 
+* f1tenth_gym (:mod:`mcl.bench.peer_f1tenth`): simulator steps per second on f1tenth_gym's own
+  workload (one car, 1080 beams over 4.7 rad, 30 m, a scan every step, dt 0.01 s, slalom at
+  1 m/s), our single env and our vector env of ``--num-envs`` cars interleaved with it round by
+  round; f1tenth_gym runs in its own venv (``--f1tenth-python``, ``--f1tenth-path``), skipped
+  with a message when those are not given.
+
 Other peers add their part as a function ``part(args) -> int`` in :data:`PARTS` and their options
 in :func:`add_arguments`. Every part prints its workload (particles, beams, range, threads) and
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
+        [--only rangelibc|f1tenth] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
+        [--sim-steps 1000] [--sim-runs 5] [--num-envs 32]
 """
 
 from __future__ import annotations
@@ -33,6 +41,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--threads", type=int, nargs="+", default=[1, 2], help="numba threads for ours"
     )
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--only", choices=("rangelibc", "f1tenth"), help="run one part only")
+    parser.add_argument("--f1tenth-python", help="python of a venv with f1tenth_gym installed")
+    parser.add_argument("--f1tenth-path", help="the f1tenth_gym checkout (branch dev-dynamics)")
+    parser.add_argument("--sim-steps", type=int, default=1000, help="steps per simulator run")
+    parser.add_argument("--sim-runs", type=int, default=5, help="simulator runs (median)")
+    parser.add_argument("--num-envs", type=int, default=32, help="cars in our vector env")
+    parser.add_argument("--vector-steps", type=int, default=300, help="steps per vector run")
 
 
 def rangelibc_part(args: argparse.Namespace) -> int:
@@ -60,7 +75,38 @@ def rangelibc_part(args: argparse.Namespace) -> int:
     return 0
 
 
-PARTS: list[Callable[[argparse.Namespace], int]] = [rangelibc_part]
+def f1tenth_part(args: argparse.Namespace) -> int:
+    """Simulator steps per second against f1tenth_gym on its workload (peer in its own venv)."""
+    from mcl.bench import peer_f1tenth
+    from racecar_sim.maps import load_map
+
+    print("== simulator vs f1tenth_gym (its workload), one run ==")
+    if not args.map.is_file():
+        print(f"skipped: map {args.map} not found (the Stata map lives in ../shared/maps)")
+        return 0
+    if bool(args.f1tenth_python) != bool(args.f1tenth_path):
+        print("racecar-sim bench peers: error: give both --f1tenth-python and --f1tenth-path",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    for flag, value in (("--f1tenth-python", args.f1tenth_python),
+                        ("--f1tenth-path", args.f1tenth_path)):  # fmt: skip
+        if value and not Path(value).exists():
+            print(f"racecar-sim bench peers: error: {flag} {value} does not exist", file=sys.stderr)
+            return 2
+    peer_f1tenth.compare(
+        load_map(args.map),
+        args.map,
+        args.f1tenth_python,
+        args.f1tenth_path,
+        steps=args.sim_steps,
+        runs=args.sim_runs,
+        num_envs=args.num_envs,
+        vector_steps=args.vector_steps,
+    )
+    return 0
+
+
+PARTS: list[Callable[[argparse.Namespace], int]] = [rangelibc_part, f1tenth_part]
 """The peer comparisons run by :func:`main`, in order."""
 
 
@@ -75,10 +121,15 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--{name} must be at least 1")
     if any(t < 1 for t in args.threads):
         parser.error("--threads must be at least 1")
+    for name in ("sim_steps", "sim_runs", "num_envs", "vector_steps"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name.replace('_', '-')} must be at least 1")
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"{os.cpu_count()} CPUs, load average {load:.1f} before the run")
     status = 0
     for part in PARTS:
+        if args.only and part.__name__ != f"{args.only}_part":
+            continue
         status = max(status, part(args))
     return status
 
