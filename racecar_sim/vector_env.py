@@ -185,30 +185,40 @@ class RacecarVectorEnv(VectorEnv):
         envs = self.envs
         collided = np.zeros(n, dtype=np.bool_)
         fresh = np.zeros(n, dtype=np.bool_)
-        poses = np.empty((n, 3))
+        poses = np.zeros((n, 3))
         reset_now = self._autoreset
         reset_obs: dict[int, dict[str, np.ndarray]] = {}
         reset_infos: dict[int, dict[str, Any]] = {}
         due: list[int] = []
+        stepped: list[int] = []
         for i in range(n):
             env = envs[i]
             if reset_now[i]:
                 reset_obs[i], reset_infos[i] = env.reset()
                 continue
-            hit, scan_due = env._advance(acts[i][0], acts[i][1])
+            stepped.append(i)
+            steer, speed = acts[i]
+            hit, scan_due = env._advance(steer, speed)
             collided[i] = hit
             poses[i] = env.physics.pose
             if scan_due:
                 fresh[i] = True
                 due.append(i)
-        self._cast(due, poses)
+        scans = np.empty((n, self._n_beams), dtype=np.float32)
+        self._cast(due, poses, scans)
 
-        stepped = ~reset_now
-        twist = np.empty((n, 3))
-        z = np.empty((n, 6))
-        for i in np.flatnonzero(stepped).tolist():
-            twist[i] = envs[i].physics._twist
-            envs[i].np_random.standard_normal(out=z[i])
+        twist = np.zeros((n, 3))
+        z = np.zeros((n, 6))
+        times = np.zeros(n)
+        n_steps = np.zeros(n, dtype=np.int64)
+        for i in stepped:
+            env = envs[i]
+            twist[i] = env.physics._twist
+            env.np_random.standard_normal(out=z[i])  # the odometry's draws, after the scan's
+            times[i] = env.time
+            n_steps[i] = env._n_steps
+            if not fresh[i]:
+                scans[i] = env._scan
         odom = (twist * (1.0 + self._odo_prop * z[:, :3]) + self._odo_add * z[:, 3:]).astype(
             np.float32
         )
@@ -216,17 +226,10 @@ class RacecarVectorEnv(VectorEnv):
         penalty = np.where(collided, -self._penalty, 0.0)
         rewards = progress + penalty
         terminated = collided & self._terminate
-        times = np.empty(n)
-        truncated = np.zeros(n, dtype=np.bool_)
-        scans = np.empty((n, self._n_beams), dtype=np.float32)
-        for i in range(n):
-            env = envs[i]
-            times[i] = env.time
-            if self.max_episode_steps is not None and env._n_steps >= self.max_episode_steps:
-                truncated[i] = True
-            if i in reset_obs:
-                continue
-            scans[i] = env._scan
+        if self.max_episode_steps is not None:
+            truncated = n_steps >= self.max_episode_steps
+        else:
+            truncated = np.zeros(n, dtype=np.bool_)
         for i, o in reset_obs.items():  # next-step autoreset: the first observation, reward 0
             info = reset_infos[i]
             scans[i], odom[i] = o["scan"], o["odom"]
@@ -263,8 +266,9 @@ class RacecarVectorEnv(VectorEnv):
             "odom": np.zeros((n, 3), dtype=np.float32),
         }
 
-    def _cast(self, due: list[int], poses: np.ndarray) -> None:
-        """Cast the scans of cars ``due`` (their poses in ``poses``) and store them.
+    def _cast(self, due: list[int], poses: np.ndarray, scans: np.ndarray) -> None:
+        """Cast the scans of cars ``due`` (their poses in ``poses``) into their rows of ``scans``
+        and store them in the cars.
 
         Each car draws its scan's uniforms and normals from its own generator, in the order its
         :meth:`~racecar_sim.sensors.Lidar.measure` would. In parallel, the cars are split into one
@@ -306,6 +310,7 @@ class RacecarVectorEnv(VectorEnv):
             raise RuntimeError(f"lidar cast failed for cars {np.asarray(due)[status != 0]}")
         for j, i in enumerate(due):
             self.envs[i]._store_scan(sub[j], out[j])
+        scans[due] = out
 
     def _get_pool(self) -> ThreadPoolExecutor:
         if self._pool is None:
