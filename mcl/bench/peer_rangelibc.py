@@ -322,30 +322,46 @@ def compare(
         filters[t] = pf
     state = {"p": truth + rng.normal(0.0, [0.5, 0.5, 0.2], size=(n_particles, 3))}
     runs: dict[str, list[dict[str, float]]] = {"glt": [], **{f"ours/{t}": [] for t in threads}}
+    cpu: dict[str, list[float]] = {name: [] for name in runs}
     default_threads = numba.get_num_threads()
     try:
         for k in range(warmup + updates):
             for t, pf in filters.items():
                 numba.set_num_threads(min(t, numba.config.NUMBA_NUM_THREADS))
+                c = time.process_time()
                 r = mcl_update(pf, scan)
                 if k >= warmup:
                     runs[f"ours/{t}"].append(r)
+                    cpu[f"ours/{t}"].append(time.process_time() - c)
+            c = time.process_time()
             state["p"], r = peer.step(state["p"], odometry, scan[idx], angles)
             if k >= warmup:
                 runs["glt"].append(r)
+                cpu["glt"].append(time.process_time() - c)
     finally:
         numba.set_num_threads(default_threads)
     med = {name: _median_total(r) for name, r in runs.items()}
     glt_total = med["glt"]["total"]
-    out("median ms per update (stages; 'cast' = cast + sensor model), ratio = GLT time / time")
-    out(f"{'impl':<12}" + "".join(f"{s:>10}" for s in (*STAGES, "total")) + f"{'x GLT':>8}")
+    glt_cpu = statistics.median(cpu["glt"])
+    out(
+        "median ms per update (stages; 'cast' = cast + sensor model), ratio = GLT time / time; "
+        "cpu = process CPU time (all threads), steadier than wall time on a busy machine"
+    )
+    out(
+        f"{'impl':<12}"
+        + "".join(f"{s:>10}" for s in (*STAGES, "total"))
+        + f"{'x GLT':>8}{'cpu':>9}{'x GLT':>8}"
+    )
     for name, m in med.items():
         label = "GLT (1 thr)" if name == "glt" else f"ours ({name.split('/')[-1]} thr)"
         out(
             f"{label:<12}"
             + "".join(f"{1e3 * m[s]:10.2f}" for s in (*STAGES, "total"))
             + f"{glt_total / m['total']:8.2f}"
+            + f"{1e3 * statistics.median(cpu[name]):9.2f}"
+            + f"{glt_cpu / statistics.median(cpu[name]):8.2f}"
         )
         results[f"{name}_ms"] = 1e3 * m["total"]
         results[f"{name}_ratio"] = glt_total / m["total"]
+        results[f"{name}_cpu_ms"] = 1e3 * statistics.median(cpu[name])
     return results
