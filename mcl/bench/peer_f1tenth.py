@@ -259,17 +259,17 @@ def _report(rows: dict[str, list[dict[str, Any]]], num_envs: int) -> dict[str, A
         wall = statistics.median(rate(r, "wall") for r in res_list)
         cpu = statistics.median(rate(r, "cpu") for r in res_list)
         ratio_w = ratio_c = math.nan
+        spread = ""
         if peer_rows:  # median of the per-round ratios (rounds share the machine's load)
-            ratio_w = statistics.median(
-                rate(a, "wall") / rate(b, "wall") for a, b in zip(res_list, peer_rows, strict=True)
-            )
-            ratio_c = statistics.median(
-                rate(a, "cpu") / rate(b, "cpu") for a, b in zip(res_list, peer_rows, strict=True)
-            )
+            pairs = list(zip(res_list, peer_rows, strict=True))
+            walls = [rate(a, "wall") / rate(b, "wall") for a, b in pairs]
+            ratio_w = statistics.median(walls)
+            ratio_c = statistics.median(rate(a, "cpu") / rate(b, "cpu") for a, b in pairs)
+            spread = f" (rounds {min(walls):.2f}-{max(walls):.2f})"
         cpu_text = f"{cpu:.0f}" if key != "vector" else f"({cpu:.0f}, {os.cpu_count()} threads)"
         ratio_c_text = f"{ratio_c:.2f}" if key != "vector" else "-"
         hits = sum(r["collided"] for r in res_list)
-        print(f"| {labels[key]} | {wall:.0f} | {cpu_text} | {ratio_w:.2f} | {ratio_c_text} | "
+        print(f"| {labels[key]} | {wall:.0f} | {cpu_text} | {ratio_w:.2f}{spread} | {ratio_c_text} | "
               f"{hits}/{len(res_list)} runs |")  # fmt: skip
         out[key] = {"wall": wall, "cpu": cpu, "x_wall": ratio_w, "x_cpu": ratio_c}
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
