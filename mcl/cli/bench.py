@@ -78,12 +78,20 @@ def main(argv: Sequence[str] | None = None) -> int:
             "  racecar-sim bench raycast --quick"
         )
         return 0
-    args[0] = args[0].replace("-", "_")  # sensor-models = sensor_models
+    given = args[0]
+    if given.startswith("-"):
+        print(
+            f"racecar-sim bench: error: {given!r} before the benchmark's name; usage: "
+            f"racecar-sim bench NAME [options], NAME one of {', '.join(BENCHMARKS)}",
+            file=sys.stderr,
+        )
+        return 2
+    args[0] = given.replace("-", "_")  # sensor-models = sensor_models
     if args[0] not in BENCHMARKS:
         close = difflib.get_close_matches(args[0], list(BENCHMARKS), n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         print(
-            f"racecar-sim bench: error: unknown benchmark {args[0]!r}{hint}; "
+            f"racecar-sim bench: error: unknown benchmark {given!r}{hint}; "
             f"choose from {', '.join(BENCHMARKS)}",
             file=sys.stderr,
         )

@@ -290,3 +290,22 @@ def test_ctrl_c_is_one_line_and_leaves_no_empty_folder(tmp_path, monkeypatch, ca
     assert main(["drive", "--out", str(out), "--video-fps", "0"]) == 130
     assert capsys.readouterr().err.splitlines()[-1] == "racecar-sim drive: interrupted"
     assert not out.exists()
+
+
+@pytest.mark.parametrize("name", sorted(SUBCOMMANDS))
+def test_every_subcommand_has_examples_and_one_line_errors(name: str, capsys) -> None:
+    try:
+        code = main([name, "--help"])
+    except SystemExit as exc:
+        code = exc.code
+    out = capsys.readouterr().out
+    assert code == 0
+    assert f"racecar-sim {name}" in out and "example" in out.lower()
+    try:
+        code = main([name, "--no-such-flag"])
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2
+    assert len(err) == 1 and err[0].startswith(f"racecar-sim {name}: error: ")
+    assert "--no-such-flag" in err[0]
