@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import itertools
 import os
+import statistics
+import time
 from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
@@ -35,7 +37,11 @@ from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil
 
-__all__ = ["RacecarVectorEnv"]
+__all__ = ["PROBE_EVERY", "RacecarVectorEnv"]
+
+PROBE_EVERY = 25
+"""With ``parallel=None``, the way not in use (threads or not) is timed again every this many casts."""
+_TIMES_KEPT = 8  # recent cast timings kept per way
 
 
 class RacecarVectorEnv(VectorEnv):
@@ -46,8 +52,12 @@ class RacecarVectorEnv(VectorEnv):
         map: as :class:`~racecar_sim.env.RacecarEnv` (one map, loaded once, shared by the cars).
         config: as :class:`~racecar_sim.env.RacecarEnv`; keyword ``settings`` override it.
         max_episode_steps: truncate each car's episode after this many steps (None: never).
-        parallel: cast the scans on ``workers`` threads; None (default) does so from
-            :data:`~racecar_sim.raycast.kernels.PARALLEL_MIN_RAYS` rays per step.
+        parallel: cast the scans on ``workers`` threads (True) or on the calling thread (False).
+            None (default): from :data:`~racecar_sim.raycast.kernels.PARALLEL_MIN_RAYS` rays per
+            step, whichever of the two has cast faster by the wall clock lately: both are timed
+            and the other one is tried again every :data:`PROBE_EVERY` casts, because on a
+            machine whose cores are busy with other programs a worker thread can wait
+            milliseconds to run, and then threads make every step slower.
         workers: casting threads (default: the number of CPUs). Plain Python threads, each
             casting its share of the cars in a numba kernel that releases the GIL: no thread
             spins while waiting, so a busy machine slows the cast but does not stall it.
@@ -102,6 +112,9 @@ class RacecarVectorEnv(VectorEnv):
         self._n_beams = n
         self.parallel = parallel
         self._auto_parallel = num_envs * n >= PARALLEL_MIN_RAYS
+        # Recent wall-clock seconds per cast car, for the serial [0] and threaded [1] casts.
+        self._cast_times: tuple[list[float], list[float]] = ([], [])
+        self._casts = 0
         lidar = first.lidar
         self._field = lidar._caster.field
         self._geometry = lidar._geometry
@@ -295,8 +308,9 @@ class RacecarVectorEnv(VectorEnv):
                 z[lo:hi], self._noise, ranges[lo:hi], out[lo:hi], status[lo:hi],
             )  # fmt: skip
 
-        parallel = self.parallel if self.parallel is not None else self._auto_parallel
+        parallel = self._choose_parallel() if self.parallel is None else self.parallel
         workers = self._workers if parallel else 1
+        start = time.perf_counter()
         if workers > 1 and k > 1:
             bounds = np.linspace(0, k, min(workers, k) + 1).astype(int).tolist()
             pool = self._get_pool()
@@ -306,11 +320,31 @@ class RacecarVectorEnv(VectorEnv):
                 job.result()
         else:
             share(0, k)
+        if self.parallel is None:
+            times = self._cast_times[int(workers > 1 and k > 1)]
+            times.append((time.perf_counter() - start) / k)
+            del times[:-_TIMES_KEPT]
         if status.any():  # pragma: no cover - physics poses are finite and on the map
             raise RuntimeError(f"lidar cast failed for cars {np.asarray(due)[status != 0]}")
         for j, i in enumerate(due):
             self.envs[i]._store_scan(sub[j], out[j])
         scans[due] = out
+
+    def _choose_parallel(self) -> bool:
+        """Threads or not for the next cast (``parallel=None``): the faster lately, probing."""
+        if not self._auto_parallel or self._workers < 2:
+            return False
+        self._casts += 1
+        serial, threaded = self._cast_times
+        if len(threaded) < 3:  # a few casts each way first
+            return True
+        if len(serial) < 3:
+            return False
+        faster = statistics.median(threaded) < statistics.median(serial)
+        # Every PROBE_EVERY casts, two casts the other way keep its timing current.
+        if self._casts % PROBE_EVERY in (0, 1):
+            return not faster
+        return faster
 
     def _get_pool(self) -> ThreadPoolExecutor:
         if self._pool is None:

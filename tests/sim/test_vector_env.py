@@ -87,3 +87,17 @@ def test_bad_actions_and_settings_raise() -> None:
         RacecarVectorEnv(0, **SETTINGS)
     with pytest.raises(ValueError, match="unknown"):
         RacecarVectorEnv(2, map="corridor", wheel_count=4)
+
+
+def test_auto_parallel_times_both_ways_and_changes_nothing() -> None:
+    settings = {**SETTINGS, "n_beams": 4096}  # 4 cars x 4096 beams: enough rays for threads
+    fast = RacecarVectorEnv(4, workers=2, **settings)  # parallel=None: picks by timing
+    sync = gym.make_vec("RacecarSim-v0", num_envs=4, vectorization_mode="sync", **settings)
+    assert_same(fast.reset(seed=3), sync.reset(seed=3))
+    rng = np.random.default_rng(1)
+    for t in range(60):
+        actions = np.column_stack([rng.uniform(-0.4, 0.4, 4), rng.uniform(0.0, 3.0, 4)])
+        assert_same(fast.step(actions), sync.step(actions), f"step {t}")
+    serial, threaded = fast._cast_times
+    assert serial and threaded, "both ways were timed"
+    fast.close()
