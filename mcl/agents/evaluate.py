@@ -59,10 +59,14 @@ class EpisodeResult:
 
 
 def tested_on(task: LapTaskConfig) -> str:
-    """How a test builds the pose: ``"truth"`` or ``"estimate (N particles)"``."""
-    if task.pose_source == "truth":
-        return "truth"
-    return f"estimate ({task.n_particles} particles)"
+    """How a test builds the pose: ``"truth"``, ``"no pose"`` or ``"estimate (N particles)"``
+    (beams per particle added when not the default)."""
+    if task.pose_source != "estimate":
+        return "no pose" if task.pose_source == "none" else "truth"
+    beams = (
+        "" if task.filter_beams == LapTaskConfig.filter_beams else f" x {task.filter_beams} beams"
+    )
+    return f"estimate ({task.n_particles} particles{beams})"
 
 
 def evaluate_policy(

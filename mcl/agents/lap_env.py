@@ -39,11 +39,13 @@ from mcl.sensor_model import SensorModel, SensorModelParams
 from mcl.wrapper import LocalizationConfig, LocalizationWrapper
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import DEFAULT_MAP
+from racecar_sim.validation import check_number
 
 __all__ = ["POSE_SOURCES", "LapTask", "LapTaskConfig", "make_lap_env", "make_vector_env"]
 
-POSE_SOURCES: tuple[str, ...] = ("truth", "estimate")
-"""Which pose the observation is built from."""
+POSE_SOURCES: tuple[str, ...] = ("truth", "estimate", "none")
+"""Which pose the observation is built from (``none``: the pose features are held at the values of
+a car on the loop heading along it, so the policy drives from the scan alone)."""
 
 _TASK_STREAM = 3  # spawn index of the task's start-pose stream in the reset seed's SeedSequence
 _LOOKAHEAD_SCALE = 5.0  # metres: look-ahead points are divided by this
@@ -56,7 +58,8 @@ class LapTaskConfig:
 
     Attributes:
         map: bundled map name (one with a known loop start, see :func:`track_for_map`).
-        pose_source: ``"truth"`` or ``"estimate"``: the pose the observation is built from.
+        pose_source: ``"truth"``, ``"estimate"`` or ``"none"``: the pose the observation is
+            built from (none: a scan-only baseline, see :data:`POSE_SOURCES`).
         localize: put MCL in the loop (None: only when the pose source is the estimate).
         n_particles: particles of the filter.
         filter_beams: beams per particle of the sensor model.
@@ -93,21 +96,20 @@ class LapTaskConfig:
             raise ValueError(
                 f"LapTaskConfig.pose_source = {self.pose_source!r}; choose one of {POSE_SOURCES}"
             )
+        owner = "LapTaskConfig"
         for name in ("n_particles", "filter_beams", "scan_bins"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"LapTaskConfig.{name} = {value!r} must be a positive integer")
-        for name in ("min_speed", "max_speed", "collision_penalty", "episode_seconds"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"LapTaskConfig.{name} = {value!r} must be a number >= 0")
+            check_number(owner, name, getattr(self, name), low=1, integer=True)
+        for name in ("min_speed", "max_speed", "episode_seconds"):
+            check_number(owner, name, getattr(self, name), low=0, low_open=True)
+        for name in ("collision_penalty", "start_lateral_sd", "start_heading_sd"):
+            check_number(owner, name, getattr(self, name), low=0)
+        if self.start_s is not None:
+            check_number(owner, "start_s", self.start_s, low=0)
         if not 0 < self.min_speed < self.max_speed:
             raise ValueError(
                 f"LapTaskConfig: need 0 < min_speed < max_speed, got {self.min_speed}, "
                 f"{self.max_speed} m/s"
             )
-        if self.episode_seconds <= 0:
-            raise ValueError("LapTaskConfig.episode_seconds must be positive seconds")
         object.__setattr__(self, "lookahead", tuple(float(d) for d in self.lookahead))
         if not self.lookahead or not all(math.isfinite(d) for d in self.lookahead):
             raise ValueError("LapTaskConfig.lookahead must hold finite distances in metres")
@@ -223,12 +225,17 @@ class LapTask(gym.Wrapper):
     def _observe(self, obs: dict[str, Any], info: dict[str, Any]) -> np.ndarray:
         cfg = self.config
         scan = np.minimum.reduceat(np.asarray(obs["scan"], dtype=np.float64), self._bins)
-        pose = np.asarray(
-            info["pose"] if cfg.pose_source == "truth" else obs["pose_estimate"], dtype=np.float64
-        )
-        s, lateral = self.track.project(pose)
-        ahead = self.track.ahead(pose, s, self._ahead) / _LOOKAHEAD_SCALE
-        rel = math.remainder(pose[2] - self.track.heading_at(s), 2 * math.pi)
+        if cfg.pose_source == "none":  # on the loop, heading along it, the loop straight ahead
+            ahead = np.stack([self._ahead, np.zeros_like(self._ahead)], axis=1) / _LOOKAHEAD_SCALE
+            lateral, rel = 0.0, 0.0
+        else:
+            pose = np.asarray(
+                info["pose"] if cfg.pose_source == "truth" else obs["pose_estimate"],
+                dtype=np.float64,
+            )
+            s, lateral = self.track.project(pose)
+            ahead = self.track.ahead(pose, s, self._ahead) / _LOOKAHEAD_SCALE
+            rel = math.remainder(pose[2] - self.track.heading_at(s), 2 * math.pi)
         odom = np.asarray(obs["odom"], dtype=np.float64)
         return np.concatenate(
             [

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from mcl.agents.lap_env import LapTaskConfig, make_lap_env
+from racecar_sim.validation import check_number
 
 __all__ = ["PPOSettings", "TrainReport", "load_policy", "require_sb3", "train"]
 
@@ -57,9 +58,10 @@ class PPOSettings:
 
     def __post_init__(self) -> None:
         for name in ("n_envs", "n_steps", "batch_size", "n_epochs"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"PPOSettings.{name} = {value!r} must be a positive integer")
+            check_number("PPOSettings", name, getattr(self, name), low=1, integer=True)
+        for name in ("learning_rate", "gamma", "gae_lambda", "clip_range"):
+            check_number("PPOSettings", name, getattr(self, name), low=0, low_open=True)
+        check_number("PPOSettings", "ent_coef", self.ent_coef, low=0)
 
 
 @dataclass(frozen=True)

@@ -155,6 +155,10 @@ def test_estimate_source_needs_the_localization_wrapper() -> None:
         LapTask(gym.make("RacecarSim-v0", **FAST), LapTaskConfig(pose_source="estimate"))
     with pytest.raises(ValueError, match="pose_source"):
         LapTaskConfig(pose_source="gps")
+    with pytest.raises(ValueError, match=r"LapTaskConfig\.n_particles = 0"):
+        LapTaskConfig(n_particles=0)
+    with pytest.raises(ValueError, match="min_speed < max_speed"):
+        LapTaskConfig(min_speed=3.0, max_speed=2.0)
 
 
 # ---------------------------------------------------------------------- the loop
@@ -201,7 +205,7 @@ def test_train_agent_end_to_end_with_tiny_timesteps(tmp_path) -> None:
     code = main(
         [
             "--timesteps", "64", "--envs", "2", "--eval-seeds", "1", "--eval-seconds", "2",
-            "--video-seconds", "0.5", "--eval-particles", "100,20", "--out", str(tmp_path),
+            "--video-seconds", "0.5", "--eval-filters", "100,20x4", "--out", str(tmp_path),
         ]
     )  # fmt: skip
     assert code == 0
@@ -210,10 +214,10 @@ def test_train_agent_end_to_end_with_tiny_timesteps(tmp_path) -> None:
         assert (tmp_path / source / "train.json").is_file()
     with (tmp_path / "eval.csv").open() as f:
         rows = list(csv.DictReader(f))
-    tests = ["truth", "estimate (100 particles)", "estimate (20 particles)"]
+    tests = ["truth", "no pose", "estimate (100 particles)", "estimate (20 particles x 4 beams)"]
     assert [r["tested_on"] for r in rows] == tests * 2
-    assert [r["policy"] for r in rows] == ["truth pose"] * 3 + ["estimate pose"] * 3
-    assert rows[0]["mean_error"] == "nan" and float(rows[1]["mean_error"]) < 1.0
+    assert [r["policy"] for r in rows] == ["true pose"] * 4 + ["MCL estimate"] * 4
+    assert rows[0]["mean_error"] == "nan" and float(rows[2]["mean_error"]) < 1.0
     assert all(float(r["seconds"]) == pytest.approx(2.0) for r in rows)
     assert (tmp_path / "learning_curve.png").stat().st_size > 1000
     assert (tmp_path / "agent.mp4").is_file() or (tmp_path / "agent_frames").is_dir()
