@@ -170,3 +170,12 @@ def test_executor_choice_errors_are_one_line(monkeypatch, capsys) -> None:
     with pytest.raises(ValueError, match="unknown executor"):
         make_executor("dask")
     assert isinstance(make_executor("pool", workers=1), runner.InlineExecutor)
+
+
+def test_a_pool_whose_worker_was_killed_tries_the_unfinished_runs_again(tmp_path) -> None:
+    specs = [RunSpec(duration=1.0, n_particles=100, env=FAST_ENV, seed=s) for s in (0, 2)]
+    todo = [(s, tmp_path / f"{s.run_id}.csv") for s in specs]
+    results = execute_runs(todo, runner=_dying_runner, executor=runner.PoolExecutor(2))
+    assert sorted(r.status for r in results) == ["ok", "ok"]
+    assert (tmp_path / "run_seed2.tries").read_text() == "2"  # killed once, then finished
+    assert all(count_rows(path) == spec.n_steps for spec, path in todo)
