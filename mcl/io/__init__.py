@@ -1,0 +1,22 @@
+"""Real data in and out: read ROS 1 / ROS 2 bags (:func:`read_bag`), record drives as ROS 2 / MCAP
+bags (:class:`BagRecorder`). Needs ``rosbags`` (a core dependency)."""
+
+from mcl.io.bag_reader import (
+    DEFAULT_MOUNT_OFFSET,
+    DEFAULT_ODOM_TOPICS,
+    DEFAULT_SCAN_TOPIC,
+    BagData,
+    BagError,
+    read_bag,
+)
+from mcl.io.bag_writer import BagRecorder
+
+__all__ = [
+    "DEFAULT_MOUNT_OFFSET",
+    "DEFAULT_ODOM_TOPICS",
+    "DEFAULT_SCAN_TOPIC",
+    "BagData",
+    "BagError",
+    "BagRecorder",
+    "read_bag",
+]

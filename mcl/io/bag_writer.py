@@ -1,0 +1,274 @@
+"""Record a drive as a ROS 2 bag with MCAP storage (rosbags' writer; opens in Foxglove).
+
+Topics (ROS 2 Humble message types, frames as amcl publishes them):
+
+- ``/scan`` ``sensor_msgs/msg/LaserScan`` (frame ``laser``; no-returns as +inf, which every ROS
+  consumer reads as out of range),
+- ``/odom`` ``nav_msgs/msg/Odometry`` (``odom`` -> ``base_link``, twist in base_link),
+- ``/tf`` ``tf2_msgs/msg/TFMessage``: ``odom`` -> ``base_link`` from the odometry and
+  ``map`` -> ``odom`` from the estimate (so that map -> base_link is the estimate),
+- ``/tf_static``: ``base_link`` -> ``laser`` (the mount),
+- ``/ground_truth`` ``geometry_msgs/msg/PoseStamped`` (map frame, the simulator's true pose),
+- ``/pf/pose`` ``geometry_msgs/msg/PoseWithCovarianceStamped`` (map frame, the estimate),
+- ``/pf/particles`` ``geometry_msgs/msg/PoseArray`` (map frame, a subsample of the particles),
+- ``/map`` ``nav_msgs/msg/OccupancyGrid`` once at the start (0 free, 100 occupied or unknown).
+
+Times: seconds of the drive, stored as nanoseconds after :data:`EPOCH_NS` (2000-01-01), so the
+bag's first message is at (about) 0 s for :func:`mcl.io.read_bag`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from racecar_sim.maps import OccupancyMap
+
+__all__ = ["EPOCH_NS", "BagRecorder"]
+
+EPOCH_NS = 946_684_800 * 10**9
+"""Nanoseconds of the bag's time 0 (2000-01-01 00:00:00 UTC)."""
+
+_TYPES = {
+    "/scan": "sensor_msgs/msg/LaserScan",
+    "/odom": "nav_msgs/msg/Odometry",
+    "/tf": "tf2_msgs/msg/TFMessage",
+    "/tf_static": "tf2_msgs/msg/TFMessage",
+    "/ground_truth": "geometry_msgs/msg/PoseStamped",
+    "/pf/pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
+    "/pf/particles": "geometry_msgs/msg/PoseArray",
+    "/map": "nav_msgs/msg/OccupancyGrid",
+}
+
+
+class BagRecorder:
+    """Writes a ROS 2 / MCAP bag folder (module docstring); use as a context manager.
+
+    Args:
+        path: the bag folder to create (replaced when ``overwrite``).
+        occupancy_map: written once to ``/map``.
+        angles: (B,) car-frame beam angles of the scans, radians, evenly spaced.
+        range_max: metres; the lidar's range (range_min is 0.02 m).
+        mount_offset: metres from base_link forward to the lidar (written to ``/tf_static``).
+        scan_period: seconds between scans (LaserScan.scan_time).
+        max_particles: particles per ``/pf/particles`` message (an even stride through them).
+        overwrite: replace an existing folder at ``path``.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        occupancy_map: OccupancyMap,
+        angles: np.ndarray,
+        range_max: float,
+        mount_offset: float,
+        scan_period: float = 0.025,
+        max_particles: int = 500,
+        overwrite: bool = True,
+    ) -> None:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = Path(path)
+        if self.path.exists():
+            if not overwrite:
+                raise FileExistsError(f"{self.path} exists")
+            shutil.rmtree(self.path)
+        self.ts = get_typestore(Stores.ROS2_HUMBLE)
+        self._t = self.ts.types
+        self.map = occupancy_map
+        self.angles = np.asarray(angles, dtype=np.float64)
+        self.range_max = float(range_max)
+        self.mount_offset = float(mount_offset)
+        self.scan_period = float(scan_period)
+        self.max_particles = int(max_particles)
+        self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer.open()
+        self._cons = {
+            topic: self._writer.add_connection(topic, kind, typestore=self.ts)
+            for topic, kind in _TYPES.items()
+        }
+        self._last_odom: np.ndarray | None = None
+        self._map_written = False
+        self.n_messages = 0
+
+    # ------------------------------------------------------------------ helpers
+    def _write(self, topic: str, t: float, msg) -> None:
+        data = self.ts.serialize_cdr(msg, _TYPES[topic])
+        self._writer.write(self._cons[topic], self._stamp_ns(t), data)
+        self.n_messages += 1
+
+    @staticmethod
+    def _stamp_ns(t: float) -> int:
+        return EPOCH_NS + round(max(t, 0.0) * 1e9)
+
+    def _header(self, t: float, frame: str):
+        ns = self._stamp_ns(t)
+        time = self._t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+        return self._t["std_msgs/msg/Header"](stamp=time, frame_id=frame)
+
+    def _pose(self, x: float, y: float, theta: float):
+        T = self._t
+        return T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=0.0),
+            orientation=self._quat(theta),
+        )
+
+    def _quat(self, theta: float):
+        return self._t["geometry_msgs/msg/Quaternion"](
+            x=0.0, y=0.0, z=math.sin(theta / 2.0), w=math.cos(theta / 2.0)
+        )
+
+    def _transform(self, t: float, parent: str, child: str, x: float, y: float, theta: float):
+        T = self._t
+        return T["geometry_msgs/msg/TransformStamped"](
+            header=self._header(t, parent),
+            child_frame_id=child,
+            transform=T["geometry_msgs/msg/Transform"](
+                translation=T["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=0.0),
+                rotation=self._quat(theta),
+            ),
+        )
+
+    # ------------------------------------------------------------------ topics
+    def write_static(self, t: float = 0.0) -> None:
+        """``/map`` (the occupancy grid) and ``/tf_static`` (base_link -> laser), once."""
+        if self._map_written:
+            return
+        self._map_written = True
+        T, m = self._t, self.map
+        # ROS grids start at the bottom-left cell, rows going up: flip the image rows.
+        data = np.where(m.occupied[::-1], 100, 0).astype(np.int8).reshape(-1)
+        ox, oy, oyaw = m.origin
+        info = T["nav_msgs/msg/MapMetaData"](
+            map_load_time=self._header(t, "map").stamp,
+            resolution=float(m.resolution),
+            width=m.width,
+            height=m.height,
+            origin=self._pose(ox, oy, oyaw),
+        )
+        self._write(
+            "/map",
+            t,
+            T["nav_msgs/msg/OccupancyGrid"](header=self._header(t, "map"), info=info, data=data),
+        )
+        tf = self._transform(t, "base_link", "laser", self.mount_offset, 0.0, 0.0)
+        self._write("/tf_static", t, T["tf2_msgs/msg/TFMessage"](transforms=[tf]))
+
+    def write_scan(self, t: float, ranges: np.ndarray) -> None:
+        """``/scan``: ranges in metres; NaN, inf and values beyond range_max become +inf."""
+        r = np.asarray(ranges, dtype=np.float32).copy()
+        r[~np.isfinite(r) | (r > self.range_max)] = np.inf
+        a = self.angles
+        msg = self._t["sensor_msgs/msg/LaserScan"](
+            header=self._header(t, "laser"),
+            angle_min=float(a[0]),
+            angle_max=float(a[-1]),
+            angle_increment=float((a[-1] - a[0]) / max(a.size - 1, 1)),
+            time_increment=0.0,
+            scan_time=self.scan_period,
+            range_min=0.02,
+            range_max=self.range_max,
+            ranges=r,
+            intensities=np.zeros(0, dtype=np.float32),
+        )
+        self._write("/scan", t, msg)
+
+    def write_odom(self, t: float, pose: np.ndarray, twist: np.ndarray) -> None:
+        """``/odom`` and the ``odom`` -> ``base_link`` part of ``/tf``.
+
+        Args:
+            pose: [x, y, theta] of base_link in the odometry frame (integrated odometry).
+            twist: [vx, vy, omega] in base_link (m/s, rad/s).
+        """
+        T = self._t
+        x, y, th = (float(v) for v in pose)
+        vx, vy, om = (float(v) for v in twist)
+        zero6 = np.zeros(36, dtype=np.float64)
+        msg = T["nav_msgs/msg/Odometry"](
+            header=self._header(t, "odom"),
+            child_frame_id="base_link",
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](
+                pose=self._pose(x, y, th), covariance=zero6
+            ),
+            twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                twist=T["geometry_msgs/msg/Twist"](
+                    linear=T["geometry_msgs/msg/Vector3"](x=vx, y=vy, z=0.0),
+                    angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=om),
+                ),
+                covariance=zero6.copy(),
+            ),
+        )
+        self._write("/odom", t, msg)
+        tf = self._transform(t, "odom", "base_link", x, y, th)
+        self._write("/tf", t, T["tf2_msgs/msg/TFMessage"](transforms=[tf]))
+        self._last_odom = np.array([x, y, th])
+
+    def write_truth(self, t: float, pose: np.ndarray) -> None:
+        """``/ground_truth``: the true base_link pose [x, y, theta] in the map frame."""
+        msg = self._t["geometry_msgs/msg/PoseStamped"](
+            header=self._header(t, "map"), pose=self._pose(*pose)
+        )
+        self._write("/ground_truth", t, msg)
+
+    def write_estimate(
+        self,
+        t: float,
+        pose: np.ndarray,
+        covariance: np.ndarray,
+        particles: np.ndarray | None = None,
+    ) -> None:
+        """``/pf/pose``, ``map`` -> ``odom`` on ``/tf`` and (when given) ``/pf/particles``.
+
+        Args:
+            pose: the estimate [x, y, theta] of base_link in the map frame.
+            covariance: (3, 3) over [x, y, theta] (m², rad²), put in the 6 x 6 ROS layout.
+            particles: (N, 3) map-frame poses; at most ``max_particles`` are written.
+        """
+        T = self._t
+        cov6 = np.zeros((6, 6))
+        c = np.asarray(covariance, dtype=np.float64)
+        idx = [0, 1, 5]
+        cov6[np.ix_(idx, idx)] = c
+        msg = T["geometry_msgs/msg/PoseWithCovarianceStamped"](
+            header=self._header(t, "map"),
+            pose=T["geometry_msgs/msg/PoseWithCovariance"](
+                pose=self._pose(*pose), covariance=cov6.reshape(-1)
+            ),
+        )
+        self._write("/pf/pose", t, msg)
+        if self._last_odom is not None:
+            # map -> odom = estimate (map <- base) composed with the inverse of odom <- base.
+            ox, oy, oth = self._last_odom
+            ex, ey, eth = (float(v) for v in pose)
+            yaw = eth - oth
+            c_, s_ = math.cos(yaw), math.sin(yaw)
+            tx, ty = ex - (c_ * ox - s_ * oy), ey - (s_ * ox + c_ * oy)
+            tf = self._transform(t, "map", "odom", tx, ty, yaw)
+            self._write("/tf", t, T["tf2_msgs/msg/TFMessage"](transforms=[tf]))
+        if particles is not None and len(particles):
+            p = np.asarray(particles)
+            step = max(1, math.ceil(len(p) / self.max_particles))
+            poses = [self._pose(*q) for q in p[::step]]
+            self._write(
+                "/pf/particles",
+                t,
+                T["geometry_msgs/msg/PoseArray"](header=self._header(t, "map"), poses=poses),
+            )
+
+    # ------------------------------------------------------------------ lifetime
+    def close(self) -> None:
+        """Finish the MCAP file and its metadata.yaml."""
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+
+    def __enter__(self) -> BagRecorder:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
