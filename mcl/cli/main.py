@@ -2,7 +2,7 @@
 
 Subcommands: ``drive`` (a headless localized drive), ``experiment`` (noise sweep, global
 localization, kidnapping), ``ablation`` (the recovery ablation), ``bench`` (benchmarks),
-``make-maps`` (draw the bundled maps), ``train-agent`` (PPO on the localized pose).
+``replay`` (a ROS bag through the filter), ``make-maps`` (draw the bundled maps), ``train-agent`` (PPO on the localized pose).
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     ),
     "experiment": ("mcl.cli.experiment", "the noise sweep, or global localization / kidnapping"),
     "ablation": ("mcl.cli.recovery_ablation", "the recovery experiment with one part switched off"),
+    "replay": ("mcl.cli.replay", "replay a ROS 1 / ROS 2 bag through the filter on a map"),
     "bench": ("mcl.cli.bench", "benchmarks (racecar-sim bench lists them)"),
     "make-maps": ("mcl.cli.make_maps", "draw the bundled maps"),
     "train-agent": ("mcl.cli.train_agent", "PPO laps on the scan and a pose (extra [rl])"),

@@ -1,0 +1,8 @@
+"""Thin wrapper: `racecar-sim replay` (see :mod:`mcl.cli.replay`)."""
+
+import sys
+
+from mcl.cli.replay import main
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

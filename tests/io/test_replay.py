@@ -1,0 +1,147 @@
+"""Replaying bags: round trip of a recorded drive, global localization on the real Stata bags, the
+adaptive filter's modes, and the replay command."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from mcl.adaptive import AdaptiveParams, AdaptiveParticleFilter
+from mcl.cli.main import main
+from mcl.experiments.replay import COLUMNS, ReplayConfig, replay
+from mcl.experiments.replay_output import write_outputs
+from mcl.io import read_bag
+from mcl.sensor_model import SensorModel, SensorModelParams
+from tests.io.bag_fixtures import BAG1, BAG2, START, shared_bag
+
+
+def test_round_trip_tracks_the_recorded_truth(recorded, room, tmp_path):
+    path, _truth = recorded
+    data = read_bag(path)
+    result = replay(data, room, ReplayConfig(init=tuple(START), seed=1))
+    assert result.position_error is not None and result.heading_error is not None
+    assert np.mean(result.position_error) < 0.05
+    assert np.max(result.heading_error) < math.radians(3)
+    assert np.mean(result.column("scan_fit")) > 0.9  # 1 cm noise: nearly every beam fits
+    paths = write_outputs(result, room, tmp_path / "out", video_fps=0)
+    assert {p.name for p in paths} == {"trajectory.csv", "trajectory.png", "scan_fit.png"}
+    with (tmp_path / "out" / "trajectory.csv").open() as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == [*COLUMNS, "position_error", "heading_error"]
+    assert len(rows) == 1 + data.n_scans
+    assert "error vs /ground_truth" in result.summary()
+
+
+def test_global_start_in_the_room_finds_the_car(recorded, room):
+    data = read_bag(recorded[0])
+    result = replay(data, room, ReplayConfig(seed=2))
+    assert result.position_error is not None
+    assert np.all(result.position_error[-20:] < 0.1)  # found within 2.5 s, then tracked
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("bag", "lidar_at_3s"),
+    # where a brute-force search of the whole floor puts the lidar 3 s in (issue 11)
+    [(BAG1, (-19.4, 5.7)), (BAG2, (-20.5, -0.7))],
+)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_global_start_on_real_bags(bag, lidar_at_3s, seed, stata_map):
+    data = read_bag(shared_bag(bag))
+    result = replay(data, stata_map, ReplayConfig(seed=seed))
+    t = result.column("time")
+    i = int(np.argmin(np.abs(t - 3.0)))
+    x, y, th = result.rows[i, 1:4]
+    lidar = (x + data.mount_offset * math.cos(th), y + data.mount_offset * math.sin(th))
+    assert math.hypot(lidar[0] - lidar_at_3s[0], lidar[1] - lidar_at_3s[1]) < 0.5
+    late = t > 5.0
+    assert np.all(result.column("position_sd")[late] < 0.2)  # tracking tightly
+    assert np.mean(result.column("scan_fit")[late]) > 0.75
+
+
+def test_adaptive_filter_tracks_once_converged_and_searches_when_spread(room):
+    sensor = SensorModel(room, SensorModelParams(parallel=False))
+    pf = AdaptiveParticleFilter(room, sensor_model=sensor, rng=0, adaptive=AdaptiveParams())
+    pose = np.array([5.0, 2.0, 0.3])
+    pf.initialize_global(20_000)
+    assert not pf.tracking and pf.squash == pytest.approx(0.05)
+    lidar = pose + np.array([0.275 * math.cos(0.3), 0.275 * math.sin(0.3), 0.0])
+    scan = sensor.caster.cast(lidar, np.linspace(-2.35, 2.35, 1080))[0]
+    for _ in range(15):
+        pf.correct(scan)
+    assert pf.tracking, pf.spread()
+    assert pf.squash == pytest.approx(1 / 2.2)
+    assert pf.params.update_min_distance == 0.0
+    # spread the cloud: the next scan is weighed as a search again
+    pf.set_particles(pf.random_free_poses(5000))
+    pf.correct(scan)
+    assert not pf.tracking
+
+
+def test_adaptive_params_are_checked():
+    with pytest.raises(ValueError, match="search_squash"):
+        AdaptiveParams(search_squash=0)
+    with pytest.raises(ValueError, match="lost_position_sd"):
+        AdaptiveParams(converged_position_sd=2.0, lost_position_sd=1.0)
+
+
+def room_yaml(room, folder) -> str:
+    """The room map written as a map_server YAML + PNG in ``folder``."""
+    cv2.imwrite(str(folder / "room.png"), np.where(room.occupied, 0, 254).astype(np.uint8))
+    (folder / "room.yaml").write_text(
+        f"image: room.png\nresolution: {room.resolution}\norigin: [1.0, -2.0, 0.0]\n"
+        "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    return str(folder / "room.yaml")
+
+
+def test_replay_command(recorded, room, tmp_path, capsys):
+    out = tmp_path / "r"
+    code = main(
+        [
+            "replay",
+            str(recorded[0]),
+            "--map",
+            room_yaml(room, tmp_path),
+            "--out",
+            str(out),
+            "--init",
+            "5,2,0",
+            "--video-fps",
+            "0",
+        ]
+    )
+    text = capsys.readouterr().out
+    assert code == 0 and "replayed drive" in text
+    mean_error = float(text.split("position mean ")[1].split(" m")[0])
+    assert mean_error < 0.05
+    assert (out / "trajectory.csv").exists() and (out / "scan_fit.png").exists()
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--init", "1,2"], "--init: '1,2': 'global' or three numbers X,Y,THETA"),
+        (["--scan-topic", "/laser"], "no scan topic /laser; the bag has:"),
+        (["--mount-offset", "-1"], "--mount-offset"),
+    ],
+)
+def test_replay_mistakes(recorded, tmp_path, capsys, argv, message):
+    out = tmp_path / "never"
+    with pytest.raises(SystemExit) as exc:
+        main(["replay", str(recorded[0]), "--map", "basement_loop", "--out", str(out), *argv])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err and len(err.strip().splitlines()) <= 2
+    assert not out.exists()
+
+
+def test_replay_missing_bag(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["replay", str(tmp_path / "none.bag"), "--map", "basement_loop"])
+    assert exc.value.code == 2
+    assert "does not exist" in capsys.readouterr().err
