@@ -8,6 +8,10 @@ and writes into ``--out``:
     error.png       position and heading error against time
     drive.mp4       render() frames (map, scan, car, particles, estimate) at --video-fps
                     (drive_frames/*.png instead when OpenCV cannot write mp4)
+
+With ``--bag DIR`` the drive is also recorded as a ROS 2 bag with MCAP storage (scans, odometry,
+tf, ground truth, the filter's pose and particles, the map; :class:`mcl.io.DriveRecorder`), which
+``racecar-sim replay DIR --map MAP`` reads back and scores against the ground truth.
 """
 
 from __future__ import annotations
@@ -41,6 +45,7 @@ from mcl.experiments.plots import plot_error_vs_time
 from mcl.experiments.runs import DRIVERS, RunSpec, run_one
 from mcl.experiments.video import FrameWriter
 from mcl.filter_params import DEFAULT_PARTICLES
+from mcl.io import DriveRecorder
 from mcl.motion_model import MotionModelParams
 from racecar_sim.maps import DEFAULT_MAP
 
@@ -100,6 +105,13 @@ def build_parser() -> Parser:
         metavar="FPS",
         help="video frames per simulated second (0: no video)",
     )
+    parser.add_argument(
+        "--bag",
+        type=Path,
+        default=None,
+        metavar="BAGDIR",
+        help="also record the drive as a ROS 2 / MCAP bag in this folder (replaced if it exists)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
@@ -111,6 +123,10 @@ def main(argv: list[str] | None = None) -> int:
     check_map(parser, args.map)
     env = check_env(parser, args.env)
     out: Path = check_out(parser, args.out)
+    if args.bag is not None:
+        check_out(parser, args.bag, "--bag")
+        if args.bag.resolve() == out.resolve():
+            parser.fail("--bag", "must differ from --out")
     try:
         spec = RunSpec(
             map=str(args.map),
@@ -126,10 +142,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(exc))
     compile_notice()
     with output_folder(parser, out):
-        return _drive(spec, out, args.video_fps, progress=not args.quiet)
+        return _drive(spec, out, args.video_fps, progress=not args.quiet, bag=args.bag)
 
 
-def _drive(spec: RunSpec, out: Path, video_fps: float, progress: bool) -> int:
+def _drive(
+    spec: RunSpec, out: Path, video_fps: float, progress: bool, bag: Path | None = None
+) -> int:
     """The drive into the existing folder ``out``, then the summary."""
     log_path = out / "error_log.csv"
     video = None
@@ -142,14 +160,29 @@ def _drive(spec: RunSpec, out: Path, video_fps: float, progress: bool) -> int:
         def on_frame(frame: np.ndarray, info: dict[str, Any]) -> None:
             video.write(_caption(frame, info))
 
+    recorder: list[DriveRecorder] = []
+
+    def on_step(wrapped: Any, obs: dict[str, Any], info: dict[str, Any]) -> None:
+        if not recorder:
+            assert bag is not None
+            recorder.append(DriveRecorder(bag, wrapped))
+        recorder[0](wrapped, obs, info)
+
     t0 = time.perf_counter()
     try:
         result = run_one(
-            spec, log_path, on_frame=on_frame, frame_every=frame_every, progress=progress
+            spec,
+            log_path,
+            on_frame=on_frame,
+            frame_every=frame_every,
+            progress=progress,
+            on_step=on_step if bag is not None else None,
         )
     finally:
         if video is not None:
             video.close()
+        for r in recorder:
+            r.close()
     wall = time.perf_counter() - t0
     plot_path = plot_error_vs_time(
         read_error_log(log_path),
@@ -178,6 +211,8 @@ def _drive(spec: RunSpec, out: Path, video_fps: float, progress: bool) -> int:
     if video is not None:
         kind = "mp4" if video.kind == "mp4" else "PNG frames"
         print(f", {video.path.name} ({video.n_frames} frames, {kind})", end="")
+    if bag is not None:
+        print(f"\nrecorded the drive as a ROS 2 / MCAP bag: {bag.resolve()}", end="")
     print(f"\noutput folder: {out.resolve()}")
     return 0
 

@@ -230,6 +230,7 @@ def run_one(
     frame_every: int = 1,
     progress: bool = False,
     diverged_m: float = DIVERGED_M,
+    on_step: Callable[[Any, dict[str, Any], dict[str, Any]], None] | None = None,
 ) -> RunResult:
     """Drive ``spec`` with MCL in the loop, logging the error to ``log_path`` (CSV, see
     :mod:`mcl.error_log`); returns its statistics.
@@ -244,6 +245,8 @@ def run_one(
         frame_every: steps between two frames.
         progress: show a tqdm bar over the steps.
         diverged_m: metres of error counted as diverged in the statistics.
+        on_step: when given, called as ``on_step(wrapper, obs, info)`` after the reset and after
+            every step (e.g. :class:`mcl.io.DriveRecorder` writing a bag).
 
     Raises:
         whatever the map, the env, the driver or the filter raises; the log keeps the rows written.
@@ -268,6 +271,8 @@ def run_one(
     n_collisions = 0
     try:
         obs, info = wrapped.reset(seed=spec.seed, options=scenario.reset_options())
+        if on_step is not None:
+            on_step(wrapped, obs, info)
         if on_frame is not None:
             on_frame(wrapped.render(), info)
         steps: Any = range(1, spec.n_steps + 1)
@@ -279,6 +284,8 @@ def run_one(
             scenario.before_step(wrapped, k, (k - 1) * env.dt, scenario_rng)
             obs, _, terminated, truncated, info = wrapped.step(driver(obs, info))
             n_collisions += bool(info["collision"])
+            if on_step is not None:
+                on_step(wrapped, obs, info)
             if after_step is not None:
                 after_step(wrapped, k, info)
             if on_frame is not None and k % frame_every == 0:

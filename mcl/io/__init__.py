@@ -9,7 +9,7 @@ from mcl.io.bag_reader import (
     BagError,
     read_bag,
 )
-from mcl.io.bag_writer import BagRecorder
+from mcl.io.bag_writer import BagRecorder, DriveRecorder
 
 __all__ = [
     "DEFAULT_MOUNT_OFFSET",
@@ -18,5 +18,6 @@ __all__ = [
     "BagData",
     "BagError",
     "BagRecorder",
+    "DriveRecorder",
     "read_bag",
 ]

@@ -272,3 +272,53 @@ class BagRecorder:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+class DriveRecorder:
+    """Records a :class:`mcl.LocalizationWrapper` drive step by step (the ``on_step`` hook of
+    :func:`mcl.experiments.runs.run_one`): odometry every step, the scan, the estimate and the
+    particles at every fresh scan, the true pose every step.
+
+    Odometry: the env's twist of step k describes the motion from ``t_k - dt`` to ``t_k``, so its
+    message is stamped ``t_k - dt`` with the integrated odometry pose at that time (a reader that
+    holds each twist until the next message integrates exactly the simulated motion). Scans and
+    truth are stamped ``t_k``; the sim's no-returns (``max_range``) are written as +inf.
+
+    Args:
+        path: the bag folder to create.
+        wrapped: the wrapper around a ``RacecarSim-v0`` env (its lidar and map are recorded).
+    """
+
+    def __init__(self, path: str | os.PathLike[str], wrapped) -> None:
+        env = wrapped.unwrapped
+        lidar = env.lidar
+        self.max_range = float(lidar.params.max_range)
+        self.dt = float(env.dt)
+        self.recorder = BagRecorder(
+            path, env.map, lidar.angles, self.max_range, lidar.params.mount_offset, lidar.period
+        )
+        self.recorder.write_static(0.0)
+        self._odom = np.zeros(3)
+        self._first = True
+
+    def __call__(self, wrapped, obs: dict, info: dict) -> None:
+        from mcl.motion_model import compose, twist_to_odometry
+
+        t = float(info["time"])
+        rec = self.recorder
+        if not self._first:
+            twist = np.asarray(obs["odom"], dtype=np.float64)
+            rec.write_odom(t - self.dt, self._odom, twist)
+            self._odom = compose(self._odom[None], twist_to_odometry(twist, self.dt))[0]
+        rec.write_truth(t, np.asarray(info["pose"], dtype=np.float64))
+        if self._first or info.get("new_scan", False):
+            scan = np.asarray(obs["scan"], dtype=np.float64).copy()
+            scan[scan >= self.max_range] = np.inf
+            rec.write_scan(t, scan)
+            pf = wrapped.filter
+            rec.write_estimate(t, obs["pose_estimate"], pf.covariance(), pf.particles)
+        self._first = False
+
+    def close(self) -> None:
+        """Finish the bag."""
+        self.recorder.close()

@@ -145,3 +145,17 @@ def test_replay_missing_bag(tmp_path, capsys):
         main(["replay", str(tmp_path / "none.bag"), "--map", "basement_loop"])
     assert exc.value.code == 2
     assert "does not exist" in capsys.readouterr().err
+
+
+def test_drive_bag_round_trip(tmp_path, capsys, default_map):
+    bag = tmp_path / "bag"
+    argv = ["drive", "--duration", "3", "--out", str(tmp_path / "d"), "--bag", str(bag)]
+    assert main([*argv, "--video-fps", "0", "--quiet"]) == 0
+    assert "recorded the drive as a ROS 2 / MCAP bag" in capsys.readouterr().out
+    data = read_bag(bag)
+    assert data.truth is not None and data.mount_source == "tf_static"
+    assert data.n_scans == 121  # 40 Hz for 3 s, and the one at reset
+    result = replay(data, default_map, ReplayConfig(init=tuple(data.truth[0]), seed=0))
+    assert result.position_error is not None and result.heading_error is not None
+    assert np.median(result.position_error) < 0.03
+    assert np.max(result.position_error) < 0.15
