@@ -110,7 +110,8 @@ def build_parser() -> Parser:
         type=Path,
         default=None,
         metavar="BAGDIR",
-        help="also record the drive as a ROS 2 / MCAP bag in this folder (replaced if it exists)",
+        help="also record the drive as a ROS 2 / MCAP bag in this folder, replaced if it exists "
+        "(default: no bag)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser

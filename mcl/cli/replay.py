@@ -41,9 +41,14 @@ def build_parser() -> Parser:
     """The ``racecar-sim replay`` options."""
     parser = Parser("racecar-sim replay", __doc__, EXAMPLES)
     parser.add_argument(
-        "bag", type=Path, help="a ROS 1 .bag, a ROS 2 bag folder, or its .mcap/.db3"
+        "bag", type=Path, nargs="?", help="a ROS 1 .bag, a ROS 2 bag folder, or its .mcap/.db3"
     )
-    parser.add_argument("--map", required=True, metavar="NAME|YAML", help="the map to localize on")
+    parser.add_argument(
+        "--map",
+        default=None,
+        metavar="NAME|YAML",
+        help="the map to localize on (required; a bundled name or a map_server YAML)",
+    )
     parser.add_argument(
         "--out", type=Path, default=Path("out/replay"), metavar="DIR", help="output folder"
     )
@@ -114,6 +119,10 @@ def main(argv: list[str] | None = None) -> int:
     from mcl.io import BagError, read_bag
     from racecar_sim.maps import resolve_map
 
+    if args.bag is None:
+        parser.fail("bag", "name the bag to replay (a ROS 1 .bag or a ROS 2 bag folder)")
+    if args.map is None:
+        parser.fail("--map", "required: the map the bag was recorded on")
     check_map(parser, args.map)
     init = _init(parser, args.init)
     if args.mount_offset is not None and not (
