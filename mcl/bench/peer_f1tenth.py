@@ -266,7 +266,7 @@ def _report(rows: dict[str, list[dict[str, Any]]], num_envs: int) -> dict[str, A
             ratio_w = statistics.median(walls)
             ratio_c = statistics.median(rate(a, "cpu") / rate(b, "cpu") for a, b in pairs)
             spread = f" (rounds {min(walls):.2f}-{max(walls):.2f})"
-        cpu_text = f"{cpu:.0f}" if key != "vector" else f"({cpu:.0f}, {os.cpu_count()} threads)"
+        cpu_text = f"{cpu:.0f}" if key != "vector" else f"({cpu:.0f}, up to {os.cpu_count()} threads)"
         ratio_c_text = f"{ratio_c:.2f}" if key != "vector" else "-"
         hits = sum(r["collided"] for r in res_list)
         print(f"| {labels[key]} | {wall:.0f} | {cpu_text} | {ratio_w:.2f}{spread} | {ratio_c_text} | "
