@@ -16,6 +16,8 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.obstacles import ObstacleParams
+from racecar_sim.scan_effects import OdometryBias, ScanEffects
 from racecar_sim.validation import check_number, read_yaml_mapping
 
 __all__ = [
@@ -233,6 +235,14 @@ class EnvConfig:
         odom_proportional: odometry (vx, vy, omega) noise as a fraction of the true value.
         odom_additive: odometry (vx, vy, omega) additive noise, m/s, m/s, rad/s.
         car: the car's geometry and limits, a :class:`CarParams` or a mapping of its fields.
+        noise_profile: a named set of these settings (:mod:`racecar_sim.noise_profiles`, e.g.
+            ``"mit_racecar"``) applied under the explicit ones; None = none.
+        scan_effects: correlated lidar failures replacing the four-part noise
+            (:class:`racecar_sim.scan_effects.ScanEffects` or a mapping of its fields); None = off.
+        odom_bias: systematic odometry error (:class:`racecar_sim.scan_effects.OdometryBias` or a
+            mapping ``{scale, offset}``); None = none.
+        obstacles: unmapped boxes and walking people (:class:`racecar_sim.obstacles.ObstacleParams`
+            or a mapping of its fields); None = none.
     """
 
     map: str | os.PathLike[str] | OccupancyMap | None = None
@@ -254,8 +264,19 @@ class EnvConfig:
     odom_proportional: tuple[float, float, float] = _ODOM.proportional
     odom_additive: tuple[float, float, float] = _ODOM.additive
     car: CarParams = field(default_factory=CarParams)
+    noise_profile: str | None = None
+    scan_effects: Any = None
+    odom_bias: Any = None
+    obstacles: Any = None
 
     def __post_init__(self) -> None:
+        if self.scan_effects is not None:
+            object.__setattr__(self, "scan_effects", ScanEffects.from_mapping(self.scan_effects))
+        if self.odom_bias is not None and not isinstance(self.odom_bias, OdometryBias):
+            if not isinstance(self.odom_bias, Mapping) or set(self.odom_bias) - {"scale", "offset"}:
+                raise ValueError(f"odom_bias must be a mapping {{scale, offset}}, got {self.odom_bias!r}")
+            object.__setattr__(self, "odom_bias", OdometryBias(**dict(self.odom_bias)))
+        object.__setattr__(self, "obstacles", ObstacleParams.from_setting(self.obstacles))
         if isinstance(self.car, Mapping):
             object.__setattr__(self, "car", from_mapping(CarParams, dict(self.car)))
         elif not isinstance(self.car, CarParams):
@@ -351,6 +372,10 @@ def merge_settings(
         values = load_config(config)
     # A keyword left at None means "not given": the config file or the default applies.
     values.update({k: v for k, v in overrides.items() if v is not None})
+    if values.get("noise_profile") is not None:
+        from racecar_sim.noise_profiles import load_profile
+
+        values = {**load_profile(values["noise_profile"]), **values}
     unknown = sorted(set(values) - _SETTINGS)
     if unknown:
         raise ValueError(

@@ -20,6 +20,7 @@ from racecar_sim.config import (
     merge_settings,
 )
 from racecar_sim.maps import MapError, OccupancyMap, resolve_map
+from racecar_sim.obstacles import Obstacles
 from racecar_sim.physics import RacecarPhysics
 from racecar_sim.render import MapRenderer
 from racecar_sim.sensors import Lidar, Odometry
@@ -28,6 +29,7 @@ __all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
 
 _EPS_TIME = 1e-9  # seconds; tolerance when comparing the clock with the next scan's due time
 _START_TRIES = 1000  # random start poses tried before giving up
+_OBSTACLE_REACH = 2.5  # metres: obstacles this close to the rear axle make physics use pymunk
 
 RenderHook = Callable[[np.ndarray, MapRenderer], None]
 """``fn(img, renderer) -> None``: draws overlays in place on the RGB frame being rendered."""
@@ -127,6 +129,12 @@ class RacecarEnv(gym.Env):
         self.physics = RacecarPhysics(self.map, self.car_params, substep=cfg.substep)
         self.lidar = Lidar(self.map, self.lidar_params)
         self.odometry = Odometry(self.odometry_noise)
+        # Honest-world extras (None = off): correlated lidar failures, odometry bias, obstacles.
+        self.scan_effects = cfg.scan_effects
+        self.odom_bias = cfg.odom_bias
+        self.obstacles: Obstacles | None = None
+        if cfg.obstacles is not None and (cfg.obstacles.boxes or cfg.obstacles.people):
+            self.obstacles = Obstacles(cfg.obstacles, self.map, self.physics.space)
 
         car = self.car_params
         self.action_space = spaces.Box(
@@ -198,11 +206,15 @@ class RacecarEnv(gym.Env):
                 self.physics.reset(pose)
             except ValueError as exc:
                 raise ValueError(f"reset options['pose'] = {pose!r} is not usable: {exc}") from exc
+        if self.obstacles is not None:
+            # Their own stream from the env's: the same seed places the same obstacles.
+            obstacle_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
+            self.obstacles.spawn(obstacle_rng, self.physics.pose)
         self._n_steps = 0
         self.time = 0.0
         self._take_scan()
         twist = self.physics.twist
-        obs = {"scan": self._scan.copy(), "odom": self.odometry.measure(twist, self.np_random)}
+        obs = {"scan": self._scan.copy(), "odom": self._measure_odometry(twist)}
         info = self._info(twist, False, True, 0.0, 0.0)
         return obs, info
 
@@ -231,7 +243,7 @@ class RacecarEnv(gym.Env):
         twist = self.physics.twist
         progress = float(twist[0]) * self.dt
         penalty = -self._penalty if collided else 0.0
-        obs = {"scan": self._scan.copy(), "odom": self.odometry.measure(twist, self.np_random)}
+        obs = {"scan": self._scan.copy(), "odom": self._measure_odometry(twist)}
         info = self._info(twist, collided, fresh, progress, penalty)
         terminated = collided and self._terminate
         return obs, progress + penalty, terminated, False, info
@@ -255,6 +267,8 @@ class RacecarEnv(gym.Env):
             self.lidar.angles,
             max_range=self.lidar_params.max_range,
         )
+        if self.obstacles is not None:
+            self.obstacles.draw(img, renderer)
         renderer.draw_car(img, self.physics.footprint())
         for hook in self._render_hooks:
             hook(img, renderer)
@@ -285,15 +299,38 @@ class RacecarEnv(gym.Env):
     # ------------------------------------------------------------------ internals
     def _advance(self, steer: float, speed: float) -> tuple[bool, bool]:
         """Physics and clock of one step (clipped command); returns (collided, a scan is due)."""
-        collided = self.physics.step((steer, speed), self.dt)
+        physics = self.physics
+        if self.obstacles is not None:
+            self.obstacles.step(self.dt, physics.pose)
+            # pymunk must see obstacles near the car (free steps only know the map's walls)
+            physics.free_steps = not self.obstacles.near(physics.pose, _OBSTACLE_REACH)
+        collided = physics.step((steer, speed), self.dt)
         self._n_steps += 1
         self.time = self._n_steps * self.dt
         return collided, self.time + _EPS_TIME >= self._next_scan
 
+    def _measure_odometry(self, twist: np.ndarray) -> np.ndarray:
+        odom = self.odometry.measure(twist, self.np_random)
+        return odom if self.odom_bias is None else self.odom_bias.apply(odom)
+
     def _take_scan(self) -> None:
         """Scan from the current pose and schedule the next scan one lidar period later."""
         pose = self.physics.pose
-        self._store_scan(pose, self.lidar.measure(pose, self.np_random))
+        self._store_scan(pose, self._measure_scan(pose))
+
+    def _measure_scan(self, pose: np.ndarray) -> np.ndarray:
+        """A scan from rear-axle ``pose``: the map's ranges, cut by obstacles, then the noise
+        (the four-part beam model, or the profile's scan effects)."""
+        if self.obstacles is None and self.scan_effects is None:
+            return self.lidar.measure(pose, self.np_random)
+        ranges = self.lidar.true_ranges(pose)
+        max_range = self.lidar_params.max_range
+        if self.obstacles is not None:
+            mount = self.lidar.mount_pose(pose)
+            ranges = self.obstacles.clip_ranges(mount, self.lidar.angles, ranges, max_range)
+        if self.scan_effects is None:
+            return self.lidar.add_noise(ranges, self.np_random)
+        return self.scan_effects.apply(ranges, max_range, self.np_random)
 
     def _store_scan(self, pose: np.ndarray, scan: np.ndarray) -> None:
         """Keep ``scan`` (taken at rear-axle ``pose``) and schedule the next one."""

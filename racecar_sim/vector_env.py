@@ -97,6 +97,12 @@ class RacecarVectorEnv(VectorEnv):
         cfg = merge_settings(config, {"map": map, **settings})
         grid = resolve_map(cfg.map)
         cfg = merge_settings(cfg, {"map": grid})
+        extras = [n for n in ("scan_effects", "odom_bias", "obstacles") if getattr(cfg, n) is not None]
+        if extras:  # the batched cast and odometry below know the four-part noise only
+            raise ValueError(
+                f"RacecarVectorEnv does not support {', '.join(extras)} (set by a noise profile or "
+                "given); use RacecarSim-v0 for these"
+            )
         self.envs: list[RacecarEnv] = [RacecarEnv(config=cfg) for _ in range(num_envs)]
         first = self.envs[0]
         self.num_envs = num_envs

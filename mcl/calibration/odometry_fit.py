@@ -15,14 +15,14 @@ needs (independent draws every ``sim_dt`` seconds) follow by ``sd_step = sd_wind
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from mcl.calibration.recording import Recording
 from mcl.calibration.reference_poses import ReferencePoses, integrate_twist, relative
 
-__all__ = ["OdometryFit", "fit_odometry", "window_twists"]
+__all__ = ["OdometryFit", "best_lag", "fit_odometry", "window_twists"]
 
 
 @dataclass(frozen=True)
@@ -37,6 +37,8 @@ class OdometryFit:
         window: seconds per window.
         n_windows: windows used.
         speed_rmse: (3,) root mean square of the window errors.
+        lag: seconds the odometry's stamps were shifted by (positive: the odometry leads the
+            motion, e.g. an angular rate computed from the steering *command*).
     """
 
     scale_bias: tuple[float, float, float]
@@ -46,6 +48,7 @@ class OdometryFit:
     window: float
     n_windows: int
     speed_rmse: tuple[float, float, float]
+    lag: float = 0.0
 
     def per_step(self, sim_dt: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """(proportional, additive) for independent draws every ``sim_dt`` seconds that give the
@@ -76,15 +79,41 @@ def window_twists(
     return np.asarray(ref).reshape(-1, 3), np.asarray(odo).reshape(-1, 3)
 
 
+def best_lag(
+    recs: list[tuple[Recording, ReferencePoses]],
+    window: float = 0.25,
+    min_fit: float = 0.7,
+    lags: np.ndarray | None = None,
+) -> float:
+    """The shift (s) of the odometry stamps that minimises the window errors (vx and omega rmse,
+    each relative to its value at no shift)."""
+    lags = np.arange(-0.2, 0.2001, 0.01) if lags is None else np.asarray(lags)
+    base = np.array(fit_odometry(recs, window, min_fit).speed_rmse)
+    cost = []
+    for lag in lags:
+        f = fit_odometry(recs, window, min_fit, lag=float(lag))
+        r = np.array(f.speed_rmse)
+        cost.append(r[0] / base[0] + r[2] / base[2])
+    return float(lags[int(np.argmin(cost))])
+
+
 def fit_odometry(
-    recs: list[tuple[Recording, ReferencePoses]], window: float = 0.25, min_fit: float = 0.7
+    recs: list[tuple[Recording, ReferencePoses]],
+    window: float = 0.25,
+    min_fit: float = 0.7,
+    lag: float = 0.0,
+    pose_sd: tuple[float, float, float] = (0.0, 0.0, 0.0),
 ) -> OdometryFit:
     """Fit the odometry error model over all windows of all recordings.
+
+    ``pose_sd`` (metres, metres, radians): the reference poses' own jitter (e.g. over a stop);
+    its share of the window spread, 2 pose_sd² / T², is taken off the additive variance.
 
     Raises:
         ValueError: fewer than 10 usable windows.
     """
-    parts = [window_twists(r, p, window, min_fit) for r, p in recs]
+    shifted = [(replace(r, odom_times=r.odom_times + lag), p) for r, p in recs]
+    parts = [window_twists(r, p, window, min_fit) for r, p in shifted]
     ref = np.vstack([a for a, _ in parts])
     odo = np.vstack([b for _, b in parts])
     if len(ref) < 10:
@@ -93,15 +122,23 @@ def fit_odometry(
     for c in range(3):
         x, e = ref[:, c], odo[:, c] - ref[:, c]
         moving = np.abs(x) > 1e-3
-        if c == 1 or moving.sum() < 5:  # no signal to scale (vy reads 0): offset and spread only
+        if c == 1 or moving.sum() < 5:  # vy: the true lateral speed is ~0, fit the spread only  # no signal to scale (vy reads 0): offset and spread only
             s, o = 0.0, float(e.mean())
         else:
             A = np.column_stack([x, np.ones_like(x)])
             s, o = (float(v) for v in np.linalg.lstsq(A, e, rcond=None)[0])
         r = e - s * x - o
+        if c == 1:
+            scale.append(0.0)
+            off.append(o)
+            prop.append(0.0)
+            add.append(float(np.sqrt(max(np.mean(r * r) - 2.0 * pose_sd[c] ** 2 / window**2, 0.0))))
+            rmse.append(float(np.sqrt(np.mean(e * e))))
+            continue
         # var(r) = p² x² + a²: least squares on the squared residuals, both terms >= 0
         A = np.column_stack([x * x, np.ones_like(x)])
         coef = np.linalg.lstsq(A, r * r, rcond=None)[0]
+        coef[1] = coef[1] - 2.0 * pose_sd[c] ** 2 / window**2
         if coef[0] < 0:
             coef = np.array([0.0, float(np.mean(r * r))])
         if coef[1] < 0:
@@ -112,5 +149,5 @@ def fit_odometry(
         add.append(math.sqrt(coef[1]))
         rmse.append(float(np.sqrt(np.mean(e * e))))
     return OdometryFit(
-        tuple(scale), tuple(off), tuple(prop), tuple(add), window, len(ref), tuple(rmse)
+        tuple(scale), tuple(off), tuple(prop), tuple(add), window, len(ref), tuple(rmse), lag
     )  # type: ignore[arg-type]
