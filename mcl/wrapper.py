@@ -34,6 +34,7 @@ from mcl.motion_model import MotionModel, MotionModelParams
 from mcl.particle_filter import ParticleFilter, ParticleFilterParams
 from mcl.sensor_model import SensorModel, SensorModelParams
 from racecar_sim.config import from_mapping, nested
+from racecar_sim.maps import OccupancyMap, resolve_map
 
 __all__ = [
     "INIT_MODES",
@@ -132,6 +133,10 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             (it must use the env's beam angles and mount offset); built from ``config`` when None.
         clock: seconds, the timer of ``update_s``. Wall time differs from run to run; a fixed
             clock (``lambda: 0.0``) makes the infos reproducible bit for bit (``check_env``).
+        filter_map: the map the *filter* holds (bundled name, YAML path or OccupancyMap) when it
+            differs from the world the env simulates (e.g. the world edited since the map was
+            drawn); None = the env's map. Both must share the world frame; size and resolution
+            may differ.
 
     Observation: the env's dict plus ``pose_estimate``, ``Box(-inf, inf, (3,), float64)``, the
     estimate [x, y, theta] (world, metres, radians in [-pi, pi)).
@@ -160,10 +165,12 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         filter_factory: FilterFactory = ParticleFilter,
         sensor_model: SensorModel | None = None,
         clock: Callable[[], float] = time.perf_counter,
+        filter_map: str | os.PathLike[str] | OccupancyMap | None = None,
     ) -> None:
         gym.utils.RecordConstructorArgs.__init__(
-            self, config=config, log_path=log_path, filter_factory=filter_factory, clock=clock
-        )
+            self, config=config, log_path=log_path, filter_factory=filter_factory, clock=clock,
+            filter_map=filter_map,
+        )  # fmt: skip
         gym.Wrapper.__init__(self, env)
         inner = env.unwrapped
         for attr in ("map", "lidar", "dt", "renderer"):
@@ -183,7 +190,10 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         elif not isinstance(config, LocalizationConfig):
             raise TypeError(f"config must be a LocalizationConfig or a mapping, got {config!r}")
         self.config: LocalizationConfig = config
-        self.map = inner.map
+        self.world_map = inner.map
+        """The map the env simulates (the world)."""
+        self.map = inner.map if filter_map is None else resolve_map(filter_map)
+        """The map the filter holds."""
         self.dt = float(inner.dt)
         lidar = inner.lidar
         self._lidar_max_range = float(lidar.params.max_range)

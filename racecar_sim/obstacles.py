@@ -142,11 +142,16 @@ class Obstacles:
         self._heading = np.zeros(0)
         self._rng: np.random.Generator | None = None
         self._segments = np.zeros((0, 4))
+        self._cells: dict[tuple[float, float], np.ndarray] = {}
 
     # ------------------------------------------------------------------ placement
     def _free_points(self, rng: np.random.Generator, n: int, low: float, high: float) -> np.ndarray:
-        dist = self.map.distance
-        cells = np.argwhere((dist >= low) & (dist <= high))
+        key = (round(low, 3), round(high, 3) if math.isfinite(high) else high)
+        cells = self._cells.get(key)
+        if cells is None:
+            dist = self.map.distance
+            cells = np.argwhere((dist >= low) & (dist <= high))
+            self._cells[key] = cells
         if len(cells) == 0:
             raise ValueError(f"map {self.map.name!r}: no room for obstacles")
         pick = cells[rng.integers(0, len(cells), size=n)]
@@ -173,7 +178,7 @@ class Obstacles:
             for _ in range(_TRIES):
                 w, h = rng.uniform(lo, hi, size=2)
                 half = 0.5 * math.hypot(w, h)
-                c = self._free_points(rng, 1, half + 0.05, half + 0.6)[0]
+                c = self._free_points(rng, 1, 0.05 * math.ceil(half / 0.05) + 0.05, half + 0.6)[0]
                 if np.hypot(*(c - car)) < p.keep_out + half:
                     continue
                 if any(np.hypot(*(c - b.mean(axis=0))) < half + 0.6 for b in boxes):

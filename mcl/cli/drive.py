@@ -99,6 +99,18 @@ def build_parser() -> Parser:
     )
     parser.add_argument("--env", action="append", default=[], metavar="NAME=VALUE", help=ENV_HELP)
     parser.add_argument(
+        "--filter-map",
+        default=None,
+        metavar="NAME|YAML",
+        help="the map the filter holds when the world (--map) differs from it (same world frame)",
+    )
+    parser.add_argument(
+        "--noise-profile",
+        default=None,
+        metavar="NAME",
+        help="simulator noise profile, e.g. mit_racecar (= --env noise_profile=NAME)",
+    )
+    parser.add_argument(
         "--video-fps",
         type=non_negative_float,
         default=10.0,
@@ -122,6 +134,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     check_map(parser, args.map)
+    if args.filter_map is not None:
+        check_map(parser, args.filter_map, "--filter-map")
+    if args.noise_profile is not None:
+        args.env.append(f"noise_profile={args.noise_profile}")
     env = check_env(parser, args.env)
     out: Path = check_out(parser, args.out)
     if args.bag is not None:
@@ -138,6 +154,7 @@ def main(argv: list[str] | None = None) -> int:
             n_particles=args.particles,
             series="drive",
             env=env,
+            filter_map=args.filter_map,
         )
     except ValueError as exc:
         parser.error(str(exc))

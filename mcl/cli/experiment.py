@@ -71,6 +71,19 @@ def build_parser() -> Parser:
     parser = Parser("racecar-sim experiment", __doc__, EXAMPLES)
     add = parser.add_argument
     add("--map", default=DEFAULT_MAP, metavar="NAME|YAML", help=MAP_HELP)
+    add(
+        "--filter-map",
+        default=None,
+        metavar="NAME|YAML",
+        help="the map the filter holds when the world (--map) differs from it (same world frame; "
+        "tracking scenario)",
+    )
+    add(
+        "--noise-profile",
+        default=None,
+        metavar="NAME",
+        help="simulator noise profile for every run, e.g. mit_racecar (= --env noise_profile=NAME)",
+    )
     add("--driver", choices=sorted(DRIVERS), default="wall", help="who drives the car")
     add(
         "--scenario",
@@ -175,6 +188,12 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         parser.fail("--executor", str(exc))
     check_map(parser, args.map)
+    if args.filter_map is not None:
+        check_map(parser, args.filter_map, "--filter-map")
+        if args.scenario in RECOVERY_SCENARIOS:
+            parser.fail("--filter-map", "only with --scenario tracking")
+    if args.noise_profile is not None:
+        args.env.append(f"noise_profile={args.noise_profile}")
     env = check_env(parser, args.env)
     out: Path = check_out(parser, args.out)
     config: ExperimentConfig | RecoveryConfig
@@ -205,6 +224,7 @@ def main(argv: list[str] | None = None) -> int:
                 gaussian=args.gaussian,
                 matched=not args.no_matched,
                 env=env,
+                filter_map=args.filter_map,
             )
         config.runs()  # every run's settings are valid
     except ValueError as exc:

@@ -71,6 +71,7 @@ class ExperimentConfig:
         matched: also run Gaussian noise at sigma = c / sqrt(3) for every uniform c.
         diverged_m: metres of position error counted as diverged.
         env: extra RacecarEnv settings as (name, value) pairs (e.g. fewer beams in tests).
+        filter_map: the map the filter holds when it differs from the world ``map``; None = same.
     """
 
     map: str = DEFAULT_MAP
@@ -85,6 +86,7 @@ class ExperimentConfig:
     matched: bool = True
     diverged_m: float = DIVERGED_M
     env: tuple[tuple[str, Any], ...] = ()
+    filter_map: str | None = None
 
     def __post_init__(self) -> None:
         for name in ("seeds", "first_seed"):
@@ -127,6 +129,7 @@ class ExperimentConfig:
                 series=series,
                 nominal=nominal,
                 env=self.env,
+                filter_map=self.filter_map,
             )
             for seed in range(self.first_seed, self.first_seed + self.seeds)
             for series, scheme, coeff, nominal in points

@@ -74,6 +74,8 @@ class RunSpec:
         config: the filter's settings (sensor model, particle filter, ...) apart from ``motion``
             and ``n_particles``; None for :class:`~mcl.wrapper.LocalizationConfig` defaults.
         scenario_settings: keyword arguments of the scenario as (name, value) pairs.
+        filter_map: bundled name or YAML path of the map the filter holds, when it differs from
+            the world ``map`` (same world frame; size and resolution may differ); None = ``map``.
     """
 
     map: str = DEFAULT_MAP
@@ -89,6 +91,7 @@ class RunSpec:
     drive_on: str = "truth"
     config: LocalizationConfig | None = None
     scenario_settings: tuple[tuple[str, Any], ...] = ()
+    filter_map: str | None = None
 
     def __post_init__(self) -> None:
         if self.driver not in DRIVERS:
@@ -265,8 +268,13 @@ def run_one(
     scenario_rng = np.random.default_rng(
         np.random.SeedSequence(spec.seed).spawn(_SCENARIO_STREAM + 1)[-1]
     )
+    filter_grid = grid if spec.filter_map is None else _load_map(spec.filter_map)
     wrapped = LocalizationWrapper(
-        env, config, log_path=log_path, sensor_model=_sensor_model(grid, config, env)
+        env,
+        config,
+        log_path=log_path,
+        sensor_model=_sensor_model(filter_grid, config, env),
+        filter_map=filter_grid,
     )
     n_collisions = 0
     try:
