@@ -142,6 +142,7 @@ class Obstacles:
         self._heading = np.zeros(0)
         self._rng: np.random.Generator | None = None
         self._segments = np.zeros((0, 4))
+        self._box_shapes: list[Any] = []
         self._cells: dict[tuple[float, float], np.ndarray] = {}
 
     # ------------------------------------------------------------------ placement
@@ -188,15 +189,7 @@ class Obstacles:
                 local = np.array([[-w, -h], [w, -h], [w, h], [-w, h]]) / 2
                 boxes.append(c + local @ rot.T)
                 break
-        self.boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4, 2)
-        for corners in self.boxes:
-            shape = pymunk.Poly(self.space.static_body, [tuple(v) for v in corners.tolist()])
-            shape.collision_type = _WALL_COLLISION_TYPE
-            shape.friction = 0.2
-            self.space.add(shape)
-            self._shapes.append(shape)
-        seg = [np.r_[b[i], b[(i + 1) % 4]] for b in self.boxes for i in range(4)]
-        self._segments = np.asarray(seg, dtype=np.float64).reshape(-1, 4)
+        self._set_boxes(np.asarray(boxes, dtype=np.float64).reshape(-1, 4, 2))
         people = []
         for _ in range(p.people):
             for _ in range(_TRIES):
@@ -217,6 +210,39 @@ class Obstacles:
             self.space.add(body, shape)
             self._bodies.append(body)
             self._shapes.append(shape)
+
+    def _set_boxes(self, boxes: np.ndarray) -> None:
+        self.boxes = boxes
+        self._box_shapes = []
+        for corners in self.boxes:
+            shape = pymunk.Poly(self.space.static_body, [tuple(v) for v in corners.tolist()])
+            shape.collision_type = _WALL_COLLISION_TYPE
+            shape.friction = 0.2
+            self.space.add(shape)
+            self._shapes.append(shape)
+            self._box_shapes.append(shape)
+        seg = [np.r_[b[i], b[(i + 1) % 4]] for b in self.boxes for i in range(4)]
+        self._segments = np.asarray(seg, dtype=np.float64).reshape(-1, 4)
+
+    def move_box(self, i: int, corners: np.ndarray) -> None:
+        """Put box ``i`` at world ``corners`` (4, 2) (tests, scripted scenes)."""
+        old = self._box_shapes[i]
+        self.space.remove(old)
+        self._shapes.remove(old)
+        boxes = self.boxes.copy()
+        boxes[i] = np.asarray(corners, dtype=np.float64)
+        keep = [s for s in self._shapes if s not in self._box_shapes]
+        for shape in self._box_shapes:
+            if shape is not old:
+                self.space.remove(shape)
+        self._shapes = keep
+        self._set_boxes(boxes)
+
+    def move_person(self, i: int, xy: np.ndarray, goal: np.ndarray | None = None) -> None:
+        """Put person ``i`` at world ``xy`` (2,) walking to ``goal`` (default: stay)."""
+        self.people[i] = np.asarray(xy, dtype=np.float64)
+        self._goals[i] = self.people[i] if goal is None else np.asarray(goal, dtype=np.float64)
+        self._bodies[i].position = (float(self.people[i, 0]), float(self.people[i, 1]))
 
     # ------------------------------------------------------------------ motion
     def _new_goal(self, i: int) -> None:

@@ -20,6 +20,7 @@ All draws come from the generator passed in: three uniforms and one standard nor
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -81,7 +82,7 @@ class ScanEffects:
             raise ValueError(
                 "ScanEffects.noreturn_edges must have one more entry than noreturn_probability"
             )
-        if edges[0] != 0.0 or any(b <= a for a, b in zip(edges, edges[1:], strict=False)):
+        if edges[0] != 0.0 or any(b <= a for a, b in itertools.pairwise(edges)):
             raise ValueError("ScanEffects.noreturn_edges must start at 0 and increase")
         if not all(0.0 <= p < 1.0 for p in probs):
             raise ValueError("ScanEffects.noreturn_probability values must lie in [0, 1)")

@@ -8,6 +8,7 @@ Categories of a beam whose expected range z* is a mapped surface (z* < max range
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,7 +138,7 @@ def failure_stats(z: np.ndarray, z_star: np.ndarray, max_range: float) -> ScanFa
     edges = np.asarray(RANGE_BINS)
     nr_bins, sd_bins = [], []
     hit = valid & (np.abs(res) <= _TOL)
-    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+    for lo, hi in itertools.pairwise(edges):
         sel = mapped & (z_star >= lo) & (z_star < hi)
         nr_bins.append(float(kinds["noreturn"][sel].mean()) if sel.any() else 0.0)
         sh = hit & sel

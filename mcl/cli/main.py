@@ -2,7 +2,8 @@
 
 Subcommands: ``drive`` (a headless localized drive), ``experiment`` (noise sweep, global
 localization, kidnapping), ``ablation`` (the recovery ablation), ``bench`` (benchmarks),
-``replay`` (a ROS bag through the filter), ``make-maps`` (draw the bundled maps), ``train-agent`` (PPO on the localized pose).
+``replay`` (a ROS bag through the filter), ``make-maps`` (draw the bundled maps), ``train-agent`` (PPO on the localized pose),
+``calibrate-noise`` (a noise profile from real bags).
 """
 
 from __future__ import annotations
@@ -23,6 +24,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("mcl.cli.bench", "benchmarks (racecar-sim bench lists them)"),
     "make-maps": ("mcl.cli.make_maps", "draw the bundled maps"),
     "train-agent": ("mcl.cli.train_agent", "PPO laps on the scan and a pose (extra [rl])"),
+    "calibrate-noise": (
+        "mcl.cli.calibrate_noise",
+        "fit a simulator noise profile from real ROS bags (lidar and odometry)",
+    ),
 }
 """Subcommand name -> (module with ``main(argv)``, one-line description)."""
 
