@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mcl.cli.common import Parser
+
 
 def _pose(text: str) -> np.ndarray:
     try:
@@ -32,11 +34,7 @@ def _pose(text: str) -> np.ndarray:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="racecar-sim calibrate-noise",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = Parser("racecar-sim calibrate-noise", __doc__)
     parser.add_argument("bags", nargs="+", type=Path, help="ROS 1 .bag files or ROS 2 bag folders")
     parser.add_argument("--map", required=True, type=Path, help="map YAML the car drove on")
     parser.add_argument("--out", required=True, type=Path, help="profile YAML to write")
@@ -54,11 +52,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     for bag in args.bags:
         if not bag.exists():
-            parser.error(f"bag {bag} not found")
+            parser.fail("BAG", f"{bag} not found")
     if not args.map.is_file():
-        parser.error(f"--map {args.map}: file not found")
+        parser.fail("--map", f"{args.map}: file not found")
     if args.start is not None and len(args.start) != len(args.bags):
-        parser.error(f"--start given {len(args.start)} times for {len(args.bags)} bags")
+        parser.fail("--start", f"given {len(args.start)} times for {len(args.bags)} bags")
     try:
         import rosbags  # noqa: F401
     except ImportError:

@@ -102,13 +102,15 @@ def build_parser() -> Parser:
         "--filter-map",
         default=None,
         metavar="NAME|YAML",
-        help="the map the filter holds when the world (--map) differs from it (same world frame)",
+        help="the map the filter holds when the world (--map) differs from it (same world frame; "
+        "default: the --map itself)",
     )
     parser.add_argument(
         "--noise-profile",
         default=None,
         metavar="NAME",
-        help="simulator noise profile, e.g. mit_racecar (= --env noise_profile=NAME)",
+        help="simulator noise profile, e.g. mit_racecar (= --env noise_profile=NAME; default: none, "
+        "the simulator's own settings)",
     )
     parser.add_argument(
         "--video-fps",

