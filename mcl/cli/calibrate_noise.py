@@ -23,6 +23,15 @@ import numpy as np
 from mcl.cli.common import Parser
 
 
+EXAMPLES = """\
+examples:
+  racecar-sim calibrate-noise ../shared/bags/*.bag --map ../shared/maps/stata_basement.yaml \\
+      --out racecar_sim/noise_profiles/data/mit_racecar.yaml
+  racecar-sim calibrate-noise BAG1 BAG2 --map MAP.yaml --out my_car.yaml \\
+      --start=-19.34,5.74,1.136 --start=-20.49,-0.70,1.763     (skip the global searches)
+"""
+
+
 def _pose(text: str) -> np.ndarray:
     try:
         values = [float(v) for v in text.split(",")]
@@ -34,10 +43,10 @@ def _pose(text: str) -> np.ndarray:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = Parser("racecar-sim calibrate-noise", __doc__)
-    parser.add_argument("bags", nargs="+", type=Path, help="ROS 1 .bag files or ROS 2 bag folders")
-    parser.add_argument("--map", required=True, type=Path, help="map YAML the car drove on")
-    parser.add_argument("--out", required=True, type=Path, help="profile YAML to write")
+    parser = Parser("racecar-sim calibrate-noise", __doc__, EXAMPLES)
+    parser.add_argument("bags", nargs="*", type=Path, help="ROS 1 .bag files or ROS 2 bag folders")
+    parser.add_argument("--map", type=Path, help="map YAML the car drove on (required)")
+    parser.add_argument("--out", type=Path, help="profile YAML to write (required)")
     parser.add_argument("--mount-offset", type=float, default=0.275, help="lidar ahead of base_link, m")
     parser.add_argument(
         "--start",
@@ -50,6 +59,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--sim-dt", type=float, default=0.025, help="env step the odometry noise is for")
     args = parser.parse_args(argv)
+    if not args.bags:
+        parser.fail("BAG", "give at least one bag")
+    if args.map is None or args.out is None:
+        parser.fail("--map" if args.map is None else "--out", "is required")
     for bag in args.bags:
         if not bag.exists():
             parser.fail("BAG", f"{bag} not found")

@@ -134,7 +134,7 @@ def test_scan_matcher_finds_a_synthetic_scan_on_the_room(room):
     pose, _loss = m.global_search(ranges)
     assert np.hypot(*(pose[:2] - true[:2])) < 0.03
     assert abs((pose[2] - true[2] + math.pi) % (2 * math.pi) - math.pi) < 0.01
-    local, _ = m.refine([*true, 0.08, -0.05, 0.03], ranges)
+    local, _ = m.refine(true + np.array([0.08, -0.05, 0.03]), ranges)
     assert np.hypot(*(local[:2] - true[:2])) < 0.02
 
 
