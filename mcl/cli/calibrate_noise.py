@@ -22,7 +22,6 @@ import numpy as np
 
 from mcl.cli.common import Parser
 
-
 EXAMPLES = """\
 examples:
   racecar-sim calibrate-noise ../shared/bags/*.bag --map ../shared/maps/stata_basement.yaml \\
