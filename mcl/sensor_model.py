@@ -1,7 +1,9 @@
 """Beam sensor model: a lidar scan -> one likelihood per particle (the MIT RSS lab's table model).
 
 Units: ranges in metres outside, in *pixels* inside the table: a range r becomes
-``round(clip(r / (resolution * lidar_scale_to_map_scale), 0, z_max))`` with ``z_max = table_width - 1``.
+``round(clip(r / cell, 0, z_max))`` with ``z_max = table_width - 1`` and ``cell`` the table's cell in
+metres: ``resolution * lidar_scale_to_map_scale`` (the lab's), or ``max_range / z_max`` when
+``SensorModelParams.max_range`` is given.
 
 Frames: particles are world ``[x, y, theta]`` of the rear axle; rays are cast from the lidar, mounted
 ``mount_offset`` metres ahead of the rear axle along the car's x axis; beam angles are in the car
@@ -57,6 +59,12 @@ class SensorModelParams:
         alpha_rand: weight of uniformly random returns.
         sigma_hit: standard deviation of the hit Gaussian, in pixels (table cells).
         table_width: number of table rows and columns; z_max = table_width - 1 pixels.
+        max_range: metres of the table's last cell (the beam model's range: measured and expected
+            ranges beyond it land in the max-range cell). None = ``z_max`` map cells, i.e.
+            ``z_max x resolution x lidar_scale_to_map_scale`` (10 m on a 0.05 m map, the lab's).
+            When given, the table keeps its ``table_width`` cells, each ``max_range / z_max``
+            metres wide, and ``sigma_hit`` (in cells) widens with them: scale it by the ratio of
+            the cell sizes to keep its metres.
         squash_exponent: the product over beams is raised to this power (1/2.2 in the lab).
         lidar_scale_to_map_scale: lidar metres per map metre (ranges are divided by it, with the
             resolution, to get pixels).
@@ -86,6 +94,7 @@ class SensorModelParams:
     alpha_rand: float = 0.12
     sigma_hit: float = 8.0
     table_width: int = 201
+    max_range: float | None = None
     squash_exponent: float = 1.0 / 2.2
     lidar_scale_to_map_scale: float = 1.0
     num_beams_per_particle: int = 100
@@ -131,6 +140,11 @@ class SensorModelParams:
                 "SensorModelParams: alpha_hit, alpha_max and alpha_rand must not all be zero "
                 "(the d = 0 column of the table would be empty)"
             )
+        mr = self.max_range
+        if mr is not None and (
+            isinstance(mr, bool) or not isinstance(mr, int | float) or not 0 < mr < math.inf
+        ):
+            raise bad("max_range", "must be None or a positive number of metres")
         if self.model not in MODELS:
             raise bad("model", f"must be one of {MODELS}")
         if self.likelihood_z_rand < 0:
@@ -250,7 +264,10 @@ class SensorModel:
         self.map = occupancy_map
         p = self.params
         self.z_max = p.z_max
-        self.m_per_px = occupancy_map.resolution * p.lidar_scale_to_map_scale
+        if p.max_range is None:
+            self.m_per_px = occupancy_map.resolution * p.lidar_scale_to_map_scale
+        else:
+            self.m_per_px = float(p.max_range) / self.z_max
         self.max_range = self.z_max * self.m_per_px
         self.table = beam_table(p)
         self.table.setflags(write=False)

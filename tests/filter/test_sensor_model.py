@@ -278,3 +278,15 @@ def test_parallel_and_serial_scoring_agree(room, model: SensorModel) -> None:
     d = np.floor(np.clip(expected / 0.05, 0, 200) + 0.5).astype(int)
     manual = P.squash_exponent * np.log(beam_table(P))[z[None, :], d].sum(axis=1)
     np.testing.assert_allclose(big, manual, rtol=1e-9)
+
+
+def test_max_range_in_metres_scales_the_table(room):
+    lab = SensorModel(room, SensorModelParams(raycast_method="exact"))
+    assert lab.max_range == pytest.approx(200 * room.resolution)  # z_max cells of the map
+    long = SensorModel(room, SensorModelParams(max_range=30.0, raycast_method="exact"))
+    assert long.max_range == pytest.approx(30.0) and long.table.shape == (201, 201)
+    # a 12 m return: the lab's model puts it in the max cell, the 30 m one does not
+    assert lab.observe(np.full(5, 12.0))[1].max() == 200
+    assert long.observe(np.full(5, 12.0))[1].max() == round(12.0 / 0.15)
+    with pytest.raises(ValueError, match="max_range"):
+        SensorModelParams(max_range=0.0)
