@@ -17,6 +17,7 @@ trajectory and the same sensor noise whatever the filter's settings, and the sam
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import time
@@ -28,6 +29,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from mcl.adaptive import AdaptiveParams, AdaptiveParticleFilter
 from mcl.angles import wrap_angle
 from mcl.error_log import ErrorLogWriter
 from mcl.motion_model import MotionModel, MotionModelParams
@@ -70,6 +72,8 @@ class LocalizationConfig:
         filter: particle count, resampling and initial spread of the particle filter.
         render_particles: most particles drawn by :meth:`LocalizationWrapper.render` (an even
             stride through them, no randomness).
+        adaptive: when given, the filter is a :class:`~mcl.adaptive.AdaptiveParticleFilter`
+            with these settings (searching, then tracking), unless a ``filter_factory`` is given.
     """
 
     init: str = "pose"
@@ -79,6 +83,7 @@ class LocalizationConfig:
         default_factory=lambda: ParticleFilterParams(init_spread=(0.25, 0.25, 0.1))
     )
     render_particles: int = 2000
+    adaptive: AdaptiveParams | None = None
 
     def __post_init__(self) -> None:
         if self.init not in INIT_MODES:
@@ -94,6 +99,12 @@ class LocalizationConfig:
         object.__setattr__(
             self, "filter", nested(self.filter, ParticleFilterParams, "LocalizationConfig.filter")
         )
+        if self.adaptive is not None:
+            object.__setattr__(
+                self,
+                "adaptive",
+                nested(self.adaptive, AdaptiveParams, "LocalizationConfig.adaptive"),
+            )
         n = self.render_particles
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:
             raise ValueError(
@@ -162,7 +173,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         config: LocalizationConfig | Mapping[str, Any] | None = None,
         *,
         log_path: str | os.PathLike[str] | None = None,
-        filter_factory: FilterFactory = ParticleFilter,
+        filter_factory: FilterFactory | None = None,
         sensor_model: SensorModel | None = None,
         clock: Callable[[], float] = time.perf_counter,
         filter_map: str | os.PathLike[str] | OccupancyMap | None = None,
@@ -207,6 +218,10 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             raise ValueError("sensor_model must be built with the env lidar's beam angles")
         self.sensor_model = sensor_model
         self.motion_model = MotionModel(config.motion)
+        if filter_factory is None:
+            filter_factory = ParticleFilter
+            if config.adaptive is not None:
+                filter_factory = functools.partial(AdaptiveParticleFilter, adaptive=config.adaptive)
         self._filter_factory = filter_factory
         self._clock = clock
         self.filter: ParticleFilter | None = None

@@ -21,6 +21,7 @@ BENCHMARKS: dict[str, str] = {
     "peers": "the full MCL update against real peers (range_libc), in the same run",
     "sensor_models": "beam model vs likelihood field: localization error in the same drives",
     "executors": "the same sweep on the process pool and on a local Ray",
+    "replay": "replaying the real bags: real-time factor on one core, settling time, scan_fit",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 

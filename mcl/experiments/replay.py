@@ -34,6 +34,7 @@ from mcl.filter_params import ParticleFilterParams
 from mcl.io.bag_reader import BagData
 from mcl.kld import KLDParams
 from mcl.motion_model import MotionModel, compose, twist_to_odometry
+from mcl.particle_filter import ParticleFilter
 from mcl.sensor_model import SensorModel, SensorModelParams
 from mcl.wrapper import LocalizationConfig
 from racecar_sim.maps import OccupancyMap
@@ -64,14 +65,15 @@ COLUMNS: tuple[str, ...] = (
 NO_RETURN: tuple[str, ...] = ("max", "drop")
 
 
-def unknown_start_localization() -> tuple[LocalizationConfig, AdaptiveParams]:
+def unknown_start_localization() -> LocalizationConfig:
     """The one filter for an unknown start on real scans (module docstring of :mod:`mcl.adaptive`).
 
     Global start with 300 particles per m² of free floor (capped at 300 000), KLD-sampling (at
     most 20 000; 5 000 at least while searching, 1 000 once tracking), augmented MCL (0.001, 0.1),
-    the lab's beam model (squash 1/2.2 while tracking, 0.05 while searching) on one numba thread.
+    the lab's beam model (squash 1/2.2 while tracking, 0.05 while searching) on one numba thread,
+    and :class:`~mcl.adaptive.AdaptiveParams` (searching, then tracking).
     """
-    config = LocalizationConfig(
+    return LocalizationConfig(
         init="global",
         sensor=SensorModelParams(parallel=False),
         filter=ParticleFilterParams(
@@ -81,8 +83,8 @@ def unknown_start_localization() -> tuple[LocalizationConfig, AdaptiveParams]:
             augmented=AugmentedParams(alpha_slow=0.001, alpha_fast=0.1),
             kld=KLDParams(enabled=True, epsilon=0.02, min_particles=1000, max_particles=20_000),
         ),
+        adaptive=AdaptiveParams(),
     )
-    return config, AdaptiveParams()
 
 
 @dataclass(frozen=True)
@@ -96,7 +98,8 @@ class ReplayConfig:
         seed: the filter's random seed.
         no_return: ``"max"`` (no-returns weigh as max-range readings) or ``"drop"``.
         fit_tolerance: metres, a beam within this of the exact cast counts in ``scan_fit``.
-        localization, adaptive: the filter (default :func:`unknown_start_localization`).
+        localization: the filter (default :func:`unknown_start_localization`); without
+            ``adaptive`` settings it is a plain :class:`~mcl.particle_filter.ParticleFilter`.
     """
 
     init: str | tuple[float, float, float] = "global"
@@ -104,10 +107,7 @@ class ReplayConfig:
     seed: int = 0
     no_return: str = "max"
     fit_tolerance: float = 0.15
-    localization: LocalizationConfig = field(
-        default_factory=lambda: unknown_start_localization()[0]
-    )
-    adaptive: AdaptiveParams = field(default_factory=lambda: unknown_start_localization()[1])
+    localization: LocalizationConfig = field(default_factory=lambda: unknown_start_localization())
 
     def __post_init__(self) -> None:
         if isinstance(self.init, str):
@@ -197,7 +197,7 @@ def scan_fit(
 
 def build_filter(
     occupancy_map: OccupancyMap, data: BagData, config: ReplayConfig
-) -> AdaptiveParticleFilter:
+) -> ParticleFilter:
     """The filter of ``config`` on the bag's beams and mount, initialised."""
     loc = config.localization
     sensor = SensorModel(
@@ -205,13 +205,15 @@ def build_filter(
         replace(loc.sensor, mount_offset=data.mount_offset),
         beam_angles=data.angles,
     )
-    pf = AdaptiveParticleFilter(
+    kwargs = {} if loc.adaptive is None else {"adaptive": loc.adaptive}
+    cls = ParticleFilter if loc.adaptive is None else AdaptiveParticleFilter
+    pf = cls(
         occupancy_map,
         motion_model=MotionModel(loc.motion),
         sensor_model=sensor,
         params=loc.filter,
         rng=np.random.default_rng(config.seed),
-        adaptive=config.adaptive,
+        **kwargs,
     )
     if config.init == "global":
         pf.initialize_global()
