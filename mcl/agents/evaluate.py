@@ -169,7 +169,7 @@ def write_results(results: Sequence[EpisodeResult], out_dir: str | os.PathLike[s
 
 
 def learning_curve(
-    curves: dict[str, str | os.PathLike[str]], path: str | os.PathLike[str], window: int = 50
+    curves: dict[str, str | os.PathLike[str]], path: str | os.PathLike[str], window: int = 10
 ) -> Path:
     """Plot progress per training episode against timesteps (running mean over ``window``
     episodes) for each ``name -> learning.csv``; returns the PNG's path."""
