@@ -18,7 +18,11 @@ import numpy as np
 from mcl.calibration.beam_em import BeamModelFit, fit_beam_model
 from mcl.calibration.odometry_fit import OdometryFit, best_lag, fit_odometry
 from mcl.calibration.recording import Recording, read_recording
-from mcl.calibration.reference_poses import ReferencePoses, track_recording
+from mcl.calibration.reference_poses import (
+    ReferencePoses,
+    poses_from_trajectory,
+    track_recording,
+)
 from mcl.calibration.scan_match import ScanMatcher
 from mcl.calibration.scan_stats import RANGE_BINS, ScanFailureStats, failure_stats
 from racecar_sim.maps import load_map
@@ -79,22 +83,29 @@ def calibrate(
     mount_offset: float = 0.275,
     start_guesses: list[np.ndarray | None] | None = None,
     progress: bool = False,
+    pose_files: list[str | os.PathLike[str]] | None = None,
 ) -> Calibration:
     """Fit the noise of the recorded lidar and odometry on ``map_path`` (see the module doc).
 
     ``start_guesses``: per bag, a lidar pose to refine instead of the global search (None = search).
+    ``pose_files``: per bag, a replay's ``trajectory.csv`` whose poses are used instead of scan
+    matching.
     """
     occ = load_map(map_path)
     recs: list[Recording] = []
     poses: list[ReferencePoses] = []
     z_all, zs_all, per_bag = [], [], {}
     guesses = start_guesses or [None] * len(bags)
-    for bag, guess in zip(bags, guesses, strict=True):
+    files = pose_files or [None] * len(bags)
+    for bag, guess, pose_file in zip(bags, guesses, files, strict=True):
         rec = read_recording(bag)
         matcher = ScanMatcher(occ, rec.angles, LIDAR_MAX_RANGE)
         if progress:
             print(f"{rec.name}: {len(rec.ranges)} scans, locating...", flush=True)
-        rp = track_recording(rec, matcher, mount_offset, start_guess=guess)
+        if pose_file is not None:
+            rp = poses_from_trajectory(rec, matcher, pose_file, mount_offset)
+        else:
+            rp = track_recording(rec, matcher, mount_offset, start_guess=guess)
         cast = matcher.caster.cast(rp.lidar, rec.angles)
         z_all.append(rec.ranges)
         zs_all.append(cast)
@@ -114,7 +125,11 @@ def calibrate(
         failures=failure_stats(z, zs, LIDAR_MAX_RANGE),
         per_bag=per_bag,
         odometry=fit_odometry(pairs, lag=lag, pose_sd=jitter),
-        pose_source="scan matching (mcl.calibration.scan_match), de-skewed with the odometry",
+        pose_source=(
+            "replay trajectories (racecar-sim replay): " + ", ".join(str(f) for f in pose_files)
+            if pose_files
+            else "scan matching (mcl.calibration.scan_match), de-skewed with the odometry"
+        ),
     )
 
 

@@ -21,6 +21,7 @@ __all__ = [
     "compose",
     "deskew",
     "integrate_twist",
+    "poses_from_trajectory",
     "relative",
     "track_recording",
 ]
@@ -185,3 +186,35 @@ def track_recording(
         fit15[k] = np.mean(np.abs(res[ok]) < 0.15)
     matcher.angles = rec.angles
     return ReferencePoses(lidar, base, loss, fit5, fit15, start, use_deskew)
+
+
+def poses_from_trajectory(
+    rec: Recording, matcher: ScanMatcher, path, mount: float = 0.275
+) -> ReferencePoses:
+    """Reference poses read from a replay's ``trajectory.csv`` (``racecar-sim replay``: one row per
+    scan, base_link ``x,y,theta`` in the map frame) instead of scan matching.
+
+    Raises:
+        ValueError: the file has no x, y, theta columns or not one row per scan.
+    """
+    import csv
+    from pathlib import Path
+
+    with Path(path).open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows or not {"x", "y", "theta"} <= set(rows[0]):
+        raise ValueError(f"{path}: expected a trajectory CSV with x, y, theta columns")
+    if len(rows) != len(rec.ranges):
+        raise ValueError(f"{path}: {len(rows)} rows for {len(rec.ranges)} scans of {rec.name}")
+    base = np.array([[float(r["x"]), float(r["y"]), float(r["theta"])] for r in rows])
+    lidar = compose(base, np.array([mount, 0.0, 0.0]))
+    fit5 = np.zeros(len(base))
+    fit15 = np.zeros(len(base))
+    loss = np.zeros(len(base))
+    for k in range(len(base)):
+        res = matcher.residuals(lidar[k], rec.ranges[k])
+        ok = np.isfinite(res)
+        fit5[k] = np.mean(np.abs(res[ok]) < 0.05)
+        fit15[k] = np.mean(np.abs(res[ok]) < 0.15)
+        loss[k] = float(matcher.losses(lidar[k][None, :], rec.ranges[k])[0])
+    return ReferencePoses(lidar, base, loss, fit5, fit15, 0, False)

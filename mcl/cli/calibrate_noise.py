@@ -56,6 +56,15 @@ def main(argv: list[str] | None = None) -> int:
         help="per bag, the lidar pose of its scan at a third of the recording instead of the "
         "global search (repeat once per bag, in order)",
     )
+    parser.add_argument(
+        "--poses",
+        type=Path,
+        action="append",
+        default=None,
+        metavar="CSV",
+        help="per bag, a replay's trajectory.csv (racecar-sim replay) whose poses are used instead "
+        "of scan matching (repeat once per bag, in order; default: scan matching)",
+    )
     parser.add_argument("--sim-dt", type=float, default=0.025, help="env step the odometry noise is for")
     args = parser.parse_args(argv)
     if not args.bags:
@@ -69,6 +78,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.fail("--map", f"{args.map}: file not found")
     if args.start is not None and len(args.start) != len(args.bags):
         parser.fail("--start", f"given {len(args.start)} times for {len(args.bags)} bags")
+    if args.poses is not None:
+        if len(args.poses) != len(args.bags):
+            parser.fail("--poses", f"given {len(args.poses)} times for {len(args.bags)} bags")
+        for f in args.poses:
+            if not f.is_file():
+                parser.fail("--poses", f"{f} not found")
     try:
         import rosbags  # noqa: F401
     except ImportError:
@@ -77,7 +92,9 @@ def main(argv: list[str] | None = None) -> int:
 
     t0 = time.perf_counter()
     try:
-        cal = calibrate(args.bags, args.map, args.mount_offset, args.start, progress=True)
+        cal = calibrate(
+            args.bags, args.map, args.mount_offset, args.start, progress=True, pose_files=args.poses
+        )
     except ValueError as exc:
         parser.error(str(exc).splitlines()[0])
     doc = profile_document(cal, sim_dt=args.sim_dt)

@@ -144,3 +144,23 @@ def test_hit_sigma_for_ratio_inverts_the_ratio(ratio):
     rng = np.random.default_rng(0)
     e = 0.01 + s * rng.standard_normal(400_000)
     assert (np.abs(e) <= 0.05).sum() / (np.abs(e) <= 0.15).sum() == pytest.approx(ratio, abs=0.005)
+
+
+def test_poses_from_a_replay_trajectory(room, tmp_path):
+    """Poses read from a replay's trajectory.csv: the lidar sits mount ahead, exact scans fit."""
+    from mcl.calibration.reference_poses import poses_from_trajectory
+
+    angles = np.linspace(-2.35, 2.35, 181)
+    base = np.array([[6.0, 1.0, 2.0], [6.05, 1.02, 2.01]])
+    lidar = compose(base, np.array([0.275, 0.0, 0.0]))
+    ranges = RayCaster(room, 30.0).cast(lidar, angles)
+    rec = Recording("synthetic", np.array([0.0, 0.025]), ranges, angles, 0.0, 0.02, MAX,
+                    np.array([0.0]), np.zeros((1, 3)), np.zeros((1, 3)))  # fmt: skip
+    path = tmp_path / "trajectory.csv"
+    path.write_text("time,x,y,theta,scan_fit\n" + "".join(f"{i},{x},{y},{t},1\n" for i, (x, y, t) in enumerate(base)))
+    poses = poses_from_trajectory(rec, ScanMatcher(room, angles, MAX), path)
+    assert np.allclose(poses.lidar, lidar) and np.allclose(poses.base, base)
+    assert (poses.fit5 == 1.0).all()
+    path.write_text("time,x,y,theta\n0,6,1,2\n")
+    with pytest.raises(ValueError, match="1 rows for 2 scans"):
+        poses_from_trajectory(rec, ScanMatcher(room, angles, MAX), path)
