@@ -286,7 +286,7 @@ class SensorModel:
         self.caster: RayCaster | None = None
         if p.model == "likelihood_field":
             self.max_range = float(p.likelihood_max_range)
-            self._field_table, self._field_off_map = likelihood_table(
+            self._field_table = likelihood_table(
                 occupancy_map,
                 p.likelihood_sigma,
                 p.likelihood_z_hit,
@@ -424,7 +424,6 @@ class SensorModel:
         return score_endpoints(
             self.map,
             self._field_table,
-            self._field_off_map,
             lidar,
             np.ascontiguousarray(all_angles[keep]),
             np.ascontiguousarray(ranges[keep]),
