@@ -1,6 +1,12 @@
-"""Accuracy of the two sensor models in simulation: the beam model (lut, 100 beams) against the
-likelihood field (every beam), same drives, same seeds: ``racecar-sim``-style drives with MCL in
-the loop (:func:`mcl.experiments.runs.run_one`), position and heading error per run.
+"""Accuracy of the two sensor models: the beam model (lut, 100 beams) against the likelihood field
+(every beam).
+
+* In simulation: same drives, same seeds (:func:`mcl.experiments.runs.run_one`, MCL in the loop),
+  position and heading error per run.
+* On the real bags in ``../shared/bags`` (when present, ``--no-bags`` to skip): the replay's global
+  filter finds the start; both models then track from its pose one second after it first fits the
+  map, and the likelihood field also tries the global start itself. There is no ground truth, so
+  the measure is ``scan_fit`` (beams within 0.15 m of an exact cast from the estimate).
 
     .venv/bin/python scripts/bench_sensor_models.py [--map YAML|NAME] [--seeds 3] [--duration 30]
 """
@@ -13,7 +19,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from mcl.bench import STATA
+from mcl.bench import SHARED, STATA
 from mcl.experiments.runs import RunSpec, run_one
 from mcl.sensor_model import SensorModelParams
 from mcl.wrapper import LocalizationConfig
@@ -36,6 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=3, help="seeds 0 .. N-1")
     parser.add_argument("--duration", type=float, default=30.0, help="simulated seconds per run")
     parser.add_argument("--particles", type=int, default=1500)
+    parser.add_argument("--no-bags", action="store_true", help="skip the real bags")
     args = parser.parse_args(argv)
     if args.seeds < 1 or args.duration <= 0 or args.particles < 1:
         parser.error("--seeds, --duration and --particles must be positive")
@@ -69,7 +76,65 @@ def main(argv: list[str] | None = None) -> int:
                 f"{1e3 * med('mean_update_s'):12.1f}"
             )
     print("(medians over seeds of each run's statistic)")
+    bags = sorted((SHARED / "bags").glob("*.bag"))
+    if args.no_bags or not bags or not STATA.is_file():
+        print("real bags: skipped" + ("" if args.no_bags else " (../shared/bags not found)"))
+        return 0
+    for bag in bags:
+        bag_comparison(bag)
     return 0
+
+
+def bag_comparison(bag: Path) -> None:
+    """Print both models' scan_fit on one real bag (see the module docstring)."""
+    import dataclasses
+
+    import numpy as np
+
+    from mcl.experiments.replay import ReplayConfig, replay, unknown_start_localization
+    from mcl.io import read_bag
+    from racecar_sim.maps import load_map
+
+    grid = load_map(STATA)
+    data = read_bag(bag, "/scan", None, None)
+    found = replay(data, grid, ReplayConfig(seed=0))
+    fit = found.column("scan_fit")
+    if not (fit > 0.8).any():
+        print(f"{bag.name}: the global beam filter never fitted the map (max {fit.max():.2f})")
+        return
+    j = min(int(np.argmax(fit > 0.8)) + 40, fit.size - 1)  # a second after it first fits
+    start = tuple(float(found.column(c)[j]) for c in ("x", "y", "theta"))
+    k = int(np.searchsorted(data.odom_times, data.scan_times[j]))
+    tail = dataclasses.replace(
+        data,
+        scan_times=data.scan_times[j:],
+        scans=data.scans[j:],
+        odom_times=data.odom_times[k:],
+        odom_twist=data.odom_twist[k:],
+        odom_pose=data.odom_pose[k:],
+    )
+    for label, sensor in MODELS.items():
+        if sensor.model == "likelihood_field":  # every beam of the real scan (1081)
+            sensor = dataclasses.replace(sensor, num_beams_per_particle=data.scans.shape[1])
+        tracked = replay(
+            tail,
+            grid,
+            ReplayConfig(init=start, seed=0, localization=LocalizationConfig(sensor=sensor)),
+        )
+        f = tracked.column("scan_fit")
+        print(
+            f"{bag.name}: {label}, tracking from scan {j} of {fit.size}: scan_fit median "
+            f"{np.median(f):.3f}, min {f.min():.3f}"
+        )
+    loc, adaptive = unknown_start_localization()
+    field = dataclasses.replace(loc, sensor=dataclasses.replace(
+        MODELS["likelihood field (all beams)"], num_beams_per_particle=data.scans.shape[1]
+    ))  # fmt: skip
+    lost = replay(data, grid, ReplayConfig(seed=0, localization=field, adaptive=adaptive))
+    print(
+        f"{bag.name}: global start, beam model scan_fit median {np.median(fit):.3f}; "
+        f"likelihood field {np.median(lost.column('scan_fit')):.3f}"
+    )
 
 
 if __name__ == "__main__":
