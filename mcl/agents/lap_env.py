@@ -171,29 +171,50 @@ class LapTask(gym.Wrapper):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Reset on the loop (``options["pose"]`` overrides the start)."""
+        options = dict(options or {})
+        if options.get("pose") is None:
+            options["pose"] = self.start_pose(seed)
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.begin(info)
+        return self.observe(obs, info), self.add_lap_info(info)
+
+    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Drive one env step with the scaled action; reward = true progress - wall penalty."""
+        obs, _, terminated, truncated, info = self.env.step(self.command(action))
+        reward = self.track_step(info)
+        return self.observe(obs, info), reward, terminated, truncated, self.add_lap_info(info)
+
+    # ------------------------------------------------------------------ the task, step by step
+    # (public so that a batched env can run one task per car: start_pose -> env reset -> begin,
+    # then command -> env step -> track_step and observe)
+    def start_pose(self, seed: int | None = None) -> list[float]:
+        """The next episode's start pose (world [x, y, theta]); a seed restarts the draws."""
         if seed is not None:
             stream = np.random.SeedSequence(seed).spawn(_TASK_STREAM + 1)[-1]
             self._rng = np.random.default_rng(stream)
-        options = dict(options or {})
-        if options.get("pose") is None:
-            options["pose"] = self._start_pose()
-        obs, info = self.env.reset(seed=seed, options=options)
+        return self._start_pose()
+
+    def begin(self, info: dict[str, Any]) -> None:
+        """Start the bookkeeping of an episode from the reset's info (true pose)."""
         self._last_action = np.zeros(2)
         self._s, _ = self.track.project(info["pose"])
         self._progress = 0.0
         self._laps = []
         self._lap_start = 0.0
         self._collisions = 0
-        return self._observe(obs, info), self._info(info)
 
-    def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
-        """Drive one env step with the scaled action; reward = true progress - wall penalty."""
+    def command(self, action: Any) -> np.ndarray:
+        """The env action [steer rad, speed m/s] of a task action in [-1, 1]^2 (remembered)."""
         a = np.clip(np.asarray(action, dtype=np.float64).reshape(2), -1.0, 1.0)
         cfg = self.config
+        self._last_action = a
         steer = a[0] * self._car.max_steer
         speed = cfg.min_speed + 0.5 * (a[1] + 1.0) * (cfg.max_speed - cfg.min_speed)
-        obs, _, terminated, truncated, info = self.env.step(np.array([steer, speed]))
-        self._last_action = a
+        return np.array([steer, speed])
+
+    def track_step(self, info: dict[str, Any]) -> float:
+        """Progress, laps and wall contact of the step whose info (true pose, time, collision)
+        is given; returns the step's reward."""
         s, _ = self.track.project(info["pose"])
         ds = self.track.advance(self._s, s)
         self._s = s
@@ -204,8 +225,7 @@ class LapTask(gym.Wrapper):
             self._lap_start = t
         collided = bool(info["collision"])
         self._collisions += collided
-        reward = ds - (cfg.collision_penalty if collided else 0.0)
-        return self._observe(obs, info), reward, terminated, truncated, self._info(info)
+        return ds - (self.config.collision_penalty if collided else 0.0)
 
     # ------------------------------------------------------------------ internals
     def _start_pose(self) -> list[float]:
@@ -222,7 +242,8 @@ class LapTask(gym.Wrapper):
                 return pose
         return pose  # the env names the pose if even the loop point is not free
 
-    def _observe(self, obs: dict[str, Any], info: dict[str, Any]) -> np.ndarray:
+    def observe(self, obs: dict[str, Any], info: dict[str, Any]) -> np.ndarray:
+        """The task's observation of an env observation and info (see the module docstring)."""
         cfg = self.config
         scan = np.minimum.reduceat(np.asarray(obs["scan"], dtype=np.float64), self._bins)
         if cfg.pose_source == "none":  # on the loop, heading along it, the loop straight ahead
@@ -247,7 +268,8 @@ class LapTask(gym.Wrapper):
             ]
         ).astype(np.float32)
 
-    def _info(self, info: dict[str, Any]) -> dict[str, Any]:
+    def add_lap_info(self, info: dict[str, Any]) -> dict[str, Any]:
+        """``info`` with the episode's ``lap`` bookkeeping added."""
         lap = {
             "s": self._s,
             "progress": self._progress,

@@ -8,8 +8,9 @@
     model.zip        the policy (saved every ``save_every`` timesteps and at the end)
     train.json       timesteps done, wall seconds, steps per second
 
-The envs of one process are stepped by stable-baselines3's ``DummyVecEnv`` (a sync vector env):
-the simulator has no batched env yet. Torch and numba use one thread each (the cores are shared).
+Without MCL (pose sources ``truth`` and ``none``) the cars are stepped by the simulator's batched
+env (:mod:`mcl.agents.batched`); with MCL by stable-baselines3's ``DummyVecEnv`` (a sync vector
+env of single lap envs, one filter each). Torch and numba use one thread each.
 """
 
 from __future__ import annotations
@@ -91,8 +92,14 @@ def train(
     seed: int = 0,
     save_every: int = 50_000,
     progress: bool = False,
+    batched: bool | None = None,
 ) -> TrainReport:
-    """Train PPO on ``task`` for ``timesteps`` env steps (all envs together) into ``out_dir``."""
+    """Train PPO on ``task`` for ``timesteps`` env steps (all envs together) into ``out_dir``.
+
+    ``batched``: step the cars in the simulator's batched env
+    (:class:`~mcl.agents.batched.BatchedLapVecEnv`; None: whenever the task runs no MCL), else in
+    stable-baselines3's sync ``DummyVecEnv`` of single lap envs (the same observations).
+    """
     require_sb3()
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
@@ -106,14 +113,28 @@ def train(
     _one_thread()
     (out / "config.json").write_text(
         json.dumps(
-            {"task": asdict(task), "ppo": asdict(settings), "seed": seed, "timesteps": timesteps},
+            {
+                "task": asdict(task),
+                "ppo": asdict(settings),
+                "seed": seed,
+                "timesteps": timesteps,
+                "batched": batched if batched is not None else not task.localized,
+            },
             indent=1,
             default=str,
         )
         + "\n",
         encoding="utf-8",
     )
-    venv = VecMonitor(DummyVecEnv([lambda: make_lap_env(task)] * settings.n_envs))
+    if batched is None:
+        batched = not task.localized
+    if batched:
+        from mcl.agents.batched import BatchedLapVecEnv
+
+        inner: Any = BatchedLapVecEnv(task, settings.n_envs)
+    else:
+        inner = DummyVecEnv([lambda: make_lap_env(task)] * settings.n_envs)
+    venv = VecMonitor(inner)
     model = PPO(
         "MlpPolicy",
         venv,
