@@ -153,3 +153,16 @@ def test_damaged_copy_of_recording_keeps_static_mount(recorded, tmp_path):
 def test_recorded_file_is_under_the_folder(recorded):
     path, _ = recorded
     assert Path(path, "metadata.yaml").exists()
+
+
+def test_ros2_sqlite3_bag_reads_the_same(tmp_path):
+    from rosbags.convert import convert
+
+    src = shared_bag(BAG1)
+    dst = tmp_path / "bag1_db3"
+    convert([src], dst, "sqlite3", 8, None, "none", None, None, [], [], [], [])
+    ros1, ros2 = read_bag(src), read_bag(dst)
+    assert next(dst.glob("*.db3")).exists()
+    np.testing.assert_array_equal(ros1.scans, ros2.scans)
+    np.testing.assert_array_equal(ros1.odom_pose, ros2.odom_pose)
+    assert ros2.odom_topic == "/vesc/odom" and ros2.mount_source == "default"
