@@ -153,7 +153,7 @@ def write_video(
     occupancy_map: OccupancyMap,
     path: str | os.PathLike[str],
     fps: float = 10.0,
-    px_per_m: float = 20.0,
+    px_per_m: float = 30.0,
 ) -> FrameWriter:
     """replay.mp4: one frame per 1/fps s of recording (module docstring)."""
     view = _view(result)
@@ -191,7 +191,7 @@ def write_video(
                     f"n {int(result.rows[i, 4])}  sd {result.rows[i, 5]:.2f} m"
                 )
                 cv2.putText(
-                    frame, text, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA
+                    frame, text, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA
                 )
             writer.write(frame[:, :, ::-1].copy())
     return writer
