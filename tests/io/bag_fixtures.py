@@ -67,3 +67,15 @@ def record_drive(
                 rec.write_scan(t, ranges)
                 rec.write_estimate(t, pose, np.eye(3) * 1e-4, pose + rng.normal(0, 0.05, (50, 3)))
     return {"times": np.array(truth_t), "poses": np.array(truth)}
+
+
+def recorded_fixture():
+    """A session fixture ``recorded``: (bag folder, truth) of a 3 s synthetic drive in the room
+    (each test module assigns it: ``recorded = recorded_fixture()``)."""
+
+    @pytest.fixture(scope="session")
+    def recorded(tmp_path_factory, room) -> tuple[Path, dict]:
+        path = tmp_path_factory.mktemp("bags") / "drive"
+        return path, record_drive(path, room)
+
+    return recorded

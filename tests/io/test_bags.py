@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from mcl.io import BagError, read_bag
-from tests.io.bag_fixtures import ANGLES, BAG1, MOUNT, record_drive, shared_bag
+from tests.io.bag_fixtures import ANGLES, BAG1, MOUNT, record_drive, recorded_fixture, shared_bag
+
+recorded = recorded_fixture()
 
 
 def test_recording_reads_back_with_mcap_alone(recorded):

@@ -16,7 +16,9 @@ from mcl.experiments.replay import COLUMNS, ReplayConfig, replay
 from mcl.experiments.replay_output import write_outputs
 from mcl.io import read_bag
 from mcl.sensor_model import SensorModel, SensorModelParams
-from tests.io.bag_fixtures import BAG1, BAG2, START, shared_bag
+from tests.io.bag_fixtures import BAG1, BAG2, START, recorded_fixture, shared_bag
+
+recorded = recorded_fixture()
 
 
 def test_round_trip_tracks_the_recorded_truth(recorded, room, tmp_path):
