@@ -100,6 +100,25 @@ def test_ray_resume_skips_complete_runs_and_redoes_a_cut_one(sweeps, tmp_path) -
     assert _rows(cut, ("update_s",)) == _rows(on_ray.results[1].log_path, ("update_s",))
 
 
+def test_a_kidnap_experiment_on_ray_matches_the_inline_run(local_ray, tmp_path) -> None:
+    from mcl.experiments.recovery import RecoveryConfig, run_recovery_experiment
+
+    config = RecoveryConfig(
+        scenario="kidnap", seeds=2, duration=3.0, kidnap_time=1.0, time_limit=2.0, env=FAST_ENV
+    )
+    quiet = {"progress": False, "plots": False, "stream": io.StringIO()}
+    inline = run_recovery_experiment(config, tmp_path / "inline", workers=1, **quiet)
+    on_ray = run_recovery_experiment(
+        config, tmp_path / "ray", executor=RayExecutor(workers=2), **quiet
+    )
+    assert [r.result.status for r in on_ray.runs] == ["ok", "ok"]
+    for a, b in zip(inline.runs, on_ray.runs, strict=True):
+        assert _rows(a.result.log_path, ("update_s",)) == _rows(b.result.log_path, ("update_s",))
+        outcome = b.result.log_path.with_suffix(".json")  # written by the Ray worker
+        assert outcome.read_text() == a.result.log_path.with_suffix(".json").read_text()
+        assert a.result.outcome == b.result.outcome
+
+
 def _dying_runner(spec: RunSpec, log_path: Path, diverged_m: float):
     """Seed 1 kills its worker process after DIE_AFTER steps every time; seed 2 only the first
     time (tries counted in a file beside the log); the others run normally."""
