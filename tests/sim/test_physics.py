@@ -327,14 +327,9 @@ def test_bad_arguments_raise(room: OccupancyMap) -> None:
 
 
 # ---------------------------------------------------------------------- free steps
-@settings(max_examples=25, deadline=None)
-@example(seed=0, dt=0.025, max_speed=7.0)  # drives into the walls: contacts, then free again
-@given(
-    seed=st.integers(0, 2**32 - 1),
-    dt=st.sampled_from([0.005, 0.01, 0.025, 0.03]),
-    max_speed=st.floats(0.5, 7.0),
-)
-def test_free_steps_equal_pymunk_bit_for_bit(seed: int, dt: float, max_speed: float) -> None:
+def _drive_fast_and_slow(seed: int, dt: float, max_speed: float) -> int:
+    """Drive a car with free steps and one without them on the same random commands (with a
+    placement every 100 steps); assert they agree bit for bit; return the steps taken free."""
     occ = box_room(100).occupied.copy()
     occ[40:60, 45:55] = True  # a pillar to drive into
     grid = OccupancyMap(occupied=occ, resolution=RES, origin=(-1.0, 0.5, 0.7))
@@ -359,4 +354,22 @@ def test_free_steps_equal_pymunk_bit_for_bit(seed: int, dt: float, max_speed: fl
         assert np.array_equal(fast.pose, slow.pose), f"step {k}"
         assert np.array_equal(fast.twist, slow.twist)
         assert (fast.speed, fast.steer) == (slow.speed, slow.steer)
-    assert free > 50, "most steps far from walls are taken without pymunk"
+    return free
+
+
+@settings(max_examples=25, deadline=None)
+@example(seed=0, dt=0.025, max_speed=7.0)  # drives into the walls: contacts, then free again
+@example(seed=291, dt=0.025, max_speed=7.0)  # mostly against walls: few free steps
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    dt=st.sampled_from([0.005, 0.01, 0.025, 0.03]),
+    max_speed=st.floats(0.5, 7.0),
+)
+def test_free_steps_equal_pymunk_bit_for_bit(seed: int, dt: float, max_speed: float) -> None:
+    _drive_fast_and_slow(seed, dt, max_speed)
+
+
+def test_most_steps_far_from_walls_skip_pymunk() -> None:
+    # How many steps are free depends on how often the random drive meets a wall (a fast drive
+    # may spend most of its time against one), so the count is asserted on a calm drive only.
+    assert _drive_fast_and_slow(seed=0, dt=0.01, max_speed=1.5) > 50
