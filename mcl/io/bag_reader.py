@@ -11,7 +11,8 @@ Conventions:
   replays them in).
 - Scan ranges are metres, float64; a beam outside ``[range_min, range_max]`` or not finite is a
   *no-return* and becomes NaN (a real Hokuyo reports 65.533 m for those: not a wall 65 m away).
-- Beam angles are car-frame radians: ``angle_min + i * angle_increment`` plus the mount's yaw.
+- Beam angles are car-frame radians: ``angle_min + i * angle_increment`` turned by the mount's yaw
+  (and mirrored when ``/tf_static`` says the lidar is mounted upside down).
 - The mount (metres ahead of base_link, along its x axis) comes from ``/tf_static`` (the chain of
   transforms from ``base_link`` to the scan's frame) when the bag has it, else from the caller's
   default (0.275 m, the MIT racecar).
@@ -137,19 +138,23 @@ def _open_paths(path: Path) -> list[Path]:
 
 
 def _static_mount(tf_messages: list, scan_frame: str, warnings: list[str]):
-    """(x offset m, yaw rad) of the scan frame in base_link from /tf_static messages, or None."""
-    edges: dict[str, tuple[str, float, float, float]] = {}
+    """(x offset m, yaw rad, mirrored) of the scan frame in base_link from /tf_static messages,
+    or None. ``mirrored``: the scan frame is upside down (its z axis points down, a lidar mounted
+    on its head), so its beam angles turn the other way in base_link."""
+    edges: dict[str, tuple[str, float, float, float, bool]] = {}
     for msg in tf_messages:
         for tf in msg.transforms:
-            tr = tf.transform.translation
+            tr, q = tf.transform.translation, tf.transform.rotation
+            down = 1.0 - 2.0 * (q.x * q.x + q.y * q.y) < 0.0  # R[2, 2]: where z points
             edges[tf.child_frame_id.lstrip("/")] = (
                 tf.header.frame_id.lstrip("/"),
                 tr.x,
                 tr.y,
-                _yaw(tf.transform.rotation),
+                _yaw(q),
+                down,
             )
     # Walk from the scan frame up to base_link, composing child-in-parent transforms.
-    frame, x, y, yaw = scan_frame.lstrip("/"), 0.0, 0.0, 0.0
+    frame, x, y, yaw, flip = scan_frame.lstrip("/"), 0.0, 0.0, 0.0, False
     for _ in range(len(edges) + 1):
         if frame == BASE_FRAME:
             if abs(y) > 0.01:
@@ -157,12 +162,14 @@ def _static_mount(tf_messages: list, scan_frame: str, warnings: list[str]):
                     f"the lidar sits {y:+.3f} m to the side of {BASE_FRAME}; only its forward "
                     "offset is modelled"
                 )
-            return x, yaw
+            return x, yaw, flip
         if frame not in edges:
             return None
-        parent, px, py, pyaw = edges[frame]
+        parent, px, py, pyaw, pdown = edges[frame]
+        if pdown:  # the child's y axis and angles are mirrored in the parent's plane
+            y, yaw = -y, -yaw
         c, s = math.cos(pyaw), math.sin(pyaw)
-        x, y, yaw = px + c * x - s * y, py + s * x + c * y, pyaw + yaw
+        x, y, yaw, flip = px + c * x - s * y, py + s * x + c * y, pyaw + yaw, flip != pdown
         frame = parent
     return None
 
@@ -289,7 +296,7 @@ def read_bag(
         scan_frame = str(first.header.frame_id)
 
         mount_source = "argument"
-        yaw = 0.0
+        yaw, mirrored = 0.0, False
         if mount_offset is None:
             mount = None
             if "/tf_static" in topics:
@@ -306,7 +313,7 @@ def read_bag(
                 except Exception as exc:
                     warnings.append(f"/tf_static could not be read ({exc})")
             if mount is not None:
-                mount_offset, yaw = mount
+                mount_offset, yaw, mirrored = mount
                 mount_source = "tf_static"
             else:
                 mount_offset, mount_source = default_mount_offset, "default"
@@ -322,7 +329,7 @@ def read_bag(
         odom_topic=odom_topic,
         scan_times=np.asarray(col.scan_t),
         scans=np.vstack(col.scans),
-        angles=np.asarray(angles, dtype=np.float64) + yaw,
+        angles=yaw + (-1.0 if mirrored else 1.0) * np.asarray(angles, dtype=np.float64),
         range_min=float(first.range_min),
         range_max=float(first.range_max),
         scan_frame=scan_frame,

@@ -168,3 +168,43 @@ def test_ros2_sqlite3_bag_reads_the_same(tmp_path):
     np.testing.assert_array_equal(ros1.scans, ros2.scans)
     np.testing.assert_array_equal(ros1.odom_pose, ros2.odom_pose)
     assert ros2.odom_topic == "/vesc/odom" and ros2.mount_source == "default"
+
+
+def _tf(parent: str, child: str, x: float, y: float, yaw: float, upside_down: bool = False):
+    """A /tf_static transform as the reader sees it (roll pi when upside down)."""
+    from types import SimpleNamespace as NS
+
+    if upside_down:  # yaw then roll pi: q = q_yaw * q_roll
+        cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+        q = NS(x=cy, y=sy, z=0.0, w=0.0)
+    else:
+        q = NS(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+    return NS(
+        header=NS(frame_id=parent),
+        child_frame_id=child,
+        transform=NS(translation=NS(x=x, y=y, z=0.1), rotation=q),
+    )
+
+
+def test_static_mount_follows_the_chain_and_upside_down_lidars():
+    from types import SimpleNamespace as NS
+
+    from mcl.io.bag_reader import _static_mount
+
+    chain = [
+        NS(
+            transforms=[
+                _tf("base_link", "mast", 0.2, 0.0, 0.0),
+                _tf("mast", "laser", 0.1, 0.0, 0.3),
+            ]
+        )
+    ]
+    x, yaw, mirrored = _static_mount(chain, "laser", [])
+    assert (x, yaw, mirrored) == (pytest.approx(0.3), pytest.approx(0.3), False)
+    flipped = [NS(transforms=[_tf("base_link", "laser", 0.275, 0.0, 0.0, upside_down=True)])]
+    x, yaw, mirrored = _static_mount(flipped, "laser", [])
+    assert x == pytest.approx(0.275) and mirrored and yaw == pytest.approx(0.0, abs=1e-12)
+    warnings: list[str] = []
+    _static_mount([NS(transforms=[_tf("base_link", "laser", 0.2, 0.1, 0.0)])], "laser", warnings)
+    assert warnings and "to the side" in warnings[0]
+    assert _static_mount(chain, "other_frame", []) is None
