@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.noise_profiles import profile_document
 from racecar_sim.obstacles import ObstacleParams
 from racecar_sim.scan_effects import OdometryBias, ScanEffects
 from racecar_sim.validation import check_number, read_yaml_mapping
@@ -270,6 +271,8 @@ class EnvConfig:
     obstacles: Any = None
 
     def __post_init__(self) -> None:
+        if self.noise_profile is not None:
+            profile_document(self.noise_profile)  # an unknown name fails here, listing the profiles
         if self.scan_effects is not None:
             object.__setattr__(self, "scan_effects", ScanEffects.from_mapping(self.scan_effects))
         if self.odom_bias is not None and not isinstance(self.odom_bias, OdometryBias):
