@@ -103,3 +103,53 @@ def test_simulated_lidar_matches_the_real_one(stata_map, references):
     ideal = _simulated_fractions(stata_map, references, max_range=MAX).as_dict()
     misses = [k for k in real if abs(ideal[k] - real[k]) > tol[k]]
     assert len(misses) >= 3, (ideal, real)
+
+
+@pytest.mark.slow
+def test_global_search_finds_the_car_on_a_real_scan(stata_map):
+    """The whole-floor search alone puts bag 1's scan 120 where the tracking fixture starts."""
+    from mcl.calibration.recording import read_recording
+    from mcl.calibration.reference_poses import scan_beams
+    from mcl.calibration.scan_match import ScanMatcher
+
+    rec = read_recording(_bag(NAMES[0]))
+    k, guess = START[NAMES[0]]
+    ranges, angles = scan_beams(rec, k, 0.275, True)
+    pose, _ = ScanMatcher(stata_map, angles, MAX).global_search(ranges)
+    assert np.hypot(pose[0] - guess[0], pose[1] - guess[1]) < 0.1
+    assert abs(pose[2] - guess[2]) < 0.03
+
+
+@pytest.mark.slow
+def test_calibrate_noise_reproduces_the_shipped_profile(tmp_path):
+    """The command on the two bags writes a profile whose lidar numbers are the shipped ones.
+
+    Tracking starts from given poses here (the shipped profile started from the global search), so the poses differ by millimetres and the numbers by a little: 0.01
+    on fractions and EM weights, 10 % on run lengths; the odometry, which differences poses over
+    0.25 s, to 25 %.
+    """
+    from mcl.cli.calibrate_noise import main
+    from racecar_sim.noise_profiles import profile_document
+
+    bags = [str(_bag(n)) for n in NAMES]
+    maps = Path(__file__).resolve().parents[2] / ".." / "shared" / "maps" / "stata_basement.yaml"
+    out = tmp_path / "profile.yaml"
+    # --start: the lidar pose of the scan a third into each bag (what the global search finds)
+    starts = ["--start=-19.737,4.391,1.644", "--start=-20.464,-0.832,1.775"]
+    assert main([*bags, "--map", str(maps), "--out", str(out), *starts]) == 0
+    mine = profile_document(out)
+    shipped = profile_document("mit_racecar")
+    a, b = mine["settings"]["scan_effects"], shipped["settings"]["scan_effects"]
+    for key in ("short_fraction", "long_fraction", "hit_bias", "hit_sigma"):
+        assert a[key] == pytest.approx(b[key], abs=0.01), key
+    for key in ("short_run", "long_run", "noreturn_run"):
+        assert a[key] == pytest.approx(b[key], rel=0.1), key
+    assert a["noreturn_probability"] == pytest.approx(b["noreturn_probability"], abs=0.02)
+    em, em0 = mine["fit"]["beam_model_em"], shipped["fit"]["beam_model_em"]
+    for key in ("z_hit", "z_short", "z_max", "z_rand", "sigma_hit", "bias"):
+        assert em[key] == pytest.approx(em0[key], abs=0.01), key
+    od, od0 = mine["settings"]["odom_bias"]["scale"], shipped["settings"]["odom_bias"]["scale"]
+    assert od[0] == pytest.approx(od0[0], abs=0.02) and od[2] == pytest.approx(od0[2], abs=0.04)
+    assert mine["settings"]["odom_additive"] == pytest.approx(
+        shipped["settings"]["odom_additive"], rel=0.25
+    )
