@@ -206,11 +206,6 @@ class GltUpdate:
         return out, dict(zip(STAGES, (t1 - t0, t2 - t1, t3 - t2, t4 - t3, t5 - t4), strict=True))
 
 
-def max_range_m(params: SensorModelParams, grid: OccupancyMap) -> float:
-    """The peer's max range in metres: ``z_max`` pixels."""
-    return params.z_max * grid.resolution * params.lidar_scale_to_map_scale
-
-
 # ---------------------------------------------------------------------------- the comparison
 def _rss_mb() -> float:
     """Resident memory of this process (MB), from /proc (NaN elsewhere)."""
