@@ -29,152 +29,15 @@ from ``beam_angles`` raises ``ValueError``. With every beam dropped, all particl
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
 import numba as nb
 import numpy as np
 
 from mcl.likelihood_field import likelihood_table, score_endpoints
-from racecar_sim.config import LidarParams
+from mcl.sensor_params import MODELS, SensorModelParams
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
 
 __all__ = ["MODELS", "SensorModel", "SensorModelParams", "beam_table"]
-
-_LIDAR = LidarParams()
-
-MODELS: tuple[str, ...] = ("beam", "likelihood_field")
-"""Names accepted by :attr:`SensorModelParams.model`."""
-
-
-@dataclass(frozen=True)
-class SensorModelParams:
-    """Parameters of the beam sensor model (defaults: the MIT RSS localization lab).
-
-    Attributes:
-        alpha_hit: weight of the Gaussian hit around the expected range.
-        alpha_short: weight of short returns (unmapped obstacles).
-        alpha_max: weight of max-range drop-outs.
-        alpha_rand: weight of uniformly random returns.
-        sigma_hit: standard deviation of the hit Gaussian, in pixels (table cells).
-        table_width: number of table rows and columns; z_max = table_width - 1 pixels.
-        max_range: metres of the table's last cell (the beam model's range: measured and expected
-            ranges beyond it land in the max-range cell). None = ``z_max`` map cells, i.e.
-            ``z_max x resolution x lidar_scale_to_map_scale`` (10 m on a 0.05 m map, the lab's).
-            When given, the table keeps its ``table_width`` cells, each ``max_range / z_max``
-            metres wide, and ``sigma_hit`` (in cells) widens with them: scale it by the ratio of
-            the cell sizes to keep its metres.
-        squash_exponent: the product over beams is raised to this power (1/2.2 in the lab).
-        lidar_scale_to_map_scale: lidar metres per map metre (ranges are divided by it, with the
-            resolution, to get pixels).
-        num_beams_per_particle: beams used per particle, evenly spaced over the scan.
-        raycast_method: :class:`racecar_sim.raycast.RayCaster` method for the expected ranges
-            (an approximate one is fine: the simulated lidar stays exact).
-        mount_offset: metres from the rear axle (the particle pose) forward to the lidar.
-        fov: radians spanned by the scan when the beam angles are not given (first beam at -fov/2).
-        parallel: numba threads for casting and scoring: None decides by size (the caster's
-            ``PARALLEL_MIN_RAYS``, :data:`PARALLEL_MIN_LOOKUPS`); False keeps one thread, which is
-            faster when other processes keep the cores busy (e.g. a pool of experiment workers);
-            True always uses every thread.
-        model: ``"beam"`` (the table above, with ray casting) or ``"likelihood_field"`` (beam end
-            points scored on the map's distance field, no casting; :mod:`mcl.likelihood_field`).
-            The ``likelihood_*`` fields are the latter's (amcl's defaults); it reads as many beams
-            as ``num_beams_per_particle`` allows, so set that to the scan's length for all beams.
-        likelihood_sigma: metres, standard deviation of the end point's distance to a wall.
-        likelihood_z_hit: weight of the Gaussian term.
-        likelihood_z_rand: weight of random returns (density ``z_rand / likelihood_max_range``).
-        likelihood_max_distance: metres; distances to a wall are clipped to it.
-        likelihood_max_range: metres; beams at or beyond it (no return) are skipped.
-    """
-
-    alpha_hit: float = 0.74
-    alpha_short: float = 0.07
-    alpha_max: float = 0.07
-    alpha_rand: float = 0.12
-    sigma_hit: float = 8.0
-    table_width: int = 201
-    max_range: float | None = None
-    squash_exponent: float = 1.0 / 2.2
-    lidar_scale_to_map_scale: float = 1.0
-    num_beams_per_particle: int = 100
-    raycast_method: str = "lut"
-    mount_offset: float = _LIDAR.mount_offset
-    fov: float = _LIDAR.fov
-    parallel: bool | None = None
-    model: str = "beam"
-    likelihood_sigma: float = 0.2
-    likelihood_z_hit: float = 0.95
-    likelihood_z_rand: float = 0.05
-    likelihood_max_distance: float = 2.0
-    likelihood_max_range: float = _LIDAR.max_range
-
-    def __post_init__(self) -> None:
-        def bad(name: str, why: str) -> ValueError:
-            return ValueError(f"SensorModelParams.{name} = {getattr(self, name)!r}: {why}")
-
-        alphas = ("alpha_hit", "alpha_short", "alpha_max", "alpha_rand")
-        for name in (
-            *alphas,
-            "sigma_hit",
-            "squash_exponent",
-            "lidar_scale_to_map_scale",
-            "mount_offset",
-            "fov",
-            "likelihood_sigma",
-            "likelihood_z_hit",
-            "likelihood_z_rand",
-            "likelihood_max_distance",
-            "likelihood_max_range",
-        ):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float):
-                raise bad(name, "must be a number")
-            if not math.isfinite(value):
-                raise bad(name, "must be finite")
-        for name in alphas:
-            if getattr(self, name) < 0:
-                raise bad(name, "must be >= 0")
-        if self.alpha_hit + self.alpha_max + self.alpha_rand <= 0:
-            raise ValueError(
-                "SensorModelParams: alpha_hit, alpha_max and alpha_rand must not all be zero "
-                "(the d = 0 column of the table would be empty)"
-            )
-        mr = self.max_range
-        if mr is not None and (
-            isinstance(mr, bool) or not isinstance(mr, int | float) or not 0 < mr < math.inf
-        ):
-            raise bad("max_range", "must be None or a positive number of metres")
-        if self.model not in MODELS:
-            raise bad("model", f"must be one of {MODELS}")
-        if self.likelihood_z_rand < 0:
-            raise bad("likelihood_z_rand", "must be >= 0")
-        for name in (
-            "sigma_hit",
-            "squash_exponent",
-            "lidar_scale_to_map_scale",
-            "fov",
-            "likelihood_sigma",
-            "likelihood_z_hit",
-            "likelihood_max_distance",
-            "likelihood_max_range",
-        ):
-            if getattr(self, name) <= 0:
-                raise bad(name, "must be > 0")
-        for name, low in (("table_width", 2), ("num_beams_per_particle", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise bad(name, f"must be an integer >= {low}")
-        if not isinstance(self.raycast_method, str):
-            raise bad("raycast_method", "must be a method name")
-        if self.parallel is not None and not isinstance(self.parallel, bool):
-            raise bad("parallel", "must be true, false or null")
-
-    @property
-    def z_max(self) -> int:
-        """Largest range in pixels (the last table row / column)."""
-        return self.table_width - 1
-
 
 def beam_table(params: SensorModelParams) -> np.ndarray:
     """The (W, W) float64 table ``[z_measured_px, d_expected_px]``; every column sums to 1.
