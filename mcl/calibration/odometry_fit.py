@@ -19,8 +19,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mcl.calibration.recording import Recording
 from mcl.calibration.reference_poses import ReferencePoses, integrate_twist, relative
+from mcl.io.bag_reader import BagData
 
 __all__ = ["OdometryFit", "best_lag", "fit_odometry", "window_twists"]
 
@@ -58,12 +58,12 @@ class OdometryFit:
 
 
 def window_twists(
-    rec: Recording, poses: ReferencePoses, window: float, min_fit: float
+    rec: BagData, poses: ReferencePoses, window: float, min_fit: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """(reference, odometry) mean twists (W, 3) over non-overlapping windows of ``window`` s whose
     end scans both fit the map (``fit15 >= min_fit``)."""
     ref, odo = [], []
-    t = rec.scan_times
+    t = rec.scan_stamps
     k = 0
     while k < len(t) - 1:
         j = int(np.searchsorted(t, t[k] + window))
@@ -72,7 +72,7 @@ def window_twists(
         if poses.fit15[k] >= min_fit and poses.fit15[j] >= min_fit:
             T = t[j] - t[k]
             d_ref = relative(poses.base[k], poses.base[j])
-            d_odo = integrate_twist(rec.odom_times, rec.odom_twist, t[k], t[j])
+            d_odo = integrate_twist(rec.odom_stamps, rec.odom_twist, t[k], t[j])
             ref.append(d_ref / T)
             odo.append(d_odo / T)
         k = j
@@ -80,7 +80,7 @@ def window_twists(
 
 
 def best_lag(
-    recs: list[tuple[Recording, ReferencePoses]],
+    recs: list[tuple[BagData, ReferencePoses]],
     window: float = 0.25,
     min_fit: float = 0.7,
     lags: np.ndarray | None = None,
@@ -98,7 +98,7 @@ def best_lag(
 
 
 def fit_odometry(
-    recs: list[tuple[Recording, ReferencePoses]],
+    recs: list[tuple[BagData, ReferencePoses]],
     window: float = 0.25,
     min_fit: float = 0.7,
     lag: float = 0.0,
@@ -112,7 +112,7 @@ def fit_odometry(
     Raises:
         ValueError: fewer than 10 usable windows.
     """
-    shifted = [(replace(r, odom_times=r.odom_times + lag), p) for r, p in recs]
+    shifted = [(replace(r, odom_stamps=r.odom_stamps + lag), p) for r, p in recs]
     parts = [window_twists(r, p, window, min_fit) for r, p in shifted]
     ref = np.vstack([a for a, _ in parts])
     odo = np.vstack([b for _, b in parts])

@@ -17,7 +17,6 @@ import numpy as np
 
 from mcl.calibration.beam_em import BeamModelFit, fit_beam_model
 from mcl.calibration.odometry_fit import OdometryFit, best_lag, fit_odometry
-from mcl.calibration.recording import Recording, read_recording
 from mcl.calibration.reference_poses import (
     ReferencePoses,
     poses_from_trajectory,
@@ -25,6 +24,7 @@ from mcl.calibration.reference_poses import (
 )
 from mcl.calibration.scan_match import ScanMatcher
 from mcl.calibration.scan_stats import RANGE_BINS, ScanFailureStats, failure_stats
+from mcl.io.bag_reader import BagData, read_bag
 from racecar_sim.maps import load_map
 
 __all__ = ["Calibration", "calibrate", "hit_sigma_for_ratio", "profile_document"]
@@ -92,24 +92,24 @@ def calibrate(
     matching.
     """
     occ = load_map(map_path)
-    recs: list[Recording] = []
+    recs: list[BagData] = []
     poses: list[ReferencePoses] = []
     z_all, zs_all, per_bag = [], [], {}
     guesses = start_guesses or [None] * len(bags)
     files = pose_files or [None] * len(bags)
     for bag, guess, pose_file in zip(bags, guesses, files, strict=True):
-        rec = read_recording(bag)
+        rec = read_bag(bag)
         matcher = ScanMatcher(occ, rec.angles, LIDAR_MAX_RANGE)
         if progress:
-            print(f"{rec.name}: {len(rec.ranges)} scans, locating...", flush=True)
+            print(f"{rec.name}: {len(rec.scans)} scans, locating...", flush=True)
         if pose_file is not None:
             rp = poses_from_trajectory(rec, matcher, pose_file, mount_offset)
         else:
             rp = track_recording(rec, matcher, mount_offset, start_guess=guess)
         cast = matcher.caster.cast(rp.lidar, rec.angles)
-        z_all.append(rec.ranges)
+        z_all.append(rec.scans)
         zs_all.append(cast)
-        per_bag[rec.name] = failure_stats(rec.ranges, cast, LIDAR_MAX_RANGE).fractions.as_dict()
+        per_bag[rec.name] = failure_stats(rec.scans, cast, LIDAR_MAX_RANGE).fractions.as_dict()
         per_bag[rec.name]["mean_fit15"] = float(rp.fit15.mean())
         recs.append(rec)
         poses.append(rp)
@@ -134,13 +134,13 @@ def calibrate(
 
 
 def stationary_jitter(
-    pairs: list[tuple[Recording, ReferencePoses]], min_scans: int = 20
+    pairs: list[tuple[BagData, ReferencePoses]], min_scans: int = 20
 ) -> tuple[float, float, float]:
     """(x m, y m, theta rad) standard deviation of the reference base poses while the car stands
     still (odometry speed below 1 cm/s for ``min_scans`` scans or more): the poses' own noise."""
     parts = []
     for rec, rp in pairs:
-        idx = np.searchsorted(rec.odom_times, rec.scan_times, side="right") - 1
+        idx = np.searchsorted(rec.odom_stamps, rec.scan_stamps, side="right") - 1
         still = np.abs(rec.odom_twist[np.clip(idx, 0, None), 0]) < 0.01
         padded = np.r_[False, still, False].astype(np.int8)
         d = np.diff(padded)

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mcl.calibration.recording import Recording
 from mcl.calibration.scan_match import ScanMatcher
+from mcl.io.bag_reader import BagData
 
 __all__ = [
     "ReferencePoses",
@@ -120,22 +120,22 @@ class ReferencePoses:
     deskewed: bool
 
 
-def scan_twist(rec: Recording, k: int) -> tuple[float, float]:
+def scan_twist(rec: BagData, k: int) -> tuple[float, float]:
     """(v m/s, omega rad/s) of the odometry message last before scan ``k``'s stamp."""
-    i = max(int(np.searchsorted(rec.odom_times, rec.scan_times[k], side="right")) - 1, 0)
+    i = max(int(np.searchsorted(rec.odom_stamps, rec.scan_stamps[k], side="right")) - 1, 0)
     return float(rec.odom_twist[i, 0]), float(rec.odom_twist[i, 2])
 
 
-def scan_beams(rec: Recording, k: int, mount: float, use_deskew: bool) -> tuple[np.ndarray, np.ndarray]:
+def scan_beams(rec: BagData, k: int, mount: float, use_deskew: bool) -> tuple[np.ndarray, np.ndarray]:
     """Ranges and angles of scan ``k``, de-skewed to its stamp when ``use_deskew``."""
     if not use_deskew:
-        return rec.ranges[k], rec.angles
+        return rec.scans[k], rec.angles
     v, w = scan_twist(rec, k)
-    return deskew(rec.ranges[k], rec.angles, rec.time_increment, v, w, mount)
+    return deskew(rec.scans[k], rec.angles, rec.time_increment, v, w, mount)
 
 
 def track_recording(
-    rec: Recording,
+    rec: BagData,
     matcher: ScanMatcher,
     mount: float = 0.275,
     start: int | None = None,
@@ -147,7 +147,7 @@ def track_recording(
     The scan ``start`` (default: the one at a third of the recording) is located by a global
     search (or refined from ``start_guess``, a lidar pose, when given); every other scan is predicted from its neighbour with the odometry and refined.
     """
-    n = len(rec.ranges)
+    n = len(rec.scans)
     start = n // 3 if start is None else start
     mount_pose = np.array([mount, 0.0, 0.0])
     lidar = np.zeros((n, 3))
@@ -167,8 +167,8 @@ def track_recording(
     for order in (range(start + 1, n), range(start - 1, -1, -1)):
         for k in order:
             prev = k - 1 if k > start else k + 1
-            t_a, t_b = sorted((rec.scan_times[prev], rec.scan_times[k]))
-            motion = integrate_twist(rec.odom_times, rec.odom_twist, t_a, t_b)
+            t_a, t_b = sorted((rec.scan_stamps[prev], rec.scan_stamps[k]))
+            motion = integrate_twist(rec.odom_stamps, rec.odom_twist, t_a, t_b)
             if k < start:
                 motion = relative(motion, np.zeros(3))
             base_prev = compose(lidar[prev], relative(mount_pose, np.zeros(3)))
@@ -189,7 +189,7 @@ def track_recording(
 
 
 def poses_from_trajectory(
-    rec: Recording, matcher: ScanMatcher, path, mount: float = 0.275
+    rec: BagData, matcher: ScanMatcher, path, mount: float = 0.275
 ) -> ReferencePoses:
     """Reference poses read from a replay's ``trajectory.csv`` (``racecar-sim replay``: one row per
     scan, base_link ``x,y,theta`` in the map frame) instead of scan matching.
@@ -204,17 +204,17 @@ def poses_from_trajectory(
         rows = list(csv.DictReader(fh))
     if not rows or not {"x", "y", "theta"} <= set(rows[0]):
         raise ValueError(f"{path}: expected a trajectory CSV with x, y, theta columns")
-    if len(rows) != len(rec.ranges):
-        raise ValueError(f"{path}: {len(rows)} rows for {len(rec.ranges)} scans of {rec.name}")
+    if len(rows) != len(rec.scans):
+        raise ValueError(f"{path}: {len(rows)} rows for {len(rec.scans)} scans of {rec.name}")
     base = np.array([[float(r["x"]), float(r["y"]), float(r["theta"])] for r in rows])
     lidar = compose(base, np.array([mount, 0.0, 0.0]))
     fit5 = np.zeros(len(base))
     fit15 = np.zeros(len(base))
     loss = np.zeros(len(base))
     for k in range(len(base)):
-        res = matcher.residuals(lidar[k], rec.ranges[k])
+        res = matcher.residuals(lidar[k], rec.scans[k])
         ok = np.isfinite(res)
         fit5[k] = np.mean(np.abs(res[ok]) < 0.05)
         fit15[k] = np.mean(np.abs(res[ok]) < 0.15)
-        loss[k] = float(matcher.losses(lidar[k][None, :], rec.ranges[k])[0])
+        loss[k] = float(matcher.losses(lidar[k][None, :], rec.scans[k])[0])
     return ReferencePoses(lidar, base, loss, fit5, fit15, 0, False)

@@ -73,6 +73,12 @@ class BagData:
         duration: seconds from the first to the last message read.
         topics: every topic of the bag -> message type.
         warnings: problems that did not stop the reading (truncation, mount not along x, ...).
+        scan_stamps, odom_stamps: (S,) and (O,) the messages' header stamps on the same clock
+            (seconds since the bag's first message's log time); a Hokuyo stamps its first beam.
+            They default to ``scan_times`` / ``odom_times``. Log times jitter by up to ~40 ms
+            on the real bags, so the noise calibration, which pairs scans with odometry, uses
+            these.
+        time_increment: seconds between two consecutive beams of one sweep (0 when unknown).
     """
 
     path: Path
@@ -94,6 +100,20 @@ class BagData:
     duration: float = 0.0
     topics: dict[str, str] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    scan_stamps: np.ndarray | None = None
+    odom_stamps: np.ndarray | None = None
+    time_increment: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.scan_stamps is None:
+            self.scan_stamps = self.scan_times
+        if self.odom_stamps is None:
+            self.odom_stamps = self.odom_times
+
+    @property
+    def name(self) -> str:
+        """The bag's file (or folder) name."""
+        return self.path.name
 
     @property
     def n_scans(self) -> int:
@@ -117,6 +137,12 @@ class BagData:
 def _yaw(q) -> float:
     """Yaw (radians) of a quaternion message (x, y, z, w)."""
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def _header_seconds(msg, t0_ns: int) -> float:
+    """A message's header stamp in seconds after ``t0_ns`` (nanoseconds, the bag's clock)."""
+    stamp = msg.header.stamp
+    return (stamp.sec * 1_000_000_000 + stamp.nanosec - t0_ns) * 1e-9
 
 
 def _typestore_for(path: Path):
@@ -278,7 +304,7 @@ def read_bag(
         try:
             for topic, _kind, t, msg in stream:
                 last_t = t
-                col.add(path, topic, (t - t0) * 1e-9, msg, scan_topic, odom_topic)
+                col.add(path, topic, (t - t0) * 1e-9, t0, msg, scan_topic, odom_topic)
         except BagError:
             raise
         except Exception as exc:
@@ -343,6 +369,9 @@ def read_bag(
         duration=float(duration),
         topics=topics,
         warnings=warnings,
+        scan_stamps=np.asarray(col.scan_stamp),
+        odom_stamps=np.asarray(col.odom_stamp),
+        time_increment=float(first.time_increment),
     )
 
 
@@ -352,6 +381,8 @@ class _Collected:
     def __init__(self) -> None:
         self.first = None
         self.scan_t: list[float] = []
+        self.scan_stamp: list[float] = []
+        self.odom_stamp: list[float] = []
         self.scans: list[np.ndarray] = []
         self.odom_t: list[float] = []
         self.odom_tw: list[tuple[float, float, float]] = []
@@ -359,7 +390,10 @@ class _Collected:
         self.truth_t: list[float] = []
         self.truth_p: list[tuple[float, float, float]] = []
 
-    def add(self, path: Path, topic: str, sec: float, msg, scan_topic: str, odom_topic: str):
+    def add(
+        self, path: Path, topic: str, sec: float, t0_ns: int, msg, scan_topic: str, odom_topic: str
+    ) -> None:
+        """Keep ``msg`` (read on ``topic`` at ``sec`` seconds since the start ``t0_ns``)."""
         if topic == scan_topic:
             ranges = np.asarray(msg.ranges, dtype=np.float64)
             if self.first is None:
@@ -373,10 +407,12 @@ class _Collected:
                 bad = ~np.isfinite(ranges) | (ranges < msg.range_min) | (ranges > msg.range_max)
             ranges[bad] = np.nan
             self.scan_t.append(sec)
+            self.scan_stamp.append(_header_seconds(msg, t0_ns))
             self.scans.append(ranges)
         elif topic == odom_topic:
             tw, pose = msg.twist.twist, msg.pose.pose
             self.odom_t.append(sec)
+            self.odom_stamp.append(_header_seconds(msg, t0_ns))
             self.odom_tw.append((tw.linear.x, tw.linear.y, tw.angular.z))
             self.odom_p.append((pose.position.x, pose.position.y, _yaw(pose.orientation)))
         else:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,7 +13,6 @@ import pytest
 from mcl.calibration.beam_em import fit_beam_model
 from mcl.calibration.odometry_fit import best_lag, fit_odometry
 from mcl.calibration.pipeline import hit_sigma_for_ratio
-from mcl.calibration.recording import Recording
 from mcl.calibration.reference_poses import (
     ReferencePoses,
     compose,
@@ -22,6 +22,7 @@ from mcl.calibration.reference_poses import (
 )
 from mcl.calibration.scan_match import ScanMatcher
 from mcl.calibration.scan_stats import failure_stats, residual_fractions
+from mcl.io import BagData
 from racecar_sim.raycast import RayCaster
 
 MAX = 30.0
@@ -74,9 +75,16 @@ def test_residual_fractions_count_what_they_say():
     assert s.run_length["noreturn"] == 2.0 and s.next_same["noreturn"] == 0.5
 
 
-def _recording(times, twist, scan_times):
-    return Recording("synthetic", scan_times, np.zeros((len(scan_times), 3)), np.zeros(3), 0.0,
-                     0.02, MAX, times, twist, np.zeros_like(twist))  # fmt: skip
+def _recording(times, twist, scan_times, ranges=None, angles=None):
+    """A synthetic recording: odometry twists at ``times``, scans at ``scan_times``."""
+    angles = np.zeros(3) if angles is None else angles
+    ranges = np.zeros((len(scan_times), angles.size)) if ranges is None else ranges
+    return BagData(
+        path=Path("synthetic"), scan_topic="/scan", odom_topic="/odom", scan_times=scan_times,
+        scans=ranges, angles=angles, range_min=0.02, range_max=MAX, scan_frame="laser",
+        odom_times=times, odom_twist=twist, odom_pose=np.zeros_like(twist), mount_offset=0.275,
+        mount_source="argument",
+    )  # fmt: skip
 
 
 def test_odometry_fit_recovers_bias_noise_and_lag():
@@ -154,8 +162,7 @@ def test_poses_from_a_replay_trajectory(room, tmp_path):
     base = np.array([[6.0, 1.0, 2.0], [6.05, 1.02, 2.01]])
     lidar = compose(base, np.array([0.275, 0.0, 0.0]))
     ranges = RayCaster(room, 30.0).cast(lidar, angles)
-    rec = Recording("synthetic", np.array([0.0, 0.025]), ranges, angles, 0.0, 0.02, MAX,
-                    np.array([0.0]), np.zeros((1, 3)), np.zeros((1, 3)))  # fmt: skip
+    rec = _recording(np.array([0.0]), np.zeros((1, 3)), np.array([0.0, 0.025]), ranges, angles)
     path = tmp_path / "trajectory.csv"
     path.write_text("time,x,y,theta,scan_fit\n" + "".join(f"{i},{x},{y},{t},1\n" for i, (x, y, t) in enumerate(base)))
     poses = poses_from_trajectory(rec, ScanMatcher(room, angles, MAX), path)

@@ -34,13 +34,13 @@ def _bag(name: str) -> Path:
 @pytest.fixture(scope="module")
 def references(stata_map):
     """Per bag: (recording, reference poses, exact casts at those poses)."""
-    from mcl.calibration.recording import read_recording
     from mcl.calibration.reference_poses import track_recording
     from mcl.calibration.scan_match import ScanMatcher
+    from mcl.io import read_bag
 
     out = {}
     for name in NAMES:
-        rec = read_recording(_bag(name))
+        rec = read_bag(_bag(name))
         matcher = ScanMatcher(stata_map, rec.angles, MAX)
         k, guess = START[name]
         poses = track_recording(rec, matcher, start=k, start_guess=np.array(guess))
@@ -51,7 +51,7 @@ def references(stata_map):
 @pytest.mark.slow
 def test_reference_poses_fit_the_map(references):
     for rec, poses, _ in references.values():
-        assert len(poses.lidar) == len(rec.ranges)
+        assert len(poses.lidar) == len(rec.scans)
         assert np.median(poses.fit15) > 0.7  # most beams within 15 cm of the map
         steps = np.hypot(*np.diff(poses.base[:, :2], axis=0).T)
         # 2.9 m/s at most, scans 25 ms apart: 7 cm. Where the scan fits the map poorly (the first
@@ -90,9 +90,9 @@ def test_simulated_lidar_matches_the_real_one(stata_map, references):
     sampling spread of ~200 simulated scans whose failures come in runs of 7-15 beams). The
     ideal (default) simulator must fail the same test, or it would show nothing.
     """
-    per_bag = [residual_fractions(r.ranges, c, MAX).as_dict() for r, _, c in references.values()]
+    per_bag = [residual_fractions(r.scans, c, MAX).as_dict() for r, _, c in references.values()]
     real = residual_fractions(
-        np.vstack([r.ranges for r, _, _ in references.values()]),
+        np.vstack([r.scans for r, _, _ in references.values()]),
         np.vstack([c for _, _, c in references.values()]),
         MAX,
     ).as_dict()
@@ -108,11 +108,11 @@ def test_simulated_lidar_matches_the_real_one(stata_map, references):
 @pytest.mark.slow
 def test_global_search_finds_the_car_on_a_real_scan(stata_map):
     """The whole-floor search alone puts bag 1's scan 120 where the tracking fixture starts."""
-    from mcl.calibration.recording import read_recording
     from mcl.calibration.reference_poses import scan_beams
     from mcl.calibration.scan_match import ScanMatcher
+    from mcl.io import read_bag
 
-    rec = read_recording(_bag(NAMES[0]))
+    rec = read_bag(_bag(NAMES[0]))
     k, guess = START[NAMES[0]]
     ranges, angles = scan_beams(rec, k, 0.275, True)
     pose, _ = ScanMatcher(stata_map, angles, MAX).global_search(ranges)

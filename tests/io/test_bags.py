@@ -112,6 +112,13 @@ def test_shared_bag_facts():
     assert valid.max() <= data.range_max and valid.min() >= data.range_min
     assert np.isnan(data.scans).mean() > 0.01  # the Hokuyo's 65.533 m no-returns
     assert data.duration == pytest.approx(7.0, abs=0.05)
+    # Header stamps, not log times: a 40 Hz Hokuyo stamps its sweeps 25 ms apart (the log times
+    # jitter), each sweep 1081 beams x time_increment long.
+    assert data.time_increment * data.n_beams == pytest.approx(0.01875, rel=0.01)
+    assert np.median(np.diff(data.scan_stamps)) == pytest.approx(0.025, abs=5e-4)
+    assert np.std(np.diff(data.scan_stamps)) < 0.1 * np.std(np.diff(data.scan_times))
+    assert not np.allclose(data.scan_stamps, data.scan_times, atol=1e-3)
+    assert np.all(np.abs(data.odom_stamps - data.odom_times) < 0.1)
 
 
 def test_ros1_converted_to_mcap_replays_to_the_same_place(tmp_path, stata_map):
