@@ -1,8 +1,8 @@
-"""Thin wrapper: `racecar-sim bench executors` (see :mod:`mcl.bench.executors`)."""
+"""Thin wrapper: ``racecar-sim bench executors`` (see :mod:`mcl.bench.executors`)."""
 
 import sys
 
-from mcl.bench.executors import main
+from mcl.cli.bench import run_script
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_script("executors"))

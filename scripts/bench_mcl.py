@@ -1,8 +1,8 @@
-"""Thin wrapper: `racecar-sim bench mcl` (see :mod:`mcl.bench.mcl`)."""
+"""Thin wrapper: ``racecar-sim bench mcl`` (see :mod:`mcl.bench.mcl`)."""
 
 import sys
 
-from mcl.bench.mcl import main
+from mcl.cli.bench import run_script
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_script("mcl"))

@@ -1,8 +1,8 @@
-"""Thin wrapper: the peers benchmark (see :mod:`mcl.bench.peers`)."""
+"""Thin wrapper: ``racecar-sim bench peers`` (see :mod:`mcl.bench.peers`)."""
 
 import sys
 
-from mcl.bench.peers import main
+from mcl.cli.bench import run_script
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_script("peers"))

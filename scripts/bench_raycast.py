@@ -1,8 +1,8 @@
-"""Thin wrapper: `racecar-sim bench raycast` (see :mod:`mcl.bench.raycast`)."""
+"""Thin wrapper: ``racecar-sim bench raycast`` (see :mod:`mcl.bench.raycast`)."""
 
 import sys
 
-from mcl.bench.raycast import main
+from mcl.cli.bench import run_script
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    sys.exit(run_script("raycast"))

@@ -1,8 +1,8 @@
-"""Thin wrapper: `racecar-sim bench replay` (see :mod:`mcl.bench.replay`)."""
+"""Thin wrapper: ``racecar-sim bench replay`` (see :mod:`mcl.bench.replay`)."""
 
 import sys
 
-from mcl.bench.replay import main
+from mcl.cli.bench import run_script
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    sys.exit(run_script("replay"))

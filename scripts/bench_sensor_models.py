@@ -1,8 +1,8 @@
-"""Thin wrapper: beam model vs likelihood field in simulation (see :mod:`mcl.bench.sensor_models`)."""
+"""Thin wrapper: ``racecar-sim bench sensor_models`` (see :mod:`mcl.bench.sensor_models`)."""
 
 import sys
 
-from mcl.bench.sensor_models import main
+from mcl.cli.bench import run_script
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_script("sensor_models"))

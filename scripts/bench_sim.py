@@ -1,8 +1,8 @@
-"""Thin wrapper: `racecar-sim bench sim` (see :mod:`mcl.bench.sim`)."""
+"""Thin wrapper: ``racecar-sim bench sim`` (see :mod:`mcl.bench.sim`)."""
 
 import sys
 
-from mcl.bench.sim import main
+from mcl.cli.bench import run_script
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    sys.exit(run_script("sim"))

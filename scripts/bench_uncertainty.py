@@ -1,8 +1,8 @@
-"""Thin wrapper: `racecar-sim bench uncertainty` (see :mod:`mcl.bench.uncertainty`)."""
+"""Thin wrapper: ``racecar-sim bench uncertainty`` (see :mod:`mcl.bench.uncertainty`)."""
 
 import sys
 
-from mcl.bench.uncertainty import main
+from mcl.cli.bench import run_script
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    sys.exit(run_script("uncertainty"))

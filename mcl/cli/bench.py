@@ -97,7 +97,23 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    module = importlib.import_module(f"mcl.bench.{args[0]}")
-    with _command_parsers(module, f"racecar-sim bench {args[0]}"):
-        result = module.main(args[1:])
+    return _run(args[0], args[1:], f"racecar-sim bench {args[0]}")
+
+
+def _run(name: str, argv: Sequence[str], prog: str) -> int:
+    """Benchmark ``name`` with ``argv``, its parser named ``prog`` (help with defaults, one-line
+    errors); Ctrl-C ends it with 130 and a one-line message."""
+    module = importlib.import_module(f"mcl.bench.{name}")
+    try:
+        with _command_parsers(module, prog):
+            result = module.main(list(argv))
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
     return result if isinstance(result, int) else 0
+
+
+def run_script(name: str) -> int:
+    """``scripts/bench_<name>.py``: the benchmark with the command's one-line errors, named by the
+    script's own path."""
+    return _run(name, sys.argv[1:], sys.argv[0])

@@ -254,6 +254,19 @@ def test_bench_mistake_is_one_line(capsys) -> None:
     ]
 
 
+@pytest.mark.parametrize("name", sorted(BENCHMARKS))
+def test_bench_script_mistake_is_one_line_naming_the_script(name: str) -> None:
+    """``scripts/bench_NAME.py`` run directly: the same one-line error as the command, no traceback."""
+    script = REPO / "scripts" / f"bench_{name}.py"
+    done = subprocess.run(
+        [sys.executable, str(script), "--no-such-flag"], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 2
+    assert done.stderr.splitlines() == [
+        f"{script}: error: unrecognized arguments: --no-such-flag"
+    ], done.stderr
+
+
 def test_experiment_with_a_failing_run_keeps_the_others_and_exits_1(
     tmp_path, monkeypatch, capsys
 ) -> None:
