@@ -129,6 +129,49 @@ def filter_rng(seed: int | None) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed).spawn(_FILTER_STREAM + 1)[-1])
 
 
+def correct_with_scan(pf: ParticleFilter, scan: np.ndarray, lidar_max_range: float) -> float:
+    """Weigh ``pf`` by ``scan`` (metres) and resample when needed; the effective sample size
+    before resampling (or the current one when the filter waits for more motion).
+
+    Beams at the lidar's max range (no return) are passed on at the sensor model's max range,
+    so that they meet its max-range component whatever the map's resolution.
+    """
+    z = np.asarray(scan, dtype=np.float64)
+    z = np.where(z >= lidar_max_range, pf.sensor_model.max_range, z)
+    skipped = pf.n_skipped
+    pf.correct(z)  # inject (augmented MCL), weigh, resample (KLD count) when needed
+    if pf.n_skipped != skipped:  # the filter waits for more motion (update_min_distance)
+        return pf.effective_sample_size
+    return pf.last_effective_sample_size
+
+
+def localization_report(
+    pf: ParticleFilter,
+    estimate: np.ndarray,
+    truth: np.ndarray,
+    n_eff: float,
+    update_s: float,
+    fresh: bool,
+) -> dict[str, Any]:
+    """``info["localization"]`` of one car (keys in :class:`LocalizationWrapper`'s docstring)."""
+    unc = pf.uncertainty()
+    return {
+        "estimate": estimate,
+        "position_error": float(math.hypot(estimate[0] - truth[0], estimate[1] - truth[1])),
+        "heading_error": float(wrap_angle(estimate[2] - truth[2])),
+        "n_eff": float(n_eff),
+        "update_s": float(update_s),
+        "corrected": fresh,
+        "n_particles": pf.n_particles,
+        "covariance": unc.covariance,
+        "position_sd": unc.position_sd,
+        "heading_sd": unc.heading_sd,
+        "n_clusters": unc.n_clusters,
+        "top_weight": unc.top_weight,
+        "ambiguous": unc.ambiguous,
+    }
+
+
 class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Runs a particle filter on a ``RacecarSim-v0`` env's odometry and scans (module docstring).
 
@@ -324,41 +367,15 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     # ------------------------------------------------------------------ internals
     def _correct(self, scan: np.ndarray) -> float:
-        """Weigh by ``scan`` and resample when needed; the effective sample size before resampling.
-
-        Beams at the lidar's max range (no return) are passed on at the sensor model's max range,
-        so that they meet its max-range component whatever the map's resolution.
-        """
-        pf = self.filter
-        assert pf is not None
-        z = np.asarray(scan, dtype=np.float64)
-        z = np.where(z >= self._lidar_max_range, self.sensor_model.max_range, z)
-        skipped = pf.n_skipped
-        pf.correct(z)  # inject (augmented MCL), weigh, resample (KLD count) when needed
-        if pf.n_skipped != skipped:  # the filter waits for more motion (update_min_distance)
-            return pf.effective_sample_size
-        return pf.last_effective_sample_size
+        """Weigh by ``scan`` and resample when needed (:func:`correct_with_scan`)."""
+        assert self.filter is not None
+        return correct_with_scan(self.filter, scan, self._lidar_max_range)
 
     def _localization(
         self, estimate: np.ndarray, truth: np.ndarray, n_eff: float, update_s: float, fresh: bool
     ) -> dict[str, Any]:
         assert self.filter is not None
-        unc = self.filter.uncertainty()
-        loc = {
-            "estimate": estimate,
-            "position_error": float(math.hypot(estimate[0] - truth[0], estimate[1] - truth[1])),
-            "heading_error": float(wrap_angle(estimate[2] - truth[2])),
-            "n_eff": float(n_eff),
-            "update_s": float(update_s),
-            "corrected": fresh,
-            "n_particles": self.filter.n_particles,
-            "covariance": unc.covariance,
-            "position_sd": unc.position_sd,
-            "heading_sd": unc.heading_sd,
-            "n_clusters": unc.n_clusters,
-            "top_weight": unc.top_weight,
-            "ambiguous": unc.ambiguous,
-        }
+        loc = localization_report(self.filter, estimate, truth, n_eff, update_s, fresh)
         self.last_localization = loc
         return loc
 

@@ -1,0 +1,89 @@
+"""Tests of mcl.vector_wrapper: one filter per car of the vector env equals N single wrappers."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
+from mcl.vector_wrapper import LocalizedVectorEnv
+from mcl.wrapper import LocalizationConfig, LocalizationWrapper
+
+SETTINGS = {"map": "corridor", "dt": 0.03, "terminate_on_collision": True, "max_range": 12.0}
+CONFIG = LocalizationConfig().with_particles(300)
+KEYS = ("estimate", "position_error", "heading_error", "n_eff", "corrected", "n_particles")
+
+
+def _sync(n: int, steps: int) -> gym.vector.SyncVectorEnv:
+    def make() -> gym.Env:
+        env = gym.make("RacecarSim-v0", max_episode_steps=steps, **SETTINGS)
+        return LocalizationWrapper(env, CONFIG, clock=lambda: 0.0)
+
+    return gym.vector.SyncVectorEnv([make] * n)
+
+
+def test_each_car_localizes_as_a_single_wrapper_with_its_seed() -> None:
+    """Same seeds, same actions: estimates, errors and n_eff equal SyncVectorEnv over single
+    LocalizationWrappers, through collisions and next-step autoresets."""
+    n = 3
+    fast = LocalizedVectorEnv(
+        gym.make_vec(
+            "RacecarSim-v0", num_envs=n, vectorization_mode="vector_entry_point",
+            max_episode_steps=25, **SETTINGS,
+        ),
+        CONFIG,
+    )  # fmt: skip
+    sync = _sync(n, 25)
+    assert fast.single_observation_space == sync.single_observation_space
+    got, want = fast.reset(seed=4), sync.reset(seed=4)
+    np.testing.assert_array_equal(got[0]["pose_estimate"], want[0]["pose_estimate"])
+    rng = np.random.default_rng(1)
+    ends = 0
+    for t in range(60):
+        actions = np.column_stack([rng.uniform(-0.5, 0.5, n), rng.uniform(0.0, 5.0, n)])
+        (o1, r1, te1, tr1, i1), (o2, r2, te2, tr2, i2) = fast.step(actions), sync.step(actions)
+        np.testing.assert_array_equal(r1, r2)
+        np.testing.assert_array_equal(te1 | tr1, te2 | tr2)
+        np.testing.assert_array_equal(o1["pose_estimate"], o2["pose_estimate"], f"step {t}")
+        for key in KEYS:
+            np.testing.assert_array_equal(
+                i1["localization"][key], i2["localization"][key], f"step {t} {key}"
+            )
+        ends += int((te1 | tr1).sum())
+    assert ends >= 3, "the run covered autoresets"
+    errors = i1["localization"]["position_error"]
+    assert np.all(errors < 0.5), errors  # and the filters track
+    fast.close()
+    sync.close()
+
+
+def test_reset_mask_restarts_only_those_filters_and_global_start() -> None:
+    env = LocalizedVectorEnv(
+        gym.make_vec("RacecarSim-v0", num_envs=2, vectorization_mode="vector_entry_point", **SETTINGS),
+        CONFIG,
+        uncertainty=True,
+    )
+    env.reset(seed=0)
+    env.step(np.array([[0.0, 1.0], [0.0, 1.0]]))
+    kept = env.filters[1].particles.copy()
+    obs, info = env.reset(options={"reset_mask": np.array([True, False]), "init": "global"})
+    loc = info["localization"]
+    assert list(loc["_estimate"]) == [True, False]
+    np.testing.assert_array_equal(env.filters[1].particles, kept)
+    # Car 0 starts spread over the corridor's floor: one scan does not pin it down.
+    assert loc["position_sd"][0] > 0.5 and bool(loc["ambiguous"][0])
+    obs, info = env.reset(seed=0)
+    assert info["localization"]["position_sd"].max() < 0.5  # both around their start pose
+    assert np.all(np.isfinite(obs["pose_estimate"]))
+
+
+def test_wrong_env_and_config() -> None:
+    with pytest.raises(TypeError, match="vector env"):
+        LocalizedVectorEnv(gym.vector.SyncVectorEnv([lambda: gym.make("RacecarSim-v0", **SETTINGS)]))
+    vec = gym.make_vec("RacecarSim-v0", num_envs=1, vectorization_mode="vector_entry_point", **SETTINGS)
+    with pytest.raises(ValueError, match="init"):
+        LocalizedVectorEnv(vec, {"init": "nowhere"})
+    env = LocalizedVectorEnv(vec, CONFIG)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros((1, 2)))
