@@ -17,6 +17,7 @@ from racecar_sim.config import from_mapping
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import METHODS, LutParams, MarchParams, RayCaster, clear_cache
 from racecar_sim.raycast import caster as raycast
+from racecar_sim.raycast.lut_build import FLAG, FLAG_ABOVE, RANGE_MASK
 
 # Documented in the racecar_sim.raycast module docstring (metres, default parameters).
 ERROR_BOUNDS = {"lut": (0.02, 0.10), "march": (0.03, 0.10)}
@@ -349,8 +350,86 @@ def test_lut_entries_along_the_grid_axes_are_exact_casts_from_cell_centres():
     for k in (0, 4, 8, 12):
         theta = 2 * math.pi * k / n_angles + grid.yaw
         want = exact.cast(np.column_stack([centres, np.full(len(rows), theta)]), [0.0])[:, 0]
-        got = np.minimum(table.table[index, k] * table.unit * grid.resolution, 10.0)
+        codes = table.table[index, k] & RANGE_MASK  # the high bit is the planar flag
+        got = np.minimum(codes * table.unit * grid.resolution, 10.0)
         np.testing.assert_allclose(got, want, atol=table.unit * grid.resolution)
+
+
+def _box_room(h: int, w: int, yaw: float) -> OccupancyMap:
+    """An empty h x w-cell room with one-cell walls: every face is exactly straight."""
+    occ = np.zeros((h, w), dtype=bool)
+    occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = True
+    return OccupancyMap(occupied=occ, resolution=0.05, origin=(1.0, -2.0, yaw))
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    h=st.integers(12, 40),
+    w=st.integers(12, 40),
+    n_angles=st.sampled_from([48, 90, 360]),
+    yaw=st.floats(-math.pi, math.pi),
+)
+def test_lut_flags_pairs_on_one_straight_wall(h, w, n_angles, yaw):
+    """In a box room, two table rays of a cell that hit the same wall well away from its ends (and
+    so does the ray between them) see one straight face: if their ranges differ by more than
+    FLAG_ABOVE the pair is flagged."""
+    grid = _box_room(h, w, yaw)
+    caster = RayCaster(grid, 10.0, "lut", lut=LutParams(n_angles=n_angles), cache=False)
+    table = caster.table
+    assert table is not None
+    rv, col = np.nonzero(table.index >= 0)  # pad frame; the free box is [2, w] x [2, h] cells
+    rows = table.index[rv, col]
+    cx, cy = col + 0.5, rv + 0.5
+    theta = 2 * math.pi * np.arange(n_angles + 1) / n_angles
+    hits = []
+    for k in (np.arange(n_angles), np.arange(1, n_angles + 1) % n_angles):
+        r = (table.table[rows[:, None], k[None, :]] & RANGE_MASK) * table.unit
+        hits.append((cx[:, None] + r * np.cos(theta[k]), cy[:, None] + r * np.sin(theta[k]), r))
+    (x0, y0, r0), (x1, y1, r1) = hits
+    lo_x, hi_x, lo_y, hi_y = 2.0, w * 1.0, 2.0, h * 1.0  # the inner faces, pad frame
+    away = 1.5  # cells from the room's corners
+
+    def on_wall(x, y):
+        """Wall id (0-3) of a hit point well inside one face, -1 near a corner."""
+        wall = np.full(x.shape, -1)
+        inner_y = (y > lo_y + away) & (y < hi_y - away)
+        inner_x = (x > lo_x + away) & (x < hi_x - away)
+        wall[(np.abs(x - lo_x) < 0.5) & inner_y] = 0
+        wall[(np.abs(x - hi_x) < 0.5) & inner_y] = 1
+        wall[(np.abs(y - lo_y) < 0.5) & inner_x] = 2
+        wall[(np.abs(y - hi_y) < 0.5) & inner_x] = 3
+        return wall
+
+    # Where the middle direction's ray from the cell centre leaves the box (it may pass a
+    # corner that both table rays miss, when the cell hugs a wall and the rays graze it).
+    mid = theta[:-1] + math.pi / n_angles
+    dx, dy = np.cos(mid)[None, :], np.sin(mid)[None, :]
+    with np.errstate(divide="ignore"):
+        tx = np.where(dx > 0, (hi_x - cx[:, None]) / dx, (lo_x - cx[:, None]) / dx)
+        ty = np.where(dy > 0, (hi_y - cy[:, None]) / dy, (lo_y - cy[:, None]) / dy)
+    tm = np.minimum(np.abs(tx), np.abs(ty))
+    wm = on_wall(cx[:, None] + tm * dx, cy[:, None] + tm * dy)
+    w0, w1 = on_wall(x0, y0), on_wall(x1, y1)
+    same = (w0 >= 0) & (w0 == w1) & (wm == w0) & (np.abs(r0 - r1) > FLAG_ABOVE + 0.01)
+    flagged = (table.table[rows] & FLAG) > 0
+    assert same.sum() > 0
+    assert flagged[same].all()
+
+
+def test_lut_with_flags_only_is_exact_in_a_box_room():
+    """Tolerance 0: a ray is interpolated only where the table flags one straight face, and the
+    interpolation (the true ray against the line through the two table hits) is exact there;
+    everything else is cast. So in a room of straight walls the lut equals exact casting to the
+    table's range quantum, but for rays from a pose off its cell centre that pass a corner the
+    centre's rays do not (rare, under two cells)."""
+    grid = _box_room(37, 53, 0.4)
+    poses = free_poses(grid, 300, seed=4)
+    lut = RayCaster(grid, 10.0, "lut", lut=LutParams(n_angles=90, tolerance=0.0), cache=False)
+    table = lut.table
+    assert table is not None and table.n_flagged > 0
+    err = np.abs(lut.cast(poses, FULL_TURN) - RayCaster(grid, 10.0).cast(poses, FULL_TURN))
+    assert np.mean(err <= 1e-3) >= 0.99
+    assert err.max() <= 2 * grid.resolution
 
 
 def test_methods_list():
