@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mcl.angles import wrap_angle
+from mcl.step_kernels import compose_into
 
 __all__ = [
     "SCHEMES",
@@ -105,15 +105,16 @@ class MotionModelParams:
 def compose(particles: np.ndarray, odometry: np.ndarray) -> np.ndarray:
     """Poses (N, 3) world frame moved by car-frame displacements (3,) or (N, 3); new array.
 
-    Theta of the result is wrapped to [-pi, pi).
+    Theta of the result is wrapped to [-pi, pi). One numba pass (:func:`mcl.step_kernels.compose_into`).
     """
-    th = particles[:, 2]
-    c, s = np.cos(th), np.sin(th)
-    odo = np.broadcast_to(odometry, particles.shape)
-    out = np.empty_like(particles, dtype=np.float64)
-    out[:, 0] = particles[:, 0] + c * odo[:, 0] - s * odo[:, 1]
-    out[:, 1] = particles[:, 1] + s * odo[:, 0] + c * odo[:, 1]
-    out[:, 2] = wrap_angle(th + odo[:, 2])
+    particles = np.asarray(particles, dtype=np.float64)
+    odo = np.asarray(odometry, dtype=np.float64)
+    if odo.ndim == 1 or odo.shape[0] == 1:
+        odo = np.ascontiguousarray(odo.reshape(1, 3))
+    else:
+        odo = np.ascontiguousarray(np.broadcast_to(odo, particles.shape))
+    out = np.empty(particles.shape, dtype=np.float64)
+    compose_into(particles, odo, out)
     return out
 
 

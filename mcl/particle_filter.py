@@ -48,13 +48,14 @@ from dataclasses import replace
 
 import numpy as np
 
-from mcl.angles import circular_mean, wrap_angle
+from mcl.angles import wrap_angle
 from mcl.augmented import LikelihoodAverages
 from mcl.filter_params import ParticleFilterParams, spread_sd
 from mcl.kld import bin_keys, kld_stop
 from mcl.motion_model import MotionModel, twist_to_odometry
 from mcl.resampling import multinomial, resample
 from mcl.sensor_model import SensorModel
+from mcl.step_kernels import pose_moments
 from mcl.uncertainty import Uncertainty, assess
 from racecar_sim.maps import OccupancyMap
 
@@ -179,6 +180,14 @@ class ParticleFilter:
                 lw = np.log(w / w.sum())
         self._particles = p
         self._set_log_weights(lw)
+
+    def _adopt(self, particles: np.ndarray) -> None:
+        """Take drawn particles (already valid and wrapped) with uniform weights: what
+        :meth:`set_particles` gives for them, without its checks and copies."""
+        n = particles.shape[0]
+        self._particles = particles
+        self._weights = np.full(n, 1.0 / n)
+        self._log_weights = np.full(n, -math.log(n))
 
     def _set_log_weights(self, log_weights: np.ndarray) -> None:
         """Store log-weights normalised so that the weights sum to 1 (max must be finite)."""
@@ -324,7 +333,7 @@ class ParticleFilter:
             n_random = int(self.rng.binomial(n, p_random)) if p_random > 0.0 else 0
         n_random = min(n_random, n - 1)  # keep at least one particle of the belief
         idx = resample(self.params.resampling, weights, self.rng, n - n_random)
-        self.set_particles(particles[idx])
+        self._adopt(particles[idx])
         self.pending_random = n_random
         self.n_resamples += 1
         return idx
@@ -421,8 +430,7 @@ class ParticleFilter:
     def estimate(self) -> np.ndarray:
         """(3,) weighted mean pose [x, y, theta]: arithmetic mean of x, y, circular mean of theta."""
         p, w = self._require()
-        x, y = w @ p[:, :2]
-        return np.array([x, y, circular_mean(p[:, 2], w)])
+        return pose_moments(p, w, False)[0]
 
     def covariance(self) -> np.ndarray:
         """(3, 3) weighted covariance of the particles about :meth:`estimate` (metres, radians).
@@ -431,10 +439,7 @@ class ParticleFilter:
         +-pi has a small theta variance. Normalised by sum(w) = 1 (the maximum-likelihood form).
         """
         p, w = self._require()
-        mean = self.estimate()
-        dev = p - mean
-        dev[:, 2] = wrap_angle(dev[:, 2])
-        return (dev * w[:, None]).T @ dev
+        return pose_moments(p, w, True)[1]
 
     def uncertainty(self) -> Uncertainty:
         """Covariance, clusters and ambiguity flag of the cloud (:func:`mcl.uncertainty.assess`)."""

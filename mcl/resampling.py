@@ -21,6 +21,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from mcl.step_kernels import systematic_pick
+
 __all__ = [
     "RESAMPLERS",
     "effective_sample_size",
@@ -85,8 +87,7 @@ def multinomial(weights: np.ndarray, rng: np.random.Generator, n: int | None = N
 def systematic(weights: np.ndarray, rng: np.random.Generator, n: int | None = None) -> np.ndarray:
     """(n,) int64 indexes, sorted, by systematic (low-variance) resampling: one random offset."""
     n = _count(weights, n)
-    pointers = (rng.random() + np.arange(n)) / n
-    return _pick(_cumulative(weights), pointers)
+    return systematic_pick(_cumulative(weights), rng.random(), n)
 
 
 def stratified(weights: np.ndarray, rng: np.random.Generator, n: int | None = None) -> np.ndarray:

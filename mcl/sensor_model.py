@@ -39,6 +39,7 @@ from racecar_sim.raycast import RayCaster
 
 __all__ = ["MODELS", "SensorModel", "SensorModelParams", "beam_table"]
 
+
 def beam_table(params: SensorModelParams) -> np.ndarray:
     """The (W, W) float64 table ``[z_measured_px, d_expected_px]``; every column sums to 1.
 
@@ -269,9 +270,17 @@ class SensorModel:
         if z_px.size == 0:
             return np.zeros(np.asarray(particles).shape[0])
         if self.caster.method == "lut":
-            # Cast and score in one pass (same numbers as score(expected_ranges(...))).
+            # Cast and score in one pass from the lidars (same numbers as
+            # score(expected_ranges(...)) but for rounding of the lidar positions).
+            particles = np.asarray(particles, dtype=np.float64)
+            if particles.ndim != 2 or particles.shape[1] != 3:
+                raise ValueError(f"particles must have shape (N, 3), got {particles.shape}")
             return self.caster.cast_score(
-                self.lidar_poses(particles), angles, self._log_table[z_px], 1.0 / self.m_per_px
+                particles,
+                angles,
+                self._log_table[z_px],
+                1.0 / self.m_per_px,
+                offset=float(self.params.mount_offset),
             )
         return self.score(self.expected_ranges(particles, angles), z_px)
 

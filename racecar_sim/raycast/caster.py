@@ -75,6 +75,7 @@ from racecar_sim.raycast.kernels import (
     PARALLEL_MIN_RAYS,
     exact_rays,
     field_from_occupancy,
+    grid_frame,
     march_rays,
     padded_occupancy,
 )
@@ -274,6 +275,19 @@ class RayCaster:
             np.sin(heading),
         )
 
+    def _particle_frame(self, poses: np.ndarray, offset: float) -> tuple[np.ndarray, ...]:
+        """:meth:`_grid_frame` of the points ``offset`` metres ahead of the poses, in one numba
+        pass (:func:`kernels.grid_frame`; equal to it up to rounding, which :meth:`cast` keeps
+        bit-exact for the simulated lidar)."""
+        n = poses.shape[0]
+        gu, gv, heading, cos_h, sin_h = (np.empty(n) for _ in range(5))
+        ox, oy = self.map.origin[0], self.map.origin[1]
+        grid_frame(
+            poses, float(ox), float(oy), float(self.map.yaw), float(self.map.resolution),
+            float(offset), gu, gv, heading, cos_h, sin_h,
+        )  # fmt: skip
+        return gu, gv, heading, cos_h, sin_h
+
     def _beam_directions(self, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """cos and sin of the beam angles, remembered for the last angles seen.
 
@@ -339,13 +353,21 @@ class RayCaster:
             )  # fmt: skip
         return out
 
-    def cast_score(self, poses: np.ndarray, angles: np.ndarray, rows: np.ndarray, per_metre: float):
+    def cast_score(
+        self,
+        poses: np.ndarray,
+        angles: np.ndarray,
+        rows: np.ndarray,
+        per_metre: float,
+        offset: float = 0.0,
+    ) -> np.ndarray:
         """(N,) ``sum_b rows[b, round(clip(range_ib * per_metre, 0, W - 1))]`` over the beams.
 
         The same ranges as :meth:`cast` (metres, float64) looked up in a per-beam score table
         ``rows`` (M, W) float64, e.g. a sensor model's log-likelihood row for each beam's measured
         range. The ``"lut"`` method casts and scores in one pass without storing the (N, M) ranges;
-        the others cast, then score.
+        the others cast, then score. ``offset``: metres; the rays start that far ahead of each
+        pose along its heading (a lidar's mount) instead of at the pose.
 
         Raises:
             ValueError: as :meth:`cast`; rows not (M, W) for the M angles.
@@ -358,6 +380,11 @@ class RayCaster:
         if rows.ndim != 2 or rows.shape[0] != angles.shape[0] or rows.shape[1] < 1:
             raise ValueError(f"rows must have shape ({angles.shape[0]}, W), got {rows.shape}")
         if self.method != "lut" or self.dtype != np.float64:
+            if offset != 0.0:
+                th = poses[:, 2]
+                poses = np.column_stack(
+                    [poses[:, 0] + offset * np.cos(th), poses[:, 1] + offset * np.sin(th), th]
+                )
             ranges = self.cast(poses, angles).astype(np.float64, copy=False)
             top = rows.shape[1] - 1
             d = np.floor(np.clip(ranges * per_metre, 0.0, top) + 0.5).astype(np.int64)
@@ -372,7 +399,7 @@ class RayCaster:
         if angles.size == 0:
             out[:] = 0.0
             return out
-        gu, gv, heading, cos_h, sin_h = self._grid_frame(poses)
+        gu, gv, heading, cos_h, sin_h = self._particle_frame(poses, offset)
         cos_a, sin_a = self._beam_directions(angles)
         res = self.map.resolution
         rays = poses.shape[0] * angles.shape[0]

@@ -29,6 +29,7 @@ __all__ = [
     "cast_ray_from",
     "exact_rays",
     "field_from_occupancy",
+    "grid_frame",
     "march_ray",
     "march_rays",
     "padded_occupancy",
@@ -197,6 +198,34 @@ def march_ray(field, gu, gv, dx, dy, max_t, min_step, n_refine):
         else:
             t_lo = mid
     return 0.5 * (t_lo + t_hi)
+
+
+@nb.njit(cache=True)
+def grid_frame(poses, ox, oy, yaw, res, offset, gu, gv, heading, cos_h, sin_h):
+    """World poses (N, 3) -> pad-frame position (cells) and map-frame heading (radians).
+
+    The point ``offset`` metres ahead of each pose along its heading (a lidar's mount; 0 for
+    the pose itself) is moved into the map frame of an origin ``(ox, oy, yaw)`` (the inverse of
+    the map's origin transform), divided by the resolution ``res`` and shifted by the pad ring.
+    Fills ``gu``, ``gv``, ``heading = theta - yaw`` and its cos/sin in one pass.
+    """
+    cy = math.cos(yaw)
+    sy = math.sin(yaw)
+    for i in range(poses.shape[0]):
+        th = poses[i, 2]
+        x = poses[i, 0]
+        y = poses[i, 1]
+        if offset != 0.0:
+            x += offset * math.cos(th)
+            y += offset * math.sin(th)
+        dx = x - ox
+        dy = y - oy
+        gu[i] = (cy * dx + sy * dy) / res + 1.0
+        gv[i] = (-sy * dx + cy * dy) / res + 1.0
+        h = th - yaw
+        heading[i] = h
+        cos_h[i] = math.cos(h)
+        sin_h[i] = math.sin(h)
 
 
 @nb.njit(cache=True, inline="always")
