@@ -1,7 +1,8 @@
 """Simulated sensors: a planar lidar and wheel odometry. Truth in, noisy measurement out.
 
-Both sensors draw every random number from a :class:`numpy.random.Generator` passed to the call, so
-the same seed gives the same measurements.
+Both sensors draw their random numbers from a :class:`numpy.random.Generator` passed to the call
+(the lidar one 64-bit seed per scan, for a fast stream inside its kernel: :mod:`racecar_sim.rand`),
+so the same seed gives the same measurements.
 
 Lidar beam noise (the four-part beam model of :class:`~racecar_sim.config.LidarParams`). One uniform
 draw per beam chooses its part:
@@ -22,13 +23,13 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 
 from racecar_sim.config import LidarParams, OdometryNoise
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.rand import seed_from
 from racecar_sim.raycast import RayCaster
-from racecar_sim.raycast.scan import scan_geometry, scan_with_noise
+from racecar_sim.raycast.scan import add_beam_noise, scan_geometry, scan_with_noise
 
 __all__ = ["Lidar", "Odometry", "check_pose"]
 
@@ -109,13 +110,10 @@ class Lidar:
         arr = np.asarray(pose, dtype=np.float64)
         if arr.shape != (3,):
             check_pose(pose)
-        n = self._n
-        u = rng.random(n)
-        z = rng.standard_normal(n)
-        out = np.empty(n, dtype=np.float32)
+        out = np.empty(self._n, dtype=np.float32)
         status = scan_with_noise(
-            self._caster.field, arr, self._geometry, self._cos_a, self._sin_a, u, z, self._noise,
-            self._ranges, out,
+            self._caster.field, arr, self._geometry, self._cos_a, self._sin_a, seed_from(rng),
+            self._noise, self._ranges, out,
         )  # fmt: skip
         if status == 1:
             check_pose(pose)  # raises, naming the pose
@@ -131,57 +129,22 @@ class Lidar:
     def add_noise(self, ranges: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The beam noise alone: true ``ranges`` (metres, any shape) -> float32 noisy ranges.
 
-        See the module docstring for the model. Draws one uniform and one standard normal per
-        beam (in that order). The uniform both picks the beam's part and, rescaled to [0, 1)
-        within that part's interval, gives the random return's or the short return's distance,
-        so no further draws are needed.
+        See the module docstring for the model. Draws one 64-bit seed from ``rng`` and then, per
+        beam in order, one uniform and (for a Gaussian beam) one standard normal from that seed's
+        :mod:`racecar_sim.rand` stream. The uniform both picks the beam's part and, rescaled to
+        [0, 1) within that part's interval, gives the random return's or the short return's
+        distance, so no further draws are needed.
 
         Raises:
             ValueError: a range is NaN, negative or beyond ``max_range``.
         """
-        p = self.params
         r = np.ascontiguousarray(ranges, dtype=np.float64)
-        flat = r.reshape(-1)
-        u = rng.random(flat.size)
-        z = rng.standard_normal(flat.size)
-        out = np.empty(flat.size, dtype=np.float32)
-        ok = _compose_noise(
-            flat, u, z, p.sigma, p.max_range, p.p_rand, p.p_max, p.p_short, p.short_lambda, out
-        )
-        if not ok:
+        out = np.empty(r.size, dtype=np.float32)
+        if add_beam_noise(r.reshape(-1), seed_from(rng), self._noise, out) != 0:
             raise ValueError(
-                f"ranges must be finite and within [0, max_range={p.max_range}] metres"
+                f"ranges must be finite and within [0, max_range={self.params.max_range}] metres"
             )
         return out.reshape(r.shape)
-
-
-@nb.njit(cache=True)
-def _compose_noise(r, u, z, sigma, max_range, p_rand, p_max, p_short, rate, out) -> bool:
-    """Fill ``out`` (float32) with noisy ranges; False (out unfinished) on an invalid range.
-
-    r: true ranges (metres); u: one uniform per beam choosing the part; z: one standard normal per
-    beam. The parts take the uniform's intervals [0, p_rand), [p_rand, p_rand + p_max),
-    [.., .. + p_short) in this order, the rest is Gaussian.
-    """
-    t_max = p_rand + p_max
-    t_short = t_max + p_short
-    for i in range(r.size):
-        ri = r[i]
-        if not (ri >= 0.0 and ri <= max_range):  # also catches NaN
-            return False
-        ui = u[i]
-        if ui < p_rand:
-            v = ui / p_rand * max_range  # uniform in [0, max_range)
-        elif ui < t_max or ri >= max_range:
-            v = max_range  # a drop-out, or no surface in range to return from
-        elif ui < t_short:
-            w = (ui - t_max) / p_short  # uniform in [0, 1)
-            # Inverse CDF of the exponential truncated to [0, ri].
-            v = min(-math.log1p(-w * -math.expm1(-rate * ri)) / rate, ri)
-        else:
-            v = ri + sigma * z[i]
-        out[i] = min(max(v, 0.0), max_range)
-    return True
 
 
 class Odometry:

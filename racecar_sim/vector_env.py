@@ -34,6 +34,7 @@ from gymnasium.vector.utils import batch_space
 from racecar_sim.config import EnvConfig, merge_settings
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import OccupancyMap, resolve_map
+from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil
 
@@ -289,29 +290,24 @@ class RacecarVectorEnv(VectorEnv):
         """Cast the scans of cars ``due`` (their poses in ``poses``) into their rows of ``scans``
         and store them in the cars.
 
-        Each car draws its scan's uniforms and normals from its own generator, in the order its
+        Each car draws its scan's seed from its own generator, as its
         :meth:`~racecar_sim.sensors.Lidar.measure` would. In parallel, the cars are split into one
-        contiguous share per worker thread; a share's draws (numpy releases the GIL while it fills
-        an array) and its cast (a numba kernel without the GIL) run alongside the other shares.
+        contiguous share per worker thread; a share's cast and noise (a numba kernel without the
+        GIL) run alongside the other shares.
         """
         if not due:
             return
         k, m = len(due), self._n_beams
-        u = np.empty((k, m))
-        z = np.empty((k, m))
+        seeds = np.array([seed_from(self.envs[i].np_random) for i in due], dtype=np.int64)
         sub = poses[due]
         out = np.empty((k, m), dtype=np.float32)
         ranges = np.empty((k, m))
         status = np.zeros(k, dtype=np.int64)
-        rngs = [self.envs[i].np_random for i in due]
 
         def share(lo: int, hi: int) -> None:
-            for j in range(lo, hi):
-                rngs[j].random(out=u[j])
-                rngs[j].standard_normal(out=z[j])
             scans_serial_nogil(
-                self._field, sub[lo:hi], self._geometry, self._cos_a, self._sin_a, u[lo:hi],
-                z[lo:hi], self._noise, ranges[lo:hi], out[lo:hi], status[lo:hi],
+                self._field, sub[lo:hi], self._geometry, self._cos_a, self._sin_a, seeds[lo:hi],
+                self._noise, ranges[lo:hi], out[lo:hi], status[lo:hi],
             )  # fmt: skip
 
         parallel = self._choose_parallel() if self.parallel is None else self.parallel

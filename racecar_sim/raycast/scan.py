@@ -4,8 +4,9 @@ The simulated lidar casts a single scan (1080 beams) per step. Through :meth:`Ra
 is a dozen numpy operations on one pose, a kernel call and a second kernel call for the noise; here
 it is one call whose arithmetic is the same, operation for operation, as
 :func:`~racecar_sim.raycast.kernels.cast_ray` after :meth:`RayCaster.cast`'s frame change, and as
-the noise of :meth:`racecar_sim.sensors.Lidar.add_noise`: the ranges are the same doubles and the
-noisy scan the same floats (tested).
+the noise of :meth:`racecar_sim.sensors.Lidar.add_noise` (:func:`add_beam_noise`, which draws its
+uniforms and normals itself from a :mod:`racecar_sim.rand` stream seeded once per scan): the ranges
+are the same doubles and the noisy scan the same floats (tested).
 
 The per-ray traversal is :func:`~racecar_sim.raycast.kernels.cast_ray` written for one origin:
 beams in order, the flat cell index stepped along in the exact traversal instead of recomputed,
@@ -19,11 +20,13 @@ import math
 import numba as nb
 import numpy as np
 
+from racecar_sim.rand import normal, uniform
 from racecar_sim.raycast.kernels import OCCUPIED
 
 __all__ = [
     "GEOMETRY_FIELDS",
     "NOISE_FIELDS",
+    "add_beam_noise",
     "scan_geometry",
     "scan_with_noise",
     "scans_serial_nogil",
@@ -147,8 +150,53 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
         ranges[b] = max_out if r >= max_t else r * scale
 
 
+@nb.njit(cache=True)
+def add_beam_noise(ranges, seed, noise, out) -> int:
+    """The four-part beam noise (:mod:`racecar_sim.sensors`) of true ``ranges`` into ``out``.
+
+    Args:
+        ranges: float64 (M,) true ranges, metres.
+        seed: int64 seed of this scan's random stream (:func:`racecar_sim.rand.seed_from`).
+        noise: float64 array laid out as :data:`NOISE_FIELDS`.
+        out: float32 (M,) output, metres.
+
+    Per beam in order: one uniform picks the part (and, rescaled within its interval, gives a
+    random or short return's distance); a beam with Gaussian noise then draws one normal.
+
+    Returns:
+        0, or 2 when a range is NaN or outside [0, max_range] (``out`` then unfinished).
+    """
+    sigma = noise[0]
+    max_range = noise[1]
+    p_rand = noise[2]
+    p_max = noise[3]
+    p_short = noise[4]
+    rate = noise[5]
+    t_max = p_rand + p_max
+    t_short = t_max + p_short
+    state = np.uint64(seed)
+    for i in range(ranges.shape[0]):
+        ri = ranges[i]
+        if not (ri >= 0.0 and ri <= max_range):  # also catches NaN
+            return 2
+        state, ui = uniform(state)
+        if ui < p_rand:
+            v = ui / p_rand * max_range  # uniform in [0, max_range)
+        elif ui < t_max or ri >= max_range:
+            v = max_range  # a drop-out, or no surface in range to return from
+        elif ui < t_short:
+            w = (ui - t_max) / p_short  # uniform in [0, 1)
+            # Inverse CDF of the exponential truncated to [0, ri].
+            v = min(-math.log1p(-w * -math.expm1(-rate * ri)) / rate, ri)
+        else:
+            state, zi = normal(state)
+            v = ri + sigma * zi
+        out[i] = min(max(v, 0.0), max_range)
+    return 0
+
+
 @nb.njit(cache=True, inline="always")
-def _scan_one(field, x, y, th, geometry, cos_a, sin_a, u, z, noise, ranges, out):
+def _scan_one(field, x, y, th, geometry, cos_a, sin_a, seed, noise, ranges, out):
     """Mount pose, exact cast and noise of one scan (see :func:`scan_with_noise`); a status."""
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(th)):
         return 1
@@ -168,35 +216,11 @@ def _scan_one(field, x, y, th, geometry, cos_a, sin_a, u, z, noise, ranges, out)
         field, gu, gv, math.cos(heading), math.sin(heading), cos_a, sin_a, geometry[7], res,
         geometry[8], ranges,
     )  # fmt: skip
-    # Beam noise, as racecar_sim.sensors._compose_noise.
-    sigma = noise[0]
-    max_range = noise[1]
-    p_rand = noise[2]
-    p_max = noise[3]
-    p_short = noise[4]
-    rate = noise[5]
-    t_max = p_rand + p_max
-    t_short = t_max + p_short
-    for i in range(ranges.shape[0]):
-        ri = ranges[i]
-        if not (ri >= 0.0 and ri <= max_range):
-            return 2
-        ui = u[i]
-        if ui < p_rand:
-            v = ui / p_rand * max_range
-        elif ui < t_max or ri >= max_range:
-            v = max_range
-        elif ui < t_short:
-            w = (ui - t_max) / p_short
-            v = min(-math.log1p(-w * -math.expm1(-rate * ri)) / rate, ri)
-        else:
-            v = ri + sigma * z[i]
-        out[i] = min(max(v, 0.0), max_range)
-    return 0
+    return add_beam_noise(ranges, seed, noise, out)
 
 
 @nb.njit(cache=True)
-def scan_with_noise(field, pose, geometry, cos_a, sin_a, u, z, noise, ranges, out) -> int:
+def scan_with_noise(field, pose, geometry, cos_a, sin_a, seed, noise, ranges, out) -> int:
     """Cast a scan from the car at rear-axle world ``pose`` and add the beam noise.
 
     Args:
@@ -204,7 +228,7 @@ def scan_with_noise(field, pose, geometry, cos_a, sin_a, u, z, noise, ranges, ou
         pose: float64 (3,) world [x, y, theta] of the rear axle (metres, radians).
         geometry: float64 array laid out as :data:`GEOMETRY_FIELDS`.
         cos_a, sin_a: (M,) cos and sin of the beam angles (car frame).
-        u, z: (M,) one uniform in [0, 1) and one standard normal per beam.
+        seed: int64 seed of the scan's random stream (see :func:`add_beam_noise`).
         noise: float64 array laid out as :data:`NOISE_FIELDS`.
         ranges: float64 (M,) output, exact ranges in metres.
         out: float32 (M,) output, the noisy scan in metres (see :mod:`racecar_sim.sensors`).
@@ -214,32 +238,32 @@ def scan_with_noise(field, pose, geometry, cos_a, sin_a, u, z, noise, ranges, ou
         falls outside [0, max_range] (cannot happen for a finite pose).
     """
     return _scan_one(
-        field, pose[0], pose[1], pose[2], geometry, cos_a, sin_a, u, z, noise, ranges, out
+        field, pose[0], pose[1], pose[2], geometry, cos_a, sin_a, seed, noise, ranges, out
     )
 
 
 @nb.njit(cache=True, parallel=True)
-def _scans_parallel(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status):
+def _scans_parallel(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status):
     for k in nb.prange(poses.shape[0]):
         status[k] = _scan_one(
-            field, poses[k, 0], poses[k, 1], poses[k, 2], geometry, cos_a, sin_a, u[k], z[k],
+            field, poses[k, 0], poses[k, 1], poses[k, 2], geometry, cos_a, sin_a, seeds[k],
             noise, ranges[k], out[k],
         )  # fmt: skip
 
 
 @nb.njit(cache=True, nogil=True)
-def _scans_serial(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status):
+def _scans_serial(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status):
     for k in range(poses.shape[0]):
         status[k] = _scan_one(
-            field, poses[k, 0], poses[k, 1], poses[k, 2], geometry, cos_a, sin_a, u[k], z[k],
+            field, poses[k, 0], poses[k, 1], poses[k, 2], geometry, cos_a, sin_a, seeds[k],
             noise, ranges[k], out[k],
         )  # fmt: skip
 
 
 def scans_with_noise(
-    field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, parallel: bool
+    field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, parallel: bool
 ) -> np.ndarray:
-    """:func:`scan_with_noise` for K cars at once: poses (K, 3), u, z, ranges, out (K, M).
+    """:func:`scan_with_noise` for K cars at once: poses (K, 3), seeds (K,), ranges, out (K, M).
 
     ``parallel`` spreads the cars over numba's threads. Returns the (K,) statuses. The serial
     kernel releases the GIL (:func:`scans_serial_nogil`), so Python threads can also share the
@@ -247,12 +271,12 @@ def scans_with_noise(
     """
     status = np.zeros(poses.shape[0], dtype=np.int64)
     if parallel:
-        _scans_parallel(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status)
+        _scans_parallel(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status)
     else:
-        _scans_serial(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status)
+        _scans_serial(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status)
     return status
 
 
-def scans_serial_nogil(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status):
+def scans_serial_nogil(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status):
     """:func:`scans_with_noise` on the calling thread, without holding the GIL."""
-    _scans_serial(field, poses, geometry, cos_a, sin_a, u, z, noise, ranges, out, status)
+    _scans_serial(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status)
