@@ -8,7 +8,9 @@ Walls
     segment lying exactly on that cell edge; collinear neighbouring edges are merged into one
     segment. The map border counts as a wall (cells beyond the image are occupied), so the walls
     are exactly where the grid says, with no thickness added. Static shapes are kept in pymunk's
-    spatial hash, so a step only looks at the segments near the car.
+    spatial hash, so a step only looks at the segments near the car; and the space only holds the
+    walls within a few metres of where pymunk is used (:mod:`racecar_sim.walls`: computed once per
+    map, made into pymunk shapes per car when first needed), so a car is built in milliseconds.
 
 Car
     A dynamic body whose origin (and centre of gravity) is the rear axle, with a box footprint of
@@ -47,17 +49,21 @@ import pymunk
 from racecar_sim.config import CarParams
 from racecar_sim.free_steps import free_constants, free_step
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.walls import (
+    WALL_COLLISION_TYPE,
+    WALL_FRICTION,
+    WallLoader,
+    tiles_for,
+    wall_segments,
+)
 
 __all__ = ["CAR_COLLISION_TYPE", "WALL_COLLISION_TYPE", "RacecarPhysics", "wall_segments"]
 
 CAR_COLLISION_TYPE = 1
 """pymunk collision type of the car's shape."""
-WALL_COLLISION_TYPE = 2
-"""pymunk collision type of the wall segments."""
 
 _TWO_PI = 2.0 * math.pi
 _COLLISION_SLOP = 1e-3  # metres of overlap pymunk tolerates before pushing shapes apart
-_WALL_FRICTION = 0.2  # the car scrapes along a wall rather than sticking to it
 _HASH_COUNT = 1000  # spatial hash buckets; pymunk clears them all every step, so keep it small
 _CAR_CATEGORY = 0b10  # pymunk shape-filter category bit of the car
 _FREE_MARGIN = 0.05  # metres kept between the footprint's reach and the walls on a free step
@@ -79,46 +85,6 @@ def _se2_log_twist(dx: float, dy: float, theta0: float, dtheta: float, dt: float
         a, b = math.sin(dtheta) / dtheta, (1.0 - math.cos(dtheta)) / dtheta
     k = 1.0 / ((a * a + b * b) * dt)
     return ((a * lx + b * ly) * k, (a * ly - b * lx) * k, dtheta / dt)
-
-
-def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Runs of True along each row of a bool (R, C) array: (row, first col, end col exclusive)."""
-    padded = np.zeros((mask.shape[0], mask.shape[1] + 2), dtype=np.int8)
-    padded[:, 1:-1] = mask
-    step = np.diff(padded, axis=1)
-    rows, starts = np.nonzero(step == 1)
-    _, ends = np.nonzero(step == -1)  # row-major order pairs each start with its end
-    return rows, starts, ends
-
-
-def wall_segments(occupancy_map: OccupancyMap) -> np.ndarray:
-    """The free/occupied cell edges of a map as world-frame segments.
-
-    Cells beyond the image count as occupied, so the border of the free space at the image edge is
-    included. Collinear touching edges are merged.
-
-    Returns:
-        float64 (K, 2, 2): segment k runs from ``[k, 0]`` to ``[k, 1]``, world metres.
-    """
-    occ = np.pad(occupancy_map.occupied, 1, constant_values=True)
-    height = occupancy_map.height
-    res = occupancy_map.resolution
-    # Horizontal edges: index i lies between padded rows i and i+1, the top edge of grid row i, at
-    # v = (H - i) * res; padded column j is grid column j - 1.
-    rows, c0, c1 = _runs(occ[1:] != occ[:-1])
-    v = (height - rows).astype(np.float64) * res
-    u0 = (c0 - 1).astype(np.float64) * res
-    u1 = (c1 - 1).astype(np.float64) * res
-    h_uv = np.stack([np.stack([u0, v], axis=-1), np.stack([u1, v], axis=-1)], axis=1)
-    # Vertical edges: index j lies between padded columns j and j+1, the left edge of grid column
-    # j, at u = j * res; padded rows [r0, r1) are grid rows r0-1 .. r1-2.
-    cols, r0, r1 = _runs((occ[:, 1:] != occ[:, :-1]).T)
-    u = cols.astype(np.float64) * res
-    v_top = (height - r0 + 1).astype(np.float64) * res
-    v_bottom = (height - r1 + 1).astype(np.float64) * res
-    v_uv = np.stack([np.stack([u, v_top], axis=-1), np.stack([u, v_bottom], axis=-1)], axis=1)
-    uv = np.concatenate([h_uv, v_uv], axis=0)
-    return occupancy_map.map_to_world(uv)
 
 
 class RacecarPhysics:
@@ -148,16 +114,9 @@ class RacecarPhysics:
         self.space = pymunk.Space()
         self.space.collision_slop = _COLLISION_SLOP
         self.space.use_spatial_hash(self._hash_dim(), _HASH_COUNT)
-        segments = wall_segments(occupancy_map)
-        self.n_segments = len(segments)
-        walls = []
-        for a, b in segments.tolist():
-            wall = pymunk.Segment(self.space.static_body, a, b, 0.0)
-            wall.collision_type = WALL_COLLISION_TYPE
-            wall.friction = _WALL_FRICTION
-            wall.elasticity = 0.0
-            walls.append(wall)
-        self.space.add(*walls)
+        # The map's walls, only those near the car in its space (racecar_sim.walls).
+        self._walls = WallLoader(self.space, tiles_for(occupancy_map))
+        self.n_segments = len(self._walls.tiles)
 
         c = self.car
         self._local_corners = np.array(
@@ -169,13 +128,15 @@ class RacecarPhysics:
             ]
         )
         corners = [tuple(p) for p in self._local_corners.tolist()]
+        # metres from the rear axle to the farthest footprint corner, plus a margin
+        self._extent = float(np.hypot(*self._local_corners.T).max()) + 0.5
         centroid = self._local_corners.mean(axis=0)
         moment = pymunk.moment_for_poly(c.mass, corners) + c.mass * float(centroid @ centroid)
         self.body = pymunk.Body(c.mass, moment, body_type=pymunk.Body.DYNAMIC)
         self.body.velocity_func = self._set_velocity
         self.shape = pymunk.Poly(self.body, corners)
         self.shape.collision_type = CAR_COLLISION_TYPE
-        self.shape.friction = _WALL_FRICTION
+        self.shape.friction = WALL_FRICTION
         self.shape.elasticity = 0.0
         self.space.add(self.body, self.shape)
         self.space.on_collision(CAR_COLLISION_TYPE, WALL_COLLISION_TYPE, pre_solve=self._on_contact)
@@ -206,6 +167,7 @@ class RacecarPhysics:
         self._body_stale = False
         self._quiet_needed = int(self.space.collision_persistence) + 1
         self._quiet = self._quiet_needed
+        self._placed = True  # no pymunk step since the last placement
         self._free_const = free_constants(c, occupancy_map, _FREE_MARGIN)
         self._distance = occupancy_map.distance
         self._place(self._first_free_pose(), 0.0, 0.0)
@@ -292,10 +254,15 @@ class RacecarPhysics:
         centre = self.footprint((x, y, theta)).mean(axis=0)
         if not bool(self.map.is_free(centre)):
             return False
+        # The walls there, added for the query only (the car's own walls stay as they are).
+        extra = self._walls.add_missing(x, y, self._extent)
         self._query_body.position = (x, y)
         self._query_body.angle = theta
         self._query_shape.cache_bb()
-        return not self.space.shape_query(self._query_shape)
+        try:
+            return not self.space.shape_query(self._query_shape)
+        finally:
+            self._walls.remove(extra)
 
     @staticmethod
     def _check_pose(pose, name: str) -> tuple[float, float, float]:
@@ -316,6 +283,7 @@ class RacecarPhysics:
         # pymunk keeps the body's bias velocity (its push out of a wall) until the next position
         # update, so the first step after a placement goes through pymunk.
         self._quiet = self._quiet_needed - 1
+        self._placed = True
         # Re-adding the car drops pymunk's cached contacts, so a reset starts from a clean state
         # (the same reset gives the same motion whatever happened before).
         self.space.remove(body, self.shape)
@@ -404,6 +372,13 @@ class RacecarPhysics:
         self._free_valid = False
         body = self.body
         x0, y0 = body.position
+        # Walls within reach of the car during this step (its farthest corner, plus its speed).
+        reach = self._extent + dt * max(abs(self._speed), abs(target_speed))
+        # Contact impulses live in pymunk's arbiters: keep the walls in while a contact may be
+        # cached (not after a placement, which dropped them), so that a new block drops none.
+        keep = self._quiet < self._quiet_needed and not self._placed
+        self._walls.ensure(x0, y0, reach, keep=keep)
+        self._placed = False
         a0 = body.angle
         self._half_h = 0.5 * h
         self._contact = False

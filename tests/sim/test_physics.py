@@ -119,6 +119,8 @@ def test_physics_builds_walls_from_the_map(room: OccupancyMap) -> None:
     phys = RacecarPhysics(room)
     # The room's inside is one square: four wall segments, nothing else.
     assert phys.n_segments == 4
+    phys.reset(np.array([0.0, 0.0, 0.0]))
+    phys.step((0.0, 1.0), 0.025)  # the first step after a placement uses pymunk: walls near
     assert len(phys.space.shapes) == 4 + 1
 
 
