@@ -9,8 +9,9 @@ uniforms and normals itself from a :mod:`racecar_sim.rand` stream seeded once pe
 are the same doubles and the noisy scan the same floats (tested).
 
 The per-ray traversal is :func:`~racecar_sim.raycast.kernels.cast_ray` written for one origin:
-beams in order, the flat cell index stepped along in the exact traversal instead of recomputed,
-truncation instead of ``floor`` (coordinates inside the padded grid are never negative).
+the beams go through its phases together (see :func:`_exact_scan`), the flat cell index stepped
+along in the exact traversal instead of recomputed, truncation instead of ``floor`` (coordinates
+inside the padded grid are never negative).
 """
 
 from __future__ import annotations
@@ -66,88 +67,133 @@ def scan_geometry(occupancy_map, max_range: float, mount_offset: float) -> np.nd
 
 @nb.njit(cache=True, boundscheck=False)
 def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, ranges):
-    """Exact ranges (metres) of beams ``cos_a, sin_a`` from pad-frame (gu, gv), heading (cos, sin)."""
+    """Exact ranges (metres) of beams ``cos_a, sin_a`` from pad-frame (gu, gv), heading (cos, sin).
+
+    Every beam does the operations of :func:`~racecar_sim.raycast.kernels.cast_ray` in the same
+    order (so the same doubles), but the beams go through the traversal's phases together, in
+    passes over lists of the beams still in a phase: the direction, steps and cell crossings per
+    beam (one loop the compiler vectorises); one jump of every beam in jump mode per pass (the
+    beams' jumps are independent, so their memory reads overlap instead of each waiting for the
+    last, and the loop has no branch that depends on a beam); the start of the cell-by-cell
+    traversal of every beam that landed near a wall (its divisions pipelined); then that traversal
+    beam by beam, back to the jump list for a beam that leaves the walls again.
+    """
     height = field.shape[0]
     w = field.shape[1]
     flat = field.reshape(-1)
+    n = cos_a.shape[0]
     inside = gu >= 0.0 and gu < w and gv >= 0.0 and gv < height
     start = flat[int(gv) * w + int(gu)] if inside else OCCUPIED
-    for b in range(cos_a.shape[0]):
-        if start == OCCUPIED:
+    if start == OCCUPIED:
+        for b in range(n):
             ranges[b] = 0.0
-            continue
-        dx = cos_h * cos_a[b] - sin_h * sin_a[b]
-        dy = sin_h * cos_a[b] + cos_h * sin_a[b]
-        px = gu + 0.0 * dx
-        py = gv + 0.0 * dy
-        col = int(px)
-        rv = int(py)
-        idx = rv * w + col
-        v = start
-        step_x = 1 if dx > 0.0 else -1
-        step_y = 1 if dy > 0.0 else -1
-        step_yw = step_y * w
-        tdelta_x = 1.0 / abs(dx) if dx != 0.0 else _BIG
-        tdelta_y = 1.0 / abs(dy) if dy != 0.0 else _BIG
-        t = 0.0
-        r = 0.0
-        done = False
-        while not done:
-            if v != 0:
-                # Jump through free space (the padded ring keeps the landing on the grid).
-                t += v
-                if t >= max_t:
-                    r = max_t
-                    break
-                px = gu + t * dx
-                py = gv + t * dy
-                col = int(px)
-                rv = int(py)
-                idx = rv * w + col
-                v = flat[idx]
-                if v == OCCUPIED:
-                    r = t
-                    break
-                if v != 0:
-                    continue
-            # Exact traversal from the point at t inside cell (col, rv).
+        return
+    fw = np.empty((10, n))
+    iw = np.empty((8, n), dtype=np.int64)
+    t_arr, dx_arr, dy_arr, px_arr, py_arr = fw[0], fw[1], fw[2], fw[3], fw[4]
+    tmx_arr, tmy_arr, tdx_arr, tdy_arr, r_arr = fw[5], fw[6], fw[7], fw[8], fw[9]
+    v_arr, idx_arr, sx_arr, sy_arr = iw[0], iw[1], iw[2], iw[3]
+    jumping, jumping_next, landed, walking = iw[4], iw[5], iw[6], iw[7]
+    for k in range(n):
+        dx = cos_h * cos_a[k] - sin_h * sin_a[k]
+        dy = sin_h * cos_a[k] + cos_h * sin_a[k]
+        dx_arr[k] = dx
+        dy_arr[k] = dy
+        px_arr[k] = gu + 0.0 * dx
+        py_arr[k] = gv + 0.0 * dy
+        t_arr[k] = 0.0
+        v_arr[k] = start
+        sx_arr[k] = 1 if dx > 0.0 else -1
+        sy_arr[k] = w if dy > 0.0 else -w
+        tdx_arr[k] = 1.0 / abs(dx) if dx != 0.0 else _BIG
+        tdy_arr[k] = 1.0 / abs(dy) if dy != 0.0 else _BIG
+        jumping[k] = k
+        landed[k] = k
+    n_jump = n if start != 0 else 0
+    n_landed = 0 if start != 0 else n
+    while n_jump > 0 or n_landed > 0:
+        # One jump of every beam in jump mode (the ring of occupied cells keeps landings on the
+        # grid, even past max_t).
+        m = 0
+        for j in range(n_jump):
+            k = jumping[j]
+            t = t_arr[k] + v_arr[k]
+            px = gu + t * dx_arr[k]
+            py = gv + t * dy_arr[k]
+            v = flat[int(py) * w + int(px)]
+            t_arr[k] = t
+            px_arr[k] = px
+            py_arr[k] = py
+            v_arr[k] = v
+            over = t >= max_t
+            r_arr[k] = max_t if over else t
+            jumping_next[m] = k
+            m += (not over) & (v != 0) & (v != OCCUPIED)
+            landed[n_landed] = k
+            n_landed += (not over) & (v == 0)
+        jumping, jumping_next = jumping_next, jumping
+        n_jump = m
+        # Start the exact traversal from each landing inside cell (col, rv).
+        for j in range(n_landed):
+            k = landed[j]
+            t = t_arr[k]
+            px = px_arr[k]
+            py = py_arr[k]
+            dx = dx_arr[k]
+            dy = dy_arr[k]
+            col = int(px)
+            rv = int(py)
+            idx_arr[k] = rv * w + col
             if dx > 0.0:
-                tmax_x = t + (col + 1 - px) / dx
+                tmx_arr[k] = t + (col + 1 - px) / dx
             elif dx < 0.0:
-                tmax_x = t + (col - px) / dx
+                tmx_arr[k] = t + (col - px) / dx
             else:
-                tmax_x = _BIG
+                tmx_arr[k] = _BIG
             if dy > 0.0:
-                tmax_y = t + (rv + 1 - py) / dy
+                tmy_arr[k] = t + (rv + 1 - py) / dy
             elif dy < 0.0:
-                tmax_y = t + (rv - py) / dy
+                tmy_arr[k] = t + (rv - py) / dy
             else:
-                tmax_y = _BIG
+                tmy_arr[k] = _BIG
+            walking[j] = k
+        n_walk = n_landed
+        n_landed = 0
+        # Cell by cell to a hit, to max_t, or to a cell far enough from walls to jump again.
+        for j in range(n_walk):
+            k = walking[j]
+            tmax_x = tmx_arr[k]
+            tmax_y = tmy_arr[k]
+            idx = idx_arr[k]
+            step_x = sx_arr[k]
+            step_yw = sy_arr[k]
+            tdelta_x = tdx_arr[k]
+            tdelta_y = tdy_arr[k]
             while True:
                 if tmax_x < tmax_y:
                     t = tmax_x
-                    col += step_x
                     idx += step_x
                     tmax_x += tdelta_x
                 else:
                     t = tmax_y
-                    rv += step_y
                     idx += step_yw
                     tmax_y += tdelta_y
                 if t >= max_t:
-                    r = max_t
-                    done = True
+                    r_arr[k] = max_t
                     break
                 v = flat[idx]
                 if v == OCCUPIED:
-                    r = t
-                    done = True
+                    r_arr[k] = t
                     break
                 if v != 0:
-                    px = gu + t * dx
-                    py = gv + t * dy
+                    t_arr[k] = t
+                    v_arr[k] = v
+                    jumping[n_jump] = k
+                    n_jump += 1
                     break
-        ranges[b] = max_out if r >= max_t else r * scale
+    for k in range(n):
+        r = r_arr[k]
+        ranges[k] = max_out if r >= max_t else r * scale
 
 
 @nb.njit(cache=True)

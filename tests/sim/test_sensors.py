@@ -265,6 +265,20 @@ def test_scan_on_the_real_stata_map_is_within_range(stata_map: OccupancyMap) -> 
         assert np.mean(scan < lidar.params.max_range) > 0.5
 
 
+def test_scans_on_the_real_stata_map_are_the_exact_casters_ranges(stata_map: OccupancyMap) -> None:
+    """f1tenth_gym's lidar (1080 beams, 4.7 rad, 30 m): the scan kernel's ranges are the exact
+    caster's doubles, from poses anywhere on the map (long corridors, rooms, next to walls)."""
+    lidar = lidar_with(stata_map, n_beams=1080, fov=4.7, max_range=30.0)
+    rng = np.random.default_rng(11)
+    poses = np.concatenate(
+        [stata_map.sample_free_poses(rng, 30, clearance=0.5),
+         stata_map.sample_free_poses(rng, 10, clearance=0.0)]
+    )  # fmt: skip
+    for pose in poses:
+        lidar.measure(pose, rng)
+        np.testing.assert_array_equal(lidar.last_ranges, lidar.true_ranges(pose))
+
+
 # ---------------------------------------------------------------------- odometry
 def test_odometry_noise_sigma_matches() -> None:
     noise = OdometryNoise(proportional=(0.05, 0.02, 0.1), additive=(0.01, 0.03, 0.02))
