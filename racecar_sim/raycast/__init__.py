@@ -1,7 +1,8 @@
 """Ray casting on occupancy grids: one API (:class:`RayCaster`) for the lidar and for particles.
 
 ``caster.py`` holds the API and the in-process cache, ``kernels.py`` the numba per-ray kernels
-(exact grid traversal with distance-field jumps, sphere tracing), ``lut.py`` the lookup-table method.
+(exact grid traversal with distance-field jumps, sphere tracing), ``lut.py`` the lookup-table method's
+query and ``lut_build.py`` its table.
 """
 
 from racecar_sim.raycast.caster import (

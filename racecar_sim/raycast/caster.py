@@ -15,10 +15,12 @@ Methods (``METHODS``)
     slab-method reference to 1e-6 m). For the simulated lidar, and the reference of the others.
 ``"lut"``
     A table of ranges over free cells and ``LutParams.n_angles`` directions, answered by the pose's
-    cell and the two bracketing directions, with an exact cast (started just before the table's
-    hit) where those two disagree; see :mod:`racecar_sim.raycast.lut`. For many poses
-    (particles): about 3x the exact method's rays per second on the Stata basement. Building
-    the table takes seconds and ``2 K`` bytes per free cell, so it is cached (below).
+    cell and the two bracketing directions (the true ray against the line through their hits),
+    with an exact cast (started just before the table's hit) where the two disagree and the table
+    does not flag them as one straight face; see :mod:`racecar_sim.raycast.lut` (query) and
+    :mod:`racecar_sim.raycast.lut_build` (table). For many poses (particles): about 6x the exact
+    method's rays per second on the Stata basement. Building the table takes seconds and ``2 K``
+    bytes per free cell, so it is cached (below).
 ``"march"``
     Sphere tracing on the same jump field: steps of ``max(jump, MarchParams.min_step)`` cells until
     a sample lands in an occupied cell, then a bisection. Simple, but it can step over a corner at
@@ -36,9 +38,9 @@ in free space, 100 beams over the full turn, ``max_range`` 10 m). Bounds are che
 =========  ==================================  ======================  ======================
 method     map                                 mean: measured (bound)  p99: measured (bound)
 =========  ==================================  ======================  ======================
-``lut``    Stata basement, 0.05 m              0.009 m (0.02 m)        0.060 m (0.10 m)
-``lut``    Stata, densest 500x500-cell window  0.006 m (0.02 m)        0.051 m (0.10 m)
-``lut``    test rooms, 0.05 m                  0.010 m (0.02 m)        0.048 m (0.10 m)
+``lut``    Stata basement, 0.05 m              0.008 m (0.02 m)        0.056 m (0.10 m)
+``lut``    Stata, densest 500x500-cell window  0.005 m (0.02 m)        0.050 m (0.10 m)
+``lut``    test rooms, 0.05 m                  0.009 m (0.02 m)        0.043 m (0.10 m)
 ``march``  Stata basement, 0.05 m              0.005 m (0.03 m)        0.060 m (0.10 m)
 ``march``  Stata, densest 500x500-cell window  0.005 m (0.03 m)        0.002 m (0.10 m)
 ``march``  test rooms, 0.05 m                  0.016 m (0.03 m)        0.051 m (0.10 m)
