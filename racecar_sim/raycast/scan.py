@@ -21,7 +21,7 @@ import math
 import numba as nb
 import numpy as np
 
-from racecar_sim.rand import normal, uniform
+from racecar_sim.rand import uniforms_and_normals
 from racecar_sim.raycast.kernels import OCCUPIED
 
 __all__ = [
@@ -196,7 +196,7 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
         ranges[k] = max_out if r >= max_t else r * scale
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, error_model="numpy")
 def add_beam_noise(ranges, seed, noise, out) -> int:
     """The four-part beam noise (:mod:`racecar_sim.sensors`) of true ``ranges`` into ``out``.
 
@@ -206,8 +206,9 @@ def add_beam_noise(ranges, seed, noise, out) -> int:
         noise: float64 array laid out as :data:`NOISE_FIELDS`.
         out: float32 (M,) output, metres.
 
-    Per beam in order: one uniform picks the part (and, rescaled within its interval, gives a
-    random or short return's distance); a beam with Gaussian noise then draws one normal.
+    Per beam one uniform picks the part (and, rescaled within its interval, gives a random or
+    short return's distance) and one normal is the Gaussian part's; both come from
+    :func:`racecar_sim.rand.uniforms_and_normals` (beam ``i`` from its own counters).
 
     Returns:
         0, or 2 when a range is NaN or outside [0, max_range] (``out`` then unfinished).
@@ -220,24 +221,30 @@ def add_beam_noise(ranges, seed, noise, out) -> int:
     rate = noise[5]
     t_max = p_rand + p_max
     t_short = t_max + p_short
-    state = np.uint64(seed)
-    for i in range(ranges.shape[0]):
+    n = ranges.shape[0]
+    u = np.empty(n)
+    z = np.empty(n)
+    uniforms_and_normals(seed, u, z)
+    ok = True
+    for i in range(n):  # no branch: the parts by priority, the short returns left for below
         ri = ranges[i]
-        if not (ri >= 0.0 and ri <= max_range):  # also catches NaN
-            return 2
-        state, ui = uniform(state)
-        if ui < p_rand:
-            v = ui / p_rand * max_range  # uniform in [0, max_range)
-        elif ui < t_max or ri >= max_range:
-            v = max_range  # a drop-out, or no surface in range to return from
-        elif ui < t_short:
+        ui = u[i]
+        ok &= (ri >= 0.0) & (ri <= max_range)  # also catches NaN
+        v = ri + sigma * z[i]
+        v = max_range if (ui < t_max) | (ri >= max_range) else v  # drop-out, or nothing to hit
+        v = ui / p_rand * max_range if ui < p_rand else v  # uniform in [0, max_range)
+        # (error_model numpy: with p_rand = 0 the unused quotient is NaN, not an exception)
+        out[i] = min(max(v, 0.0), max_range)
+    if not ok:
+        return 2
+    for i in range(n):
+        ri = ranges[i]
+        ui = u[i]
+        if (ui >= t_max) & (ui < t_short) & (ri < max_range):
             w = (ui - t_max) / p_short  # uniform in [0, 1)
             # Inverse CDF of the exponential truncated to [0, ri].
             v = min(-math.log1p(-w * -math.expm1(-rate * ri)) / rate, ri)
-        else:
-            state, zi = normal(state)
-            v = ri + sigma * zi
-        out[i] = min(max(v, 0.0), max_range)
+            out[i] = min(max(v, 0.0), max_range)
     return 0
 
 

@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from racecar_sim.rand import normals, seed_from, uniforms
+from racecar_sim.rand import normals, seed_from, uniforms, uniforms_and_normals
 
 N = 1_000_000
 
@@ -57,3 +57,22 @@ def test_seed_from_draws_from_the_generator() -> None:
     one, two = np.random.default_rng(3), np.random.default_rng(3)
     assert seed_from(one) == seed_from(two) >= 0
     assert seed_from(one) != seed_from(np.random.default_rng(4))
+
+
+def test_the_scans_uniforms_and_normals_follow_their_laws() -> None:
+    u, z = np.empty(N), np.empty(N)
+    uniforms_and_normals(99, u, z)
+    assert u.min() >= 0.0 and u.max() < 1.0
+    assert abs(u.mean() - 0.5) < 5 * math.sqrt(1 / 12 / N)
+    assert abs(z.mean()) < 5 / math.sqrt(N)
+    assert abs(z.std() - 1.0) < 5 * math.sqrt(0.5 / N)
+    zs = np.sort(z)[::50]
+    ks = np.abs(_normal_cdf(zs) - (np.arange(zs.size) + 0.5) / zs.size).max()
+    assert ks < 1.63 / math.sqrt(zs.size)
+    for k in (1.0, 3.0, 3.6):  # inside the layers, and the tail beyond the base
+        p = math.erfc(k / math.sqrt(2.0))
+        assert abs((np.abs(z) > k).mean() - p) < 5 * math.sqrt(p * (1 - p) / N) + 1e-6
+    assert abs(np.corrcoef(u, z)[0, 1]) < 5 / math.sqrt(N)  # a beam's two draws independent
+    again_u, again_z = np.empty(1000), np.empty(1000)
+    uniforms_and_normals(99, again_u, again_z)
+    assert np.array_equal(again_u, u[:1000]) and np.array_equal(again_z, z[:1000])
