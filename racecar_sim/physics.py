@@ -295,7 +295,7 @@ class RacecarPhysics:
         body.torque = 0.0
         self.space.add(body, self.shape)
         self._contact = False
-        self._twist = np.array([self._speed, 0.0, self._omega])
+        self._twist[:] = (self._speed, 0.0, self._omega)  # in place: a vector env shares it
 
     def reset(self, pose: np.ndarray, speed: float = 0.0, steer: float = 0.0) -> None:
         """Put the car at ``pose`` (rear-axle world [x, y, theta]) driving at ``speed`` (m/s) with
@@ -352,13 +352,7 @@ class RacecarPhysics:
         inv_wheelbase = 1.0 / car.wheelbase
         if self.free_steps and self._quiet >= self._quiet_needed:
             f = self._free
-            if not self._free_valid:
-                body = self.body
-                f[0], f[1] = body.position
-                f[2] = body.angle
-                f[3], f[4] = body.velocity
-                f[5] = body.angular_velocity
-            f[6], f[7], f[8] = self._steer, self._speed, self._omega
+            self._load_free_state()
             if free_step(
                 self._distance, self._free_const, f, target_steer, target_speed, n_sub, h, dt,
                 self._twist,
@@ -414,6 +408,17 @@ class RacecarPhysics:
         return collided
 
     # ------------------------------------------------------------------ free steps
+    def _load_free_state(self) -> None:
+        """Bring the free-step state array up to date (from pymunk's body unless it is current)."""
+        f = self._free
+        if not self._free_valid:
+            body = self.body
+            f[0], f[1] = body.position
+            f[2] = body.angle
+            f[3], f[4] = body.velocity
+            f[5] = body.angular_velocity
+        f[6], f[7], f[8] = self._steer, self._speed, self._omega
+
     def _sync_body(self) -> None:
         """Write the state of free steps into pymunk's body before pymunk is used."""
         if self._body_stale and self._free_valid:

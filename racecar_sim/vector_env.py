@@ -32,7 +32,8 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from racecar_sim.config import EnvConfig, merge_settings
-from racecar_sim.env import RacecarEnv
+from racecar_sim.env import _EPS_TIME, RacecarEnv
+from racecar_sim.free_batch import FreeStepBatch
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
@@ -136,6 +137,7 @@ class RacecarVectorEnv(VectorEnv):
         self._last_odom = np.zeros((num_envs, 3), dtype=np.float32)
         self._workers = max(1, int(workers if workers is not None else (os.cpu_count() or 1)))
         self._pool: ThreadPoolExecutor | None = None
+        self._physics = FreeStepBatch([env.physics for env in self.envs])
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -200,10 +202,9 @@ class RacecarVectorEnv(VectorEnv):
             raise ValueError(f"actions must have shape ({n}, 2), got {acts.shape}")
         if not np.isfinite(acts).all():
             raise ValueError("actions must be finite [steer, speed] per car")
-        acts = np.minimum(np.maximum(acts, self._low), self._high).tolist()
+        acts = np.minimum(np.maximum(acts, self._low), self._high)
 
         envs = self.envs
-        collided = np.zeros(n, dtype=np.bool_)
         fresh = np.zeros(n, dtype=np.bool_)
         poses = np.zeros((n, 3))
         reset_now = self._autoreset
@@ -212,31 +213,38 @@ class RacecarVectorEnv(VectorEnv):
         due: list[int] = []
         stepped: list[int] = []
         for i in range(n):
-            env = envs[i]
             if reset_now[i]:
-                reset_obs[i], reset_infos[i] = env.reset()
-                continue
-            stepped.append(i)
-            steer, speed = acts[i]
-            hit, scan_due = env._advance(steer, speed)
-            collided[i] = hit
-            poses[i] = env.physics.pose
-            if scan_due:
+                reset_obs[i], reset_infos[i] = envs[i].reset()
+            else:
+                stepped.append(i)
+        # Physics: the cars far from walls in one kernel call, the others through pymunk.
+        hits, free = self._physics.step(stepped, acts, self.dt)
+        collided = np.zeros(n, dtype=np.bool_)
+        collided[stepped] = hits
+        if free:
+            poses[free] = self._physics.poses(free)
+        done_free = set(free)
+        times = np.zeros(n)
+        n_steps = np.zeros(n, dtype=np.int64)
+        for i in stepped:
+            env = envs[i]
+            if i not in done_free:
+                poses[i] = env.physics.pose
+            env._n_steps += 1  # the clock, as RacecarEnv._advance
+            env.time = env._n_steps * env.dt
+            times[i] = env.time
+            n_steps[i] = env._n_steps
+            if env.time + _EPS_TIME >= env._next_scan:
                 fresh[i] = True
                 due.append(i)
         scans = np.empty((n, self._n_beams), dtype=np.float32)
         self._cast(due, poses, scans)
 
-        twist = np.zeros((n, 3))
+        twist = self._physics.twists.copy()  # the cars' own twist arrays (resets: below)
         z = np.zeros((n, 6))
-        times = np.zeros(n)
-        n_steps = np.zeros(n, dtype=np.int64)
         for i in stepped:
             env = envs[i]
-            twist[i] = env.physics._twist
             env.np_random.standard_normal(out=z[i])  # the odometry's draws, after the scan's
-            times[i] = env.time
-            n_steps[i] = env._n_steps
             if not fresh[i]:
                 scans[i] = env._scan
         odom = (twist * (1.0 + self._odo_prop * z[:, :3]) + self._odo_add * z[:, 3:]).astype(

@@ -101,3 +101,24 @@ def test_auto_parallel_times_both_ways_and_changes_nothing() -> None:
     serial, threaded = fast._cast_times
     assert serial and threaded, "both ways were timed"
     fast.close()
+
+
+def test_cars_scraping_walls_equal_single_envs() -> None:
+    """Cars that stay against walls (no termination) switch between free steps, batched for the
+    vector env, and pymunk; a scan every few steps (lidar slower than the step)."""
+    n = 3
+    settings = {"map": "corridor", "dt": 0.01, "lidar_rate": 40.0, "terminate_on_collision": False}
+    fast = gym.make_vec("RacecarSim-v0", num_envs=n, vectorization_mode="vector_entry_point",
+                        parallel=False, **settings)  # fmt: skip
+    sync = gym.make_vec("RacecarSim-v0", num_envs=n, vectorization_mode="sync", **settings)
+    assert_same(fast.reset(seed=5), sync.reset(seed=5))
+    rng = np.random.default_rng(1)
+    hits = 0
+    for t in range(300):
+        actions = np.column_stack([rng.uniform(-0.6, 0.6, n), rng.uniform(0.5, 5.0, n)])
+        got, want = fast.step(actions), sync.step(actions)
+        assert_same(got, want, f"step {t}")
+        hits += int(got[4]["collision"].sum())
+    assert hits > 10, "the cars spent steps against walls"
+    fast.close()
+    sync.close()

@@ -1,0 +1,109 @@
+"""Free steps of many cars in one numba call, for the vector env.
+
+Each car keeps its own :class:`~racecar_sim.physics.RacecarPhysics`; here their free-step state
+(:data:`~racecar_sim.free_steps.STATE_FIELDS`) and twist arrays become rows of two shared arrays,
+so that one kernel call steps every car that may step without pymunk (far from walls, no contact
+cached) exactly as :meth:`RacecarPhysics.step` would: the same checks, the same
+:func:`~racecar_sim.free_steps.free_step`, the same bookkeeping. A car the kernel declines (a wall
+within reach) and a car that may not step freely take :meth:`RacecarPhysics.step` as usual.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from racecar_sim.free_steps import free_step
+from racecar_sim.physics import RacecarPhysics
+
+__all__ = ["FreeStepBatch"]
+
+_TWO_PI = 2.0 * math.pi
+
+
+@nb.njit(cache=True)
+def _free_steps(distance, const, states, cars, targets, n_sub, h, dt, twists, ok) -> None:
+    for j in range(cars.shape[0]):
+        k = cars[j]
+        ok[j] = free_step(
+            distance, const, states[k], targets[k, 0], targets[k, 1], n_sub, h, dt, twists[k]
+        )
+
+
+class FreeStepBatch:
+    """The free steps of the cars ``physics`` (one map, one car model), stepped together.
+
+    Rebinds each car's ``_free`` and ``_twist`` arrays to rows of :attr:`states` and
+    :attr:`twists` (their values kept), which :class:`RacecarPhysics` only ever updates in place.
+    """
+
+    def __init__(self, physics: list[RacecarPhysics]) -> None:
+        self.physics = physics
+        n = len(physics)
+        self.states = np.zeros((n, 9))
+        self.twists = np.zeros((n, 3))
+        for i, p in enumerate(physics):
+            self.states[i] = p._free
+            self.twists[i] = p._twist
+            p._free = self.states[i]
+            p._twist = self.twists[i]
+        first = physics[0]
+        car = first.car
+        self._const = first._free_const
+        self._distance = first._distance
+        self._low = np.array([-car.max_steer, -car.max_reverse_speed])
+        self._high = np.array([car.max_steer, car.max_speed])
+
+    def step(self, cars: list[int], commands: np.ndarray, dt: float) -> tuple[np.ndarray, list[int]]:
+        """Step cars ``cars`` by their rows of ``commands`` (N, 2) = [steer rad, speed m/s] (finite)
+        for ``dt`` seconds.
+
+        Returns:
+            (collided per car of ``cars``, the cars that stepped freely: their pose is in
+            :attr:`states`, see :meth:`poses`).
+        """
+        physics = self.physics
+        free: list[int] = []
+        for i in cars:
+            p = physics[i]
+            if p.free_steps and p._quiet >= p._quiet_needed:
+                if not p._free_valid:
+                    p._load_free_state()
+                free.append(i)
+        collided = np.zeros(len(cars), dtype=np.bool_)
+        done: set[int] = set()
+        if free:
+            p0 = physics[free[0]]
+            n_sub = max(1, math.ceil(dt / p0.substep - 1e-9))
+            h = dt / n_sub
+            targets = np.minimum(np.maximum(commands, self._low), self._high)
+            idx = np.array(free, dtype=np.int64)
+            ok = np.zeros(len(free), dtype=np.bool_)
+            _free_steps(
+                self._distance, self._const, self.states, idx, targets, n_sub, h, dt, self.twists,
+                ok,
+            )  # fmt: skip
+            rows = self.states[idx, 6:9].tolist()
+            half_h = 0.5 * h
+            for j, i in enumerate(free):
+                if ok[j]:
+                    p = physics[i]
+                    p._steer, p._speed, p._omega = rows[j]
+                    p._half_h = half_h
+                    p._free_valid = True
+                    p._body_stale = True
+                    done.add(i)
+        stepped_free = [i for i in cars if i in done]
+        for j, i in enumerate(cars):
+            if i not in done:
+                collided[j] = physics[i].step((commands[i, 0], commands[i, 1]), dt)
+        return collided, stepped_free
+
+    def poses(self, cars: list[int]) -> np.ndarray:
+        """(len(cars), 3) rear-axle world poses of cars that stepped freely (as
+        :attr:`RacecarPhysics.pose`: the heading wrapped to [-pi, pi))."""
+        rows = self.states[cars, :3]
+        rows[:, 2] = np.remainder(rows[:, 2] + math.pi, _TWO_PI) - math.pi
+        return rows
