@@ -125,6 +125,15 @@ def _directions(hb, afix, n_angles, phi_unit, kb, phb):
 
 
 @nb.njit(cache=True, error_model="numpy", fastmath=_FAST)
+def _unpack(e0b, e1b, c0b, c1b):
+    """Table entries to float32 range codes, the first negative where its planar flag is set."""
+    for b in range(e0b.shape[0]):
+        c0 = np.float32(e0b[b] & RANGE_MASK)
+        c0b[b] = -c0 if e0b[b] & FLAG else c0
+        c1b[b] = np.float32(e1b[b] & RANGE_MASK)
+
+
+@nb.njit(cache=True, error_model="numpy", fastmath=_FAST)
 def _interpolate(
     phb, c0b, c1b, cos_a, sin_a, ch, sh, qx, qy, cxs, cys, inv_sub, unit, cos_d, sin_d,
     tol_code, sat, max_t, max_t64, scale, max_out, per_out, top, tb, db,
@@ -215,6 +224,8 @@ def _lut_poses(
     sat = max_t + _SANE  # both table ranges beyond this: the ray reaches max range
     want_ranges = ranges.shape[0] > 0
     kb = np.empty(m, dtype=np.int64)
+    e0b = np.empty(m, dtype=np.uint16)
+    e1b = np.empty(m, dtype=np.uint16)
     c0b = np.empty(m, dtype=np.float32)
     c1b = np.empty(m, dtype=np.float32)
     phb = np.empty(m, dtype=np.float32)
@@ -252,13 +263,12 @@ def _lut_poses(
         hb = np.int64((hf - math.floor(hf)) * _TURN) & _MASK32
         # (1) bracketing directions (vectorised) and table entries (gathers)
         _directions(hb, afix, n_angles, phi_unit, kb, phb)
+        row = table[fi]
         for b in range(m):
             k0 = kb[b]
-            k1 = k0 + 1 if k0 + 1 < n_angles else 0
-            e0 = table[fi, k0]
-            c0 = np.float64(e0 & RANGE_MASK)
-            c0b[b] = -c0 if e0 & FLAG else c0
-            c1b[b] = table[fi, k1] & RANGE_MASK
+            e0b[b] = row[k0]
+            e1b[b] = row[k0 + 1 if k0 + 1 < n_angles else 0]
+        _unpack(e0b, e1b, c0b, c1b)
         # (2) interpolation, branch-free (vectorised); -1 marks a ray to cast
         _interpolate(
             phb, c0b, c1b, cos_a32, sin_a32, f32(ch), f32(sh), f32(qx), f32(qy), f32(cxs),
