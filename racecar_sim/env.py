@@ -165,7 +165,7 @@ class RacecarEnv(gym.Env):
         self._next_scan = 0.0
         self.time = 0.0
         self._scan = np.zeros(self.lidar_params.n_beams, dtype=np.float32)
-        self._scan_car_pose = np.zeros(3)  # rear-axle pose of the last scan (render draws it)
+        self._scan_car_pose = (0.0, 0.0, 0.0)  # rear-axle pose of the last scan (render draws it)
 
     # ------------------------------------------------------------------ state
     @property
@@ -212,10 +212,11 @@ class RacecarEnv(gym.Env):
             self.obstacles.spawn(obstacle_rng, self.physics.pose)
         self._n_steps = 0
         self.time = 0.0
-        self._take_scan()
+        pose = self.physics.pose
+        self._take_scan(pose)
         twist = self.physics.twist
         obs = {"scan": self._scan.copy(), "odom": self._measure_odometry(twist)}
-        info = self._info(twist, False, True, 0.0, 0.0)
+        info = self._info(pose, twist, False, True, 0.0, 0.0)
         return obs, info
 
     def step(
@@ -238,13 +239,14 @@ class RacecarEnv(gym.Env):
         speed = min(max(speed, self._speed_lo), self._speed_hi)
 
         collided, fresh = self._advance(steer, speed)
+        pose = self.physics.pose
         if fresh:
-            self._take_scan()
+            self._take_scan(pose)
         twist = self.physics.twist
         progress = float(twist[0]) * self.dt
         penalty = -self._penalty if collided else 0.0
         obs = {"scan": self._scan.copy(), "odom": self._measure_odometry(twist)}
-        info = self._info(twist, collided, fresh, progress, penalty)
+        info = self._info(pose, twist, collided, fresh, progress, penalty)
         terminated = collided and self._terminate
         return obs, progress + penalty, terminated, False, info
 
@@ -310,12 +312,13 @@ class RacecarEnv(gym.Env):
         return collided, self.time + _EPS_TIME >= self._next_scan
 
     def _measure_odometry(self, twist: np.ndarray) -> np.ndarray:
-        odom = self.odometry.measure(twist, self.np_random)
+        vx, vy, om = twist.tolist()  # the physics' twist: finite, no checks needed
+        odom = self.odometry.noisy(vx, vy, om, self.np_random)
         return odom if self.odom_bias is None else self.odom_bias.apply(odom)
 
-    def _take_scan(self) -> None:
-        """Scan from the current pose and schedule the next scan one lidar period later."""
-        pose = self.physics.pose
+    def _take_scan(self, pose: np.ndarray) -> None:
+        """Scan from the car's current rear-axle ``pose`` and schedule the next scan one lidar
+        period later."""
         self._store_scan(pose, self._measure_scan(pose))
 
     def _measure_scan(self, pose: np.ndarray) -> np.ndarray:
@@ -335,15 +338,21 @@ class RacecarEnv(gym.Env):
     def _store_scan(self, pose: np.ndarray, scan: np.ndarray) -> None:
         """Keep ``scan`` (taken at rear-axle ``pose``) and schedule the next one."""
         self._scan = scan
-        self._scan_car_pose = pose
+        self._scan_car_pose = tuple(pose.tolist())  # for render; info["pose"] is the array
         n_done = math.floor((self.time + _EPS_TIME) / self._period) + 1
         self._next_scan = n_done * self._period
 
     def _info(
-        self, twist: np.ndarray, collided: bool, fresh: bool, progress: float, penalty: float
+        self,
+        pose: np.ndarray,
+        twist: np.ndarray,
+        collided: bool,
+        fresh: bool,
+        progress: float,
+        penalty: float,
     ) -> dict[str, Any]:
         return {
-            "pose": self.physics.pose,
+            "pose": pose,
             "twist": twist,
             "collision": collided,
             "time": self.time,

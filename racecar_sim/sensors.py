@@ -178,6 +178,10 @@ class Odometry:
         vx, vy, om = t.tolist()
         if not (math.isfinite(vx) and math.isfinite(vy) and math.isfinite(om)):
             raise ValueError(f"twist must be three finite numbers [vx, vy, omega], got {twist!r}")
+        return self.noisy(vx, vy, om, rng)
+
+    def noisy(self, vx: float, vy: float, om: float, rng: np.random.Generator) -> np.ndarray:
+        """:meth:`measure` of a twist already known to be finite floats (m/s, m/s, rad/s)."""
         # Six standard normals, the first three proportional, the last three additive (the same
         # draws and the same double operations as the array expression, in plain floats).
         z = rng.standard_normal(6).tolist()
