@@ -88,10 +88,10 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
         for b in range(n):
             ranges[b] = 0.0
         return
-    fw = np.empty((10, n))
+    fw = np.empty((7, n))
     iw = np.empty((8, n), dtype=np.int64)
-    t_arr, dx_arr, dy_arr, px_arr, py_arr = fw[0], fw[1], fw[2], fw[3], fw[4]
-    tmx_arr, tmy_arr, tdx_arr, tdy_arr, r_arr = fw[5], fw[6], fw[7], fw[8], fw[9]
+    t_arr, dx_arr, dy_arr = fw[0], fw[1], fw[2]
+    tmx_arr, tmy_arr, tdx_arr, tdy_arr = fw[3], fw[4], fw[5], fw[6]
     v_arr, idx_arr, sx_arr, sy_arr = iw[0], iw[1], iw[2], iw[3]
     jumping, jumping_next, landed, walking = iw[4], iw[5], iw[6], iw[7]
     for k in range(n):
@@ -99,8 +99,6 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
         dy = sin_h * cos_a[k] + cos_h * sin_a[k]
         dx_arr[k] = dx
         dy_arr[k] = dy
-        px_arr[k] = gu + 0.0 * dx
-        py_arr[k] = gv + 0.0 * dy
         t_arr[k] = 0.0
         v_arr[k] = start
         sx_arr[k] = 1 if dx > 0.0 else -1
@@ -122,11 +120,8 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
             py = gv + t * dy_arr[k]
             v = flat[int(py) * w + int(px)]
             t_arr[k] = t
-            px_arr[k] = px
-            py_arr[k] = py
             v_arr[k] = v
             over = t >= max_t
-            r_arr[k] = max_t if over else t
             jumping_next[m] = k
             m += (not over) & (v != 0) & (v != OCCUPIED)
             landed[n_landed] = k
@@ -137,10 +132,10 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
         for j in range(n_landed):
             k = landed[j]
             t = t_arr[k]
-            px = px_arr[k]
-            py = py_arr[k]
             dx = dx_arr[k]
             dy = dy_arr[k]
+            px = gu + t * dx  # the landing point again, the same doubles
+            py = gv + t * dy
             col = int(px)
             rv = int(py)
             idx_arr[k] = rv * w + col
@@ -179,11 +174,11 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
                     idx += step_yw
                     tmax_y += tdelta_y
                 if t >= max_t:
-                    r_arr[k] = max_t
+                    t_arr[k] = t
                     break
                 v = flat[idx]
                 if v == OCCUPIED:
-                    r_arr[k] = t
+                    t_arr[k] = t
                     break
                 if v != 0:
                     t_arr[k] = t
@@ -192,7 +187,7 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
                     n_jump += 1
                     break
     for k in range(n):
-        r = r_arr[k]
+        r = t_arr[k]  # where the beam stopped: a hit, or at or past max_t
         ranges[k] = max_out if r >= max_t else r * scale
 
 
