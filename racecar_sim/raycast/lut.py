@@ -41,6 +41,7 @@ __all__ = ["PARALLEL_MIN_ENTRIES", "LutParams", "LutTable", "build_lut", "lut_ra
 _SANE = 1.5  # cells an interpolated range may lie outside the two table ranges
 _TURN = 4294967296.0  # 2**32: a full turn in the fixed-point angles
 _MASK32 = 0xFFFFFFFF
+_BLOCK_RAYS = 4 * CHUNK  # rays per work item of the parallel query (each allocates its buffers)
 
 
 @dataclass(frozen=True)
@@ -308,9 +309,9 @@ def _lut_parallel(
     table, index, unit, sub, tol, guide, field, gu, gv, heading, cos_h, sin_h,
     afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores,
 ):  # fmt: skip
-    """:func:`_lut_poses` over every pose, in blocks of about ``CHUNK`` rays on numba's threads."""
+    """:func:`_lut_poses` over every pose, in blocks of about ``_BLOCK_RAYS`` rays on numba's threads."""
     n = gu.shape[0]
-    blk = max(1, CHUNK // max(1, cos_a.shape[0]))
+    blk = max(1, _BLOCK_RAYS // max(1, cos_a.shape[0]))
     for c in nb.prange((n + blk - 1) // blk):
         _lut_poses(
             table, index, unit, sub, tol, guide, field, gu, gv, heading, cos_h, sin_h,
