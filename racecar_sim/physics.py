@@ -47,7 +47,7 @@ import numpy as np
 import pymunk
 
 from racecar_sim.config import CarParams
-from racecar_sim.free_steps import free_constants, free_step
+from racecar_sim.free_steps import free_constants, free_step, se2_log_twist
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.walls import (
     WALL_COLLISION_TYPE,
@@ -72,19 +72,6 @@ _FREE_MARGIN = 0.05  # metres kept between the footprint's reach and the walls o
 def _wrap(angle: float) -> float:
     """Angle in radians wrapped to [-pi, pi)."""
     return (angle + math.pi) % _TWO_PI - math.pi
-
-
-def _se2_log_twist(dx: float, dy: float, theta0: float, dtheta: float, dt: float) -> tuple:
-    """The constant car-frame twist (vx, vy, omega) that moves a pose at heading ``theta0`` by the
-    world displacement (dx, dy) and turn ``dtheta`` in ``dt`` seconds (SE(2) logarithm / dt)."""
-    c, s = math.cos(theta0), math.sin(theta0)
-    lx, ly = c * dx + s * dy, c * dy - s * dx  # displacement in the start car frame
-    if abs(dtheta) < 1e-6:  # second-order series of sin(a)/a and (1 - cos(a))/a
-        a, b = 1.0 - dtheta * dtheta / 6.0, 0.5 * dtheta
-    else:
-        a, b = math.sin(dtheta) / dtheta, (1.0 - math.cos(dtheta)) / dtheta
-    k = 1.0 / ((a * a + b * b) * dt)
-    return ((a * lx + b * ly) * k, (a * ly - b * lx) * k, dtheta / dt)
 
 
 class RacecarPhysics:
@@ -404,7 +391,8 @@ class RacecarPhysics:
                 speed = min(max(speed, -car.max_reverse_speed), car.max_speed)
                 self._speed = speed
         x1, y1 = body.position
-        self._twist[:] = _se2_log_twist(x1 - x0, y1 - y0, a0, body.angle - a0, dt)
+        # The same numba function as the free steps' (identical doubles either way).
+        self._twist[:] = se2_log_twist(x1 - x0, y1 - y0, a0, body.angle - a0, dt)
         return collided
 
     # ------------------------------------------------------------------ free steps
