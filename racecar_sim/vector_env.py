@@ -19,7 +19,6 @@ No rendering.
 
 from __future__ import annotations
 
-import itertools
 import os
 import statistics
 import time
@@ -44,6 +43,7 @@ __all__ = ["PROBE_EVERY", "RacecarVectorEnv"]
 PROBE_EVERY = 25
 """With ``parallel=None``, the way not in use (threads or not) is timed again every this many casts."""
 _TIMES_KEPT = 8  # recent cast timings kept per way
+_CHUNKS_PER_WORKER = 4  # the cars of a threaded cast come in this many chunks per thread
 
 
 class RacecarVectorEnv(VectorEnv):
@@ -299,9 +299,9 @@ class RacecarVectorEnv(VectorEnv):
         and store them in the cars.
 
         Each car draws its scan's seed from its own generator, as its
-        :meth:`~racecar_sim.sensors.Lidar.measure` would. In parallel, the cars are split into one
-        contiguous share per worker thread; a share's cast and noise (a numba kernel without the
-        GIL) run alongside the other shares.
+        :meth:`~racecar_sim.sensors.Lidar.measure` would. In parallel, the threads (this one and
+        the workers) take chunks of cars from one queue; a chunk's cast and noise (a numba kernel
+        without the GIL) run alongside the other threads' chunks.
         """
         if not due:
             return
@@ -322,10 +322,18 @@ class RacecarVectorEnv(VectorEnv):
         workers = self._workers if parallel else 1
         start = time.perf_counter()
         if workers > 1 and k > 1:
-            bounds = np.linspace(0, k, min(workers, k) + 1).astype(int).tolist()
+            # Small chunks pulled from one iterator (each next() is atomic under the GIL): a
+            # worker thread that the OS runs late takes fewer chunks, and this thread the rest.
+            size = max(1, -(-k // (_CHUNKS_PER_WORKER * workers)))
+            chunks = iter(range(0, k, size))
+
+            def pull() -> None:
+                for lo in chunks:
+                    share(lo, min(lo + size, k))
+
             pool = self._get_pool()
-            jobs = [pool.submit(share, lo, hi) for lo, hi in itertools.pairwise(bounds[1:])]
-            share(bounds[0], bounds[1])  # the first share on this thread
+            jobs = [pool.submit(pull) for _ in range(workers - 1)]
+            pull()
             for job in jobs:
                 job.result()
         else:
