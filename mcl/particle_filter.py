@@ -55,7 +55,7 @@ from mcl.kld import bin_keys, kld_stop
 from mcl.motion_model import MotionModel, twist_to_odometry
 from mcl.resampling import multinomial, resample
 from mcl.sensor_model import SensorModel
-from mcl.step_kernels import pose_moments
+from mcl.step_kernels import covariance_about, pose_moments
 from mcl.uncertainty import Uncertainty, assess
 from racecar_sim.maps import OccupancyMap
 
@@ -109,6 +109,7 @@ class ParticleFilter:
         self._particles: np.ndarray | None = None
         self._log_weights: np.ndarray | None = None
         self._weights: np.ndarray | None = None
+        self._mean_memo: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.n_updates = 0
         self.n_resamples = 0
         self.n_degenerate = 0
@@ -429,8 +430,7 @@ class ParticleFilter:
     # ------------------------------------------------------------------ outputs
     def estimate(self) -> np.ndarray:
         """(3,) weighted mean pose [x, y, theta]: arithmetic mean of x, y, circular mean of theta."""
-        p, w = self._require()
-        return pose_moments(p, w, False)[0]
+        return self._mean().copy()
 
     def covariance(self) -> np.ndarray:
         """(3, 3) weighted covariance of the particles about :meth:`estimate` (metres, radians).
@@ -439,7 +439,17 @@ class ParticleFilter:
         +-pi has a small theta variance. Normalised by sum(w) = 1 (the maximum-likelihood form).
         """
         p, w = self._require()
-        return pose_moments(p, w, True)[1]
+        return covariance_about(p, w, self._mean())
+
+    def _mean(self) -> np.ndarray:
+        """The weighted mean pose, computed once per set of particles and weights (both are only
+        ever replaced, never written in place, so their identity tells)."""
+        p, w = self._require()
+        memo = self._mean_memo
+        if memo is None or memo[0] is not p or memo[1] is not w:
+            memo = (p, w, pose_moments(p, w, False)[0])
+            self._mean_memo = memo
+        return memo[2]
 
     def uncertainty(self) -> Uncertainty:
         """Covariance, clusters and ambiguity flag of the cloud (:func:`mcl.uncertainty.assess`)."""

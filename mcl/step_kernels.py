@@ -15,7 +15,11 @@ import math
 import numba as nb
 import numpy as np
 
-__all__ = ["compose_into", "pose_moments", "systematic_pick", "wrap"]
+from racecar_sim.rand import normal, uniform
+
+__all__ = [
+    "compose_into",
+    "covariance_about", "move_noisy_into", "noise_into", "pose_moments", "systematic_pick", "wrap"]
 
 _TWO_PI = 2.0 * math.pi
 
@@ -42,6 +46,48 @@ def compose_into(particles, odometry, out):
         out[i, 0] = particles[i, 0] + c * dx - s * dy
         out[i, 1] = particles[i, 1] + s * dx + c * dy
         out[i, 2] = wrap(th + odometry[j, 2])
+
+
+@nb.njit(cache=True, inline="always")
+def _draw(state, gaussian):
+    """(new state, one noise draw): a standard normal, or a uniform on [-1, 1)."""
+    if gaussian:
+        return normal(state)
+    state, u = uniform(state)
+    return state, 2.0 * u - 1.0
+
+
+@nb.njit(cache=True)
+def noise_into(coefficients, gaussian, seed, out):
+    """``out`` (N, 3): per-particle odometry noise, ``coefficients[k]`` times a standard normal
+    (``gaussian``) or a uniform on [-1, 1), drawn from the :mod:`racecar_sim.rand` stream
+    ``seed`` in the order particle 0 (dx, dy, dtheta), particle 1, ..."""
+    state = np.uint64(seed)
+    for i in range(out.shape[0]):
+        for k in range(3):
+            state, z = _draw(state, gaussian)
+            out[i, k] = z * coefficients[k]
+
+
+@nb.njit(cache=True)
+def move_noisy_into(particles, odometry, coefficients, gaussian, seed, out):
+    """``out[i]``: ``particles[i]`` moved by ``odometry`` (3,) plus the noise :func:`noise_into`
+    draws for particle ``i`` with the same seed (the same doubles), in one pass without
+    temporaries. Car-frame displacement, world poses, theta wrapped."""
+    state = np.uint64(seed)
+    for i in range(particles.shape[0]):
+        state, z0 = _draw(state, gaussian)
+        state, z1 = _draw(state, gaussian)
+        state, z2 = _draw(state, gaussian)
+        dx = odometry[0] + z0 * coefficients[0]
+        dy = odometry[1] + z1 * coefficients[1]
+        dth = odometry[2] + z2 * coefficients[2]
+        th = particles[i, 2]
+        c = math.cos(th)
+        s = math.sin(th)
+        out[i, 0] = particles[i, 0] + c * dx - s * dy
+        out[i, 1] = particles[i, 1] + s * dx + c * dy
+        out[i, 2] = wrap(th + dth)
 
 
 @nb.njit(cache=True)
@@ -86,20 +132,27 @@ def pose_moments(particles, weights, with_covariance):
     mean[0] = mx
     mean[1] = my
     mean[2] = wrap(math.atan2(ms, mc))
-    cov = np.zeros((3, 3))
-    if with_covariance:
-        for i in range(n):
-            w = weights[i]
-            d0 = particles[i, 0] - mean[0]
-            d1 = particles[i, 1] - mean[1]
-            d2 = wrap(particles[i, 2] - mean[2])
-            cov[0, 0] += w * d0 * d0
-            cov[0, 1] += w * d0 * d1
-            cov[0, 2] += w * d0 * d2
-            cov[1, 1] += w * d1 * d1
-            cov[1, 2] += w * d1 * d2
-            cov[2, 2] += w * d2 * d2
-        cov[1, 0] = cov[0, 1]
-        cov[2, 0] = cov[0, 2]
-        cov[2, 1] = cov[1, 2]
+    cov = covariance_about(particles, weights, mean) if with_covariance else np.zeros((3, 3))
     return mean, cov
+
+
+@nb.njit(cache=True)
+def covariance_about(particles, weights, mean):
+    """(3, 3) weighted covariance of the poses about ``mean`` (3,), heading deviations wrapped;
+    ``weights`` sum to 1."""
+    cov = np.zeros((3, 3))
+    for i in range(particles.shape[0]):
+        w = weights[i]
+        d0 = particles[i, 0] - mean[0]
+        d1 = particles[i, 1] - mean[1]
+        d2 = wrap(particles[i, 2] - mean[2])
+        cov[0, 0] += w * d0 * d0
+        cov[0, 1] += w * d0 * d1
+        cov[0, 2] += w * d0 * d2
+        cov[1, 1] += w * d1 * d1
+        cov[1, 2] += w * d1 * d2
+        cov[2, 2] += w * d2 * d2
+    cov[1, 0] = cov[0, 1]
+    cov[2, 0] = cov[0, 2]
+    cov[2, 1] = cov[1, 2]
+    return cov

@@ -207,25 +207,26 @@ def grid_frame(poses, ox, oy, yaw, res, offset, gu, gv, heading, cos_h, sin_h):
     The point ``offset`` metres ahead of each pose along its heading (a lidar's mount; 0 for
     the pose itself) is moved into the map frame of an origin ``(ox, oy, yaw)`` (the inverse of
     the map's origin transform), divided by the resolution ``res`` and shifted by the pad ring.
-    Fills ``gu``, ``gv``, ``heading = theta - yaw`` and its cos/sin in one pass.
+    Fills ``gu``, ``gv``, ``heading = theta - yaw`` and its cos/sin in one pass (the cos/sin
+    within a few ulps of ``math.cos(heading)``, ``math.sin(heading)``).
     """
     cy = math.cos(yaw)
     sy = math.sin(yaw)
     for i in range(poses.shape[0]):
         th = poses[i, 2]
-        x = poses[i, 0]
-        y = poses[i, 1]
-        if offset != 0.0:
-            x += offset * math.cos(th)
-            y += offset * math.sin(th)
+        c = math.cos(th)
+        s = math.sin(th)
+        x = poses[i, 0] + offset * c
+        y = poses[i, 1] + offset * s
         dx = x - ox
         dy = y - oy
         gu[i] = (cy * dx + sy * dy) / res + 1.0
         gv[i] = (-sy * dx + cy * dy) / res + 1.0
-        h = th - yaw
-        heading[i] = h
-        cos_h[i] = math.cos(h)
-        sin_h[i] = math.sin(h)
+        heading[i] = th - yaw
+        # cos and sin of th - yaw by the difference formulas: two trig calls per pose, not four
+        # (equal to cos(th - yaw), sin(th - yaw) within a few ulps)
+        cos_h[i] = c * cy + s * sy
+        sin_h[i] = s * cy - c * sy
 
 
 @nb.njit(cache=True, inline="always")

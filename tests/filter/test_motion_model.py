@@ -56,6 +56,7 @@ def test_none_scheme_is_the_pose_matrix_product(particles: np.ndarray, odo: tupl
         assert abs(wrap_angle(q[2] - math.atan2(m[1, 0], m[0, 0]))) < 1e-9
 
 
+@settings(deadline=None)  # the first call may compile the numba kernels
 @given(poses, st.sampled_from(["uniform", "gaussian", "none"]), angle)
 def test_headings_are_wrapped(particles: np.ndarray, scheme: str, dth: float) -> None:
     model = MotionModel(MotionModelParams(scheme=scheme, coefficients=0.5))
@@ -183,3 +184,23 @@ def test_params_from_mapping_and_errors() -> None:
         model.evaluate(np.zeros((2, 3)), np.array([0.0, math.nan, 0.0]), np.random.default_rng())
     with pytest.raises(ValueError, match="particles"):
         model.evaluate(np.zeros((2, 2)), np.zeros(3), np.random.default_rng())
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    scheme=st.sampled_from(["uniform", "gaussian"]),
+    seed=st.integers(0, 2**32),
+    n=st.integers(1, 50),
+    odo=st.tuples(*[st.floats(-1.0, 1.0)] * 3),
+)
+def test_evaluate_adds_exactly_the_noise_sample_noise_draws(scheme, seed, n, odo) -> None:
+    """The fused numba pass equals compose(particles, odometry + sample_noise) for the same
+    generator state, and the same state gives the same particles."""
+    model = MotionModel(MotionModelParams(scheme=scheme, coefficients=(0.1, 0.05, 0.2)))
+    particles = np.random.default_rng(seed).uniform(-5.0, 5.0, (n, 3))
+    odo = np.array(odo)
+    moved = model.evaluate(particles, odo, np.random.default_rng(seed))
+    noise = model.sample_noise(n, np.random.default_rng(seed))
+    np.testing.assert_allclose(moved, compose(particles, odo + noise), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(moved, model.evaluate(particles, odo, np.random.default_rng(seed)))
+    assert not np.array_equal(moved, model.evaluate(particles, odo, np.random.default_rng(seed + 1)))
