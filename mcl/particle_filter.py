@@ -55,7 +55,7 @@ from mcl.kld import bin_keys, kld_stop
 from mcl.motion_model import MotionModel, twist_to_odometry
 from mcl.resampling import multinomial, resample
 from mcl.sensor_model import SensorModel
-from mcl.step_kernels import covariance_about, pose_moments
+from mcl.step_kernels import bayes_update, covariance_about, pose_moments
 from mcl.uncertainty import Uncertainty, assess
 from racecar_sim.maps import OccupancyMap
 
@@ -290,10 +290,10 @@ class ParticleFilter:
                 f"log_likelihood must have shape ({particles.shape[0]},), got {ll.shape}"
             )
         self.n_updates += 1
-        ll = np.where(np.isnan(ll) | (ll == math.inf), -math.inf, ll)
         assert self._log_weights is not None
-        lw = self._log_weights + ll
-        top = lw.max()
+        lw = np.empty_like(self._log_weights)
+        w = np.empty_like(self._log_weights)
+        top, total, sum_w2 = bayes_update(self._log_weights, ll, lw, w)  # one numba pass
         if not math.isfinite(top):
             self.n_degenerate += 1
             self.last_log_mean_likelihood = -math.inf
@@ -303,9 +303,10 @@ class ParticleFilter:
                 self.set_particles(particles)
             self.last_effective_sample_size = self.effective_sample_size
             return
-        self.last_log_mean_likelihood = float(top + math.log(np.exp(lw - top).sum()))
-        self._set_log_weights(lw)
-        self.last_effective_sample_size = self.effective_sample_size
+        self.last_log_mean_likelihood = float(top + math.log(total))
+        self._log_weights = lw
+        self._weights = w
+        self.last_effective_sample_size = float(1.0 / sum_w2)
 
     def needs_resampling(self) -> bool:
         """Whether the effective sample size is at most ``resample_threshold`` x N, or augmented

@@ -18,6 +18,7 @@ import numpy as np
 from racecar_sim.rand import normal, uniform
 
 __all__ = [
+    "bayes_update",
     "compose_into",
     "covariance_about", "move_noisy_into", "noise_into", "pose_moments", "systematic_pick", "wrap"]
 
@@ -88,6 +89,43 @@ def move_noisy_into(particles, odometry, coefficients, gaussian, seed, out):
         out[i, 0] = particles[i, 0] + c * dx - s * dy
         out[i, 1] = particles[i, 1] + s * dx + c * dy
         out[i, 2] = wrap(th + dth)
+
+
+@nb.njit(cache=True)
+def bayes_update(log_weights, log_likelihood, new_log_weights, new_weights):
+    """Bayes rule in log space: ``new_log_weights`` = ``log_weights`` + ``log_likelihood`` (NaN
+    and +inf likelihoods count as -inf), normalised so that ``new_weights = exp(...)`` sums to 1.
+
+    Returns ``(top, total, sum_w2)``: the largest unnormalised log-weight (-inf or not finite:
+    nothing was written after the first pass, the caller recovers), the sum of
+    ``exp(lw - top)`` (so the log of the mean likelihood is ``top + log(total)`` when the old
+    weights were normalised) and the sum of the squared new weights (Kish's ESS is its inverse).
+    """
+    n = log_weights.shape[0]
+    top = -math.inf
+    for i in range(n):
+        ll = log_likelihood[i]
+        if math.isnan(ll) or ll == math.inf:
+            ll = -math.inf
+        lw = log_weights[i] + ll
+        new_log_weights[i] = lw
+        if lw > top:
+            top = lw
+    if not math.isfinite(top):
+        return top, 0.0, 0.0
+    total = 0.0
+    for i in range(n):
+        w = math.exp(new_log_weights[i] - top)
+        new_weights[i] = w
+        total += w
+    shift = top + math.log(total)
+    sum_w2 = 0.0
+    for i in range(n):
+        w = new_weights[i] / total
+        new_weights[i] = w
+        new_log_weights[i] -= shift
+        sum_w2 += w * w
+    return top, total, sum_w2
 
 
 @nb.njit(cache=True)

@@ -74,3 +74,30 @@ def test_compose_into_matches_the_formula(p, odo):
     np.testing.assert_allclose(out[:, 0], p[:, 0] + c * odo[0] - s * odo[1], atol=1e-9)
     np.testing.assert_allclose(out[:, 1], p[:, 1] + s * odo[0] + c * odo[1], atol=1e-9)
     assert np.array_equal(out[:, 2], wrap_angle(p[:, 2] + odo[2]))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    arrays(np.float64, st.integers(1, 40), elements=st.floats(-50.0, 0.0)),
+    st.data(),
+)
+def test_bayes_update_matches_the_numpy_formulas(old, data):
+    """Normalised log-weights, weights, the log mean likelihood and Kish's sum of squares as the
+    numpy code computed them; NaN and +inf likelihoods count as impossible."""
+    from mcl.step_kernels import bayes_update
+
+    n = old.size
+    old = old - np.log(np.exp(old).sum())  # normalised, as the filter keeps them
+    choices = st.one_of(st.floats(-300.0, 10.0), st.sampled_from([np.nan, np.inf, -np.inf]))
+    ll = np.array(data.draw(st.lists(choices, min_size=n, max_size=n)))
+    lw, w = np.empty(n), np.empty(n)
+    top, total, sum_w2 = bayes_update(old, ll, lw, w)
+    want = old + np.where(np.isnan(ll) | (ll == np.inf), -np.inf, ll)
+    assert top == want.max()
+    if not np.isfinite(top):
+        return
+    np.testing.assert_allclose(total, np.exp(want - top).sum(), rtol=1e-12)
+    expected_w = np.exp(want - top) / np.exp(want - top).sum()
+    np.testing.assert_allclose(w, expected_w, rtol=1e-12, atol=1e-300)
+    np.testing.assert_allclose(np.exp(lw), expected_w, rtol=1e-9, atol=1e-300)
+    np.testing.assert_allclose(sum_w2, np.dot(expected_w, expected_w), rtol=1e-12)
