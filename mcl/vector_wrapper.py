@@ -45,10 +45,10 @@ from mcl.wrapper import (
     _RESET_OPTIONS,
     INIT_MODES,
     LocalizationConfig,
+    as_localization_config,
     correct_with_scan,
     filter_rng,
 )
-from racecar_sim.config import from_mapping
 
 __all__ = ["LocalizedVectorEnv"]
 
@@ -89,12 +89,7 @@ class LocalizedVectorEnv(VectorWrapper):
             )
         if inner.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP) != AutoresetMode.NEXT_STEP:
             raise ValueError("LocalizedVectorEnv needs the vector env's next-step autoreset mode")
-        if config is None:
-            config = LocalizationConfig()
-        elif isinstance(config, Mapping):
-            config = from_mapping(LocalizationConfig, dict(config))
-        elif not isinstance(config, LocalizationConfig):
-            raise TypeError(f"config must be a LocalizationConfig or a mapping, got {config!r}")
+        config = as_localization_config(config)
         if config.adaptive is not None:
             raise ValueError("LocalizedVectorEnv does not run the adaptive filter; set adaptive=None")
         self.config: LocalizationConfig = config

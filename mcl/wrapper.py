@@ -43,7 +43,10 @@ __all__ = [
     "FilterFactory",
     "LocalizationConfig",
     "LocalizationWrapper",
+    "as_localization_config",
+    "correct_with_scan",
     "filter_rng",
+    "localization_report",
 ]
 
 INIT_MODES: tuple[str, ...] = ("pose", "global")
@@ -118,6 +121,24 @@ class LocalizationConfig:
     def with_motion(self, scheme: str, coefficients: Any) -> LocalizationConfig:
         """The same settings with another motion noise scheme and coefficients (per update)."""
         return replace(self, motion=MotionModelParams(scheme=scheme, coefficients=coefficients))
+
+
+def as_localization_config(
+    config: LocalizationConfig | Mapping[str, Any] | None,
+) -> LocalizationConfig:
+    """``config`` as a :class:`LocalizationConfig`: the defaults for None, a mapping of its
+    fields loaded and checked (``racecar_sim.config.from_mapping``).
+
+    Raises:
+        TypeError: anything else.
+    """
+    if config is None:
+        return LocalizationConfig()
+    if isinstance(config, Mapping):
+        return from_mapping(LocalizationConfig, dict(config))
+    if not isinstance(config, LocalizationConfig):
+        raise TypeError(f"config must be a LocalizationConfig or a mapping, got {config!r}")
+    return config
 
 
 def filter_rng(seed: int | None) -> np.random.Generator:
@@ -237,12 +258,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             env.observation_space.spaces
         ):
             raise TypeError("LocalizationWrapper needs observations with 'scan' and 'odom'")
-        if config is None:
-            config = LocalizationConfig()
-        elif isinstance(config, Mapping):
-            config = from_mapping(LocalizationConfig, dict(config))
-        elif not isinstance(config, LocalizationConfig):
-            raise TypeError(f"config must be a LocalizationConfig or a mapping, got {config!r}")
+        config = as_localization_config(config)
         self.config: LocalizationConfig = config
         self.world_map = inner.map
         """The map the env simulates (the world)."""
