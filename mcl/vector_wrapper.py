@@ -49,6 +49,7 @@ from mcl.wrapper import (
     correct_with_scan,
     filter_rng,
 )
+from racecar_sim.vector_env import car_seeds
 
 __all__ = ["LocalizedVectorEnv"]
 
@@ -136,12 +137,7 @@ class LocalizedVectorEnv(VectorWrapper):
         centres = None
         if "init_pose" in mine:
             centres = np.broadcast_to(np.asarray(mine["init_pose"], dtype=np.float64), (n, 3))
-        if seed is None:
-            seeds: list[int | None] = [None] * n
-        elif isinstance(seed, int | np.integer):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
+        seeds = car_seeds(seed, n)
         mask = options.get("reset_mask")
         mask = np.ones(n, dtype=np.bool_) if mask is None else np.asarray(mask, dtype=np.bool_)
         obs, infos = self.env.reset(seed=seed, options=options or None)

@@ -38,12 +38,28 @@ from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil
 
-__all__ = ["PROBE_EVERY", "RacecarVectorEnv"]
+__all__ = ["PROBE_EVERY", "RacecarVectorEnv", "car_seeds"]
 
 PROBE_EVERY = 25
 """With ``parallel=None``, the way not in use (threads or not) is timed again every this many casts."""
 _TIMES_KEPT = 8  # recent cast timings kept per way
 _CHUNKS_PER_WORKER = 4  # the cars of a threaded cast come in this many chunks per thread
+
+
+def car_seeds(seed: int | list[int | None] | None, n: int) -> list[int | None]:
+    """Each of ``n`` cars' reset seed: ``seed + i`` for an int, None for None, or the list given.
+
+    Raises:
+        ValueError: a list whose length is not ``n``.
+    """
+    if seed is None:
+        return [None] * n
+    if isinstance(seed, int | np.integer):
+        return [int(seed) + i for i in range(n)]
+    seeds = list(seed)
+    if len(seeds) != n:
+        raise ValueError(f"reset: {len(seeds)} seeds given for num_envs={n} cars")
+    return seeds
 
 
 class RacecarVectorEnv(VectorEnv):
@@ -152,14 +168,7 @@ class RacecarVectorEnv(VectorEnv):
         and report their last observation.
         """
         n = self.num_envs
-        if seed is None:
-            seeds: list[int | None] = [None] * n
-        elif isinstance(seed, int | np.integer):
-            seeds = [int(seed) + i for i in range(n)]
-        else:
-            seeds = list(seed)
-        if len(seeds) != n:
-            raise ValueError(f"reset: {len(seeds)} seeds given for num_envs={n} cars")
+        seeds = car_seeds(seed, n)
         options = dict(options or {})
         mask = options.pop("reset_mask", None)
         if mask is None:
