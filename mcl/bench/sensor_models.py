@@ -112,6 +112,8 @@ def bag_comparison(bag: Path) -> None:
         odom_times=data.odom_times[k:],
         odom_twist=data.odom_twist[k:],
         odom_pose=data.odom_pose[k:],
+        scan_stamps=data.scan_stamps[j:],
+        odom_stamps=data.odom_stamps[k:],
     )
     for label, sensor in MODELS.items():
         if sensor.model == "likelihood_field":  # every beam of the real scan (1081)
@@ -126,11 +128,10 @@ def bag_comparison(bag: Path) -> None:
             f"{bag.name}: {label}, tracking from scan {j} of {fit.size}: scan_fit median "
             f"{np.median(f):.3f}, min {f.min():.3f}"
         )
-    loc, adaptive = unknown_start_localization()
-    field = dataclasses.replace(loc, sensor=dataclasses.replace(
+    field = dataclasses.replace(unknown_start_localization(), sensor=dataclasses.replace(
         MODELS["likelihood field (all beams)"], num_beams_per_particle=data.scans.shape[1]
     ))  # fmt: skip
-    lost = replay(data, grid, ReplayConfig(seed=0, localization=field, adaptive=adaptive))
+    lost = replay(data, grid, ReplayConfig(seed=0, localization=field))
     print(
         f"{bag.name}: global start, beam model scan_fit median {np.median(fit):.3f}; "
         f"likelihood field {np.median(lost.column('scan_fit')):.3f}"
