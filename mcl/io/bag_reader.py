@@ -26,12 +26,14 @@ was read before the damage and says so in :attr:`BagData.warnings`.
 
 from __future__ import annotations
 
-import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from mcl.io.salvage import salvage_bag
+from mcl.io.tf_mount import BASE_FRAME, static_mount, yaw_of
 
 __all__ = [
     "DEFAULT_MOUNT_OFFSET",
@@ -48,7 +50,6 @@ DEFAULT_ODOM_TOPICS: tuple[str, ...] = ("/vesc/odom", "/odom")
 DEFAULT_MOUNT_OFFSET = 0.275
 """Metres from base_link forward to the lidar on the MIT racecar (used without /tf_static)."""
 GROUND_TRUTH_TOPIC = "/ground_truth"
-BASE_FRAME = "base_link"
 
 
 class BagError(ValueError):
@@ -134,11 +135,6 @@ class BagData:
         )
 
 
-def _yaw(q) -> float:
-    """Yaw (radians) of a quaternion message (x, y, z, w)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
-
-
 def _header_seconds(msg, t0_ns: int) -> float:
     """A message's header stamp in seconds after ``t0_ns`` (nanoseconds, the bag's clock)."""
     stamp = msg.header.stamp
@@ -161,65 +157,6 @@ def _open_paths(path: Path) -> list[Path]:
     if path.suffix in (".mcap", ".db3") and (path.parent / "metadata.yaml").exists():
         return [path.parent]
     return [path]
-
-
-def _static_mount(tf_messages: list, scan_frame: str, warnings: list[str]):
-    """(x offset m, yaw rad, mirrored) of the scan frame in base_link from /tf_static messages,
-    or None. ``mirrored``: the scan frame is upside down (its z axis points down, a lidar mounted
-    on its head), so its beam angles turn the other way in base_link."""
-    edges: dict[str, tuple[str, float, float, float, bool]] = {}
-    for msg in tf_messages:
-        for tf in msg.transforms:
-            tr, q = tf.transform.translation, tf.transform.rotation
-            down = 1.0 - 2.0 * (q.x * q.x + q.y * q.y) < 0.0  # R[2, 2]: where z points
-            edges[tf.child_frame_id.lstrip("/")] = (
-                tf.header.frame_id.lstrip("/"),
-                tr.x,
-                tr.y,
-                _yaw(q),
-                down,
-            )
-    # Walk from the scan frame up to base_link, composing child-in-parent transforms.
-    frame, x, y, yaw, flip = scan_frame.lstrip("/"), 0.0, 0.0, 0.0, False
-    for _ in range(len(edges) + 1):
-        if frame == BASE_FRAME:
-            if abs(y) > 0.01:
-                warnings.append(
-                    f"the lidar sits {y:+.3f} m to the side of {BASE_FRAME}; only its forward "
-                    "offset is modelled"
-                )
-            return x, yaw, flip
-        if frame not in edges:
-            return None
-        parent, px, py, pyaw, pdown = edges[frame]
-        if pdown:  # the child's y axis and angles are mirrored in the parent's plane
-            y, yaw = -y, -yaw
-        c, s = math.cos(pyaw), math.sin(pyaw)
-        x, y, yaw, flip = px + c * x - s * y, py + s * x + c * y, pyaw + yaw, flip != pdown
-        frame = parent
-    return None
-
-
-def _salvage(path: Path) -> tuple[list, dict[str, str]] | None:
-    """Messages readable from the start of a damaged ROS 1 or MCAP bag (None: not such a file)."""
-    from rosbags.typesys import Stores, get_typestore
-
-    from mcl.io.salvage import salvage_mcap, salvage_ros1
-
-    if path.is_dir():
-        files = sorted(path.glob("*.mcap"))
-        if not files:
-            return None
-        path = files[0]
-    with path.open("rb") as fh:
-        magic = fh.read(13)
-    if magic.startswith(b"#ROSBAG V2.0"):
-        messages = list(salvage_ros1(path, get_typestore(Stores.ROS1_NOETIC)))
-    elif magic.startswith(b"\x89MCAP"):
-        messages = list(salvage_mcap(path, get_typestore(Stores.ROS2_HUMBLE)))
-    else:
-        return None
-    return messages, {topic: kind for topic, kind, _, _ in messages}
 
 
 def read_bag(
@@ -256,7 +193,7 @@ def read_bag(
         reader.open()
         topics = {c.topic: c.msgtype for c in reader.connections}
     except Exception as exc:  # rosbags raises several types for unreadable files
-        salvaged = _salvage(path)
+        salvaged = salvage_bag(path)
         if not salvaged or not salvaged[0]:
             raise BagError(f"{path}: not a readable ROS 1 or ROS 2 bag ({exc})") from None
         messages, topics = salvaged
@@ -335,7 +272,7 @@ def read_bag(
                         ]
                     else:
                         tf_msgs = [m[3] for m in messages if m[0] == "/tf_static"]
-                    mount = _static_mount(tf_msgs, scan_frame, warnings)
+                    mount = static_mount(tf_msgs, scan_frame, warnings)
                 except Exception as exc:
                     warnings.append(f"/tf_static could not be read ({exc})")
             if mount is not None:
@@ -414,8 +351,8 @@ class _Collected:
             self.odom_t.append(sec)
             self.odom_stamp.append(_header_seconds(msg, t0_ns))
             self.odom_tw.append((tw.linear.x, tw.linear.y, tw.angular.z))
-            self.odom_p.append((pose.position.x, pose.position.y, _yaw(pose.orientation)))
+            self.odom_p.append((pose.position.x, pose.position.y, yaw_of(pose.orientation)))
         else:
             pose = msg.pose
             self.truth_t.append(sec)
-            self.truth_p.append((pose.position.x, pose.position.y, _yaw(pose.orientation)))
+            self.truth_p.append((pose.position.x, pose.position.y, yaw_of(pose.orientation)))

@@ -18,7 +18,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-__all__ = ["salvage_mcap", "salvage_ros1"]
+__all__ = ["salvage_bag", "salvage_mcap", "salvage_ros1"]
 
 _ROS1_MAGIC = b"#ROSBAG V2.0\n"
 Message = tuple[str, str, int, Any]
@@ -126,3 +126,23 @@ def salvage_mcap(path: Path, typestore, topics: set[str] | None = None) -> Itera
                     yield topic, msgtype, record.log_time, msg
         except Exception:
             return
+
+
+def salvage_bag(path: Path) -> tuple[list, dict[str, str]] | None:
+    """Messages readable from the start of a damaged ROS 1 or MCAP bag (None: not such a file)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    if path.is_dir():
+        files = sorted(path.glob("*.mcap"))
+        if not files:
+            return None
+        path = files[0]
+    with path.open("rb") as fh:
+        magic = fh.read(13)
+    if magic.startswith(b"#ROSBAG V2.0"):
+        messages = list(salvage_ros1(path, get_typestore(Stores.ROS1_NOETIC)))
+    elif magic.startswith(b"\x89MCAP"):
+        messages = list(salvage_mcap(path, get_typestore(Stores.ROS2_HUMBLE)))
+    else:
+        return None
+    return messages, {topic: kind for topic, kind, _, _ in messages}

@@ -196,7 +196,7 @@ def _tf(parent: str, child: str, x: float, y: float, yaw: float, upside_down: bo
 def test_static_mount_follows_the_chain_and_upside_down_lidars():
     from types import SimpleNamespace as NS
 
-    from mcl.io.bag_reader import _static_mount
+    from mcl.io.tf_mount import static_mount as _static_mount
 
     chain = [
         NS(
