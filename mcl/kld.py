@@ -29,8 +29,9 @@ from statistics import NormalDist
 import numpy as np
 
 from mcl.angles import wrap_angle
+from mcl.resampling import multinomial
 
-__all__ = ["KLDParams", "bin_keys", "kld_bound", "kld_stop"]
+__all__ = ["KLDParams", "bin_keys", "kld_bound", "kld_count", "kld_stop"]
 
 
 def _positive_triple(value: tuple[float, ...], name: str) -> tuple[float, float, float]:
@@ -141,3 +142,34 @@ def kld_stop(keys: np.ndarray, params: KLDParams) -> int | None:
     done = (m >= kld_bound(k, params.epsilon, params.z)) & (m >= params.min_particles)
     hits = np.flatnonzero(done)
     return int(m[hits[0]]) if hits.size else None
+
+
+def kld_count(
+    particles: np.ndarray,
+    weights: np.ndarray,
+    params: KLDParams,
+    n_max: int,
+    rng: np.random.Generator,
+    p_random: float = 0.0,
+) -> tuple[int, int]:
+    """(particles, of which random) that KLD-sampling asks for.
+
+    Draws batches of the weighted particles (N, 3) (multinomial, independent), each draw replaced
+    with probability ``p_random`` by a random pose that counts as a bin of its own, doubling the
+    batch until Fox's rule (:func:`kld_stop`) stops or ``n_max`` draws are made.
+    """
+    keys = np.empty(0, dtype=np.int64)
+    random = np.empty(0, dtype=bool)
+    batch = min(max(params.min_particles, particles.shape[0]), n_max)
+    while True:
+        draws = particles[multinomial(weights, rng, batch)]
+        new_keys = bin_keys(draws, params.bin_size)
+        is_random = rng.random(batch) < p_random if p_random > 0.0 else np.zeros(batch, bool)
+        new_keys[is_random] = -1
+        keys = np.concatenate([keys, new_keys])
+        random = np.concatenate([random, is_random])
+        n = kld_stop(keys, params)
+        if n is not None or keys.size >= n_max:
+            n = min(n if n is not None else n_max, n_max)
+            return n, int(np.count_nonzero(random[:n]))
+        batch = min(keys.size, n_max - keys.size)

@@ -51,9 +51,9 @@ import numpy as np
 from mcl.angles import wrap_angle
 from mcl.augmented import LikelihoodAverages
 from mcl.filter_params import ParticleFilterParams, spread_sd
-from mcl.kld import bin_keys, kld_stop
+from mcl.kld import kld_count
 from mcl.motion_model import MotionModel, twist_to_odometry
-from mcl.resampling import multinomial, resample
+from mcl.resampling import resample
 from mcl.sensor_model import SensorModel
 from mcl.step_kernels import bayes_update, covariance_about, pose_moments
 from mcl.uncertainty import Uncertainty, assess
@@ -348,25 +348,7 @@ class ParticleFilter:
         batch until Fox's rule stops or :attr:`max_particles` draws are made.
         """
         particles, weights = self._require()
-        kld = self.params.kld
-        n_max = self.max_particles
-        keys = np.empty(0, dtype=np.int64)
-        random = np.empty(0, dtype=bool)
-        batch = min(max(kld.min_particles, particles.shape[0]), n_max)
-        while True:
-            draws = particles[multinomial(weights, self.rng, batch)]
-            new_keys = bin_keys(draws, kld.bin_size)
-            is_random = (
-                self.rng.random(batch) < p_random if p_random > 0.0 else np.zeros(batch, bool)
-            )
-            new_keys[is_random] = -1
-            keys = np.concatenate([keys, new_keys])
-            random = np.concatenate([random, is_random])
-            n = kld_stop(keys, kld)
-            if n is not None or keys.size >= n_max:
-                n = min(n if n is not None else n_max, n_max)
-                return n, int(np.count_nonzero(random[:n]))
-            batch = min(keys.size, n_max - keys.size)
+        return kld_count(particles, weights, self.params.kld, self.max_particles, self.rng, p_random)
 
     def _join_pending_random(self) -> None:
         """Add the random particles kept aside by :meth:`resample`, each with the mean weight."""
