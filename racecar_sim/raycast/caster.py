@@ -63,12 +63,8 @@ bypasses it; :func:`clear_cache` empties it.
 
 from __future__ import annotations
 
-import hashlib
 import math
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -82,6 +78,7 @@ from racecar_sim.raycast.kernels import (
     padded_occupancy,
 )
 from racecar_sim.raycast.lut import LutParams, LutTable, build_lut, lut_rays, lut_score
+from racecar_sim.raycast.table_cache import CACHE_BYTES, cached, clear_cache, digest
 
 __all__ = [
     "CACHE_BYTES",
@@ -94,9 +91,6 @@ __all__ = [
 
 METHODS: tuple[str, ...] = ("exact", "lut", "march")
 """Names accepted by :class:`RayCaster`'s ``method``."""
-
-CACHE_BYTES = 1_000_000_000
-"""Bytes of prepared data (fields, tables) the module-level cache may hold."""
 
 _DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
 
@@ -128,42 +122,6 @@ class MarchParams:
             or not (0 <= self.refine <= 30)
         ):
             raise ValueError(f"MarchParams.refine = {self.refine!r} must be an integer in [0, 30]")
-
-
-# ---------------------------------------------------------------------- cache
-_cache: OrderedDict[tuple, Any] = OrderedDict()
-_cache_lock = threading.Lock()
-
-
-def clear_cache() -> None:
-    """Forget every prepared map (frees the tables)."""
-    with _cache_lock:
-        _cache.clear()
-
-
-def _digest(occupied: np.ndarray) -> str:
-    """Content hash of an occupancy grid (shape included)."""
-    h = hashlib.blake2b(digest_size=16)
-    h.update(repr(occupied.shape).encode())
-    h.update(np.ascontiguousarray(occupied, dtype=np.uint8).tobytes())
-    return h.hexdigest()
-
-
-def _cached(key: tuple, make, use_cache: bool):
-    """The value for ``key`` from the cache, else ``make()`` (stored when ``use_cache``)."""
-    if use_cache:
-        with _cache_lock:
-            if key in _cache:
-                _cache.move_to_end(key)
-                return _cache[key]
-    value = make()
-    if use_cache:
-        with _cache_lock:
-            _cache[key] = value
-            _cache.move_to_end(key)
-            while len(_cache) > 1 and sum(v.nbytes for v in _cache.values()) > CACHE_BYTES:
-                _cache.popitem(last=False)
-    return value
 
 
 # ---------------------------------------------------------------------- caster
@@ -229,15 +187,15 @@ class RayCaster:
         res = occupancy_map.resolution
         self._max_cells = self.max_range / res
         self._beam_memo: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        digest = _digest(occupancy_map.occupied)
-        self._field: np.ndarray = _cached(
-            ("field", digest), lambda: field_from_occupancy(occupancy_map.occupied), cache
+        content = digest(occupancy_map.occupied)
+        self._field: np.ndarray = cached(
+            ("field", content), lambda: field_from_occupancy(occupancy_map.occupied), cache
         )
         self._lut: LutTable | None = None
         if method == "lut":
             p = self.lut_params
-            self._lut = _cached(
-                ("lut", digest, self._max_cells, p.n_angles, p.sub_lines),
+            self._lut = cached(
+                ("lut", content, self._max_cells, p.n_angles, p.sub_lines),
                 lambda: build_lut(
                     padded_occupancy(occupancy_map.occupied),
                     self._field,

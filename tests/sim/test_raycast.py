@@ -15,8 +15,7 @@ from hypothesis.extra import numpy as hnp
 
 from racecar_sim.config import from_mapping
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.raycast import METHODS, LutParams, MarchParams, RayCaster, clear_cache
-from racecar_sim.raycast import caster as raycast
+from racecar_sim.raycast import METHODS, LutParams, MarchParams, RayCaster, clear_cache, table_cache
 from racecar_sim.raycast.lut_build import FLAG, FLAG_ABOVE, RANGE_MASK
 
 # Documented in the racecar_sim.raycast module docstring (metres, default parameters).
@@ -452,11 +451,11 @@ def test_cache_shares_tables_between_casters(monkeypatch):
     clear_cache()
     assert RayCaster(grid, 10.0, "lut", lut=LutParams(n_angles=32)).table is not a.table
     one_table = a.table.nbytes
-    monkeypatch.setattr(raycast, "CACHE_BYTES", 3 * one_table)
+    monkeypatch.setattr(table_cache, "CACHE_BYTES", 3 * one_table)
     tables = [RayCaster(grid, 5.0 + k, "lut", lut=LutParams(n_angles=32)).table for k in range(5)]
     assert RayCaster(grid, 9.0, "lut", lut=LutParams(n_angles=32)).table is tables[-1]
     assert RayCaster(grid, 5.0, "lut", lut=LutParams(n_angles=32)).table is not tables[0]
-    assert sum(v.nbytes for v in raycast._cache.values()) <= 3 * one_table
+    assert sum(v.nbytes for v in table_cache._cache.values()) <= 3 * one_table
 
 
 @pytest.mark.parametrize("method", METHODS)
