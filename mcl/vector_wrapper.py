@@ -136,7 +136,13 @@ class LocalizedVectorEnv(VectorWrapper):
             raise ValueError(f"reset option init = {init!r}; choose one of {list(INIT_MODES)}")
         centres = None
         if "init_pose" in mine:
-            centres = np.broadcast_to(np.asarray(mine["init_pose"], dtype=np.float64), (n, 3))
+            given = np.asarray(mine["init_pose"], dtype=np.float64)
+            if given.shape not in ((3,), (n, 3)) or not np.isfinite(given).all():
+                raise ValueError(
+                    f"reset option init_pose must be one pose [x, y, theta] or a ({n}, 3) array "
+                    f"of finite numbers, got shape {given.shape}"
+                )
+            centres = np.broadcast_to(given, (n, 3))
         seeds = car_seeds(seed, n)
         mask = options.get("reset_mask")
         mask = np.ones(n, dtype=np.bool_) if mask is None else np.asarray(mask, dtype=np.bool_)

@@ -87,3 +87,7 @@ def test_wrong_env_and_config() -> None:
     env = LocalizedVectorEnv(vec, CONFIG)
     with pytest.raises(RuntimeError, match="reset"):
         env.step(np.zeros((1, 2)))
+    with pytest.raises(ValueError, match="init_pose"):
+        env.reset(seed=0, options={"init_pose": [1.0, 2.0]})
+    obs, _ = env.reset(seed=0, options={"init_pose": [[1.0, 2.0, 0.0]], "init_spread": 0.01})
+    assert np.hypot(*(obs["pose_estimate"][0, :2] - [1.0, 2.0])) < 0.2  # started where told
