@@ -25,10 +25,8 @@ particles (and its ray casts use numba's threads), so a step costs about N singl
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import replace
 from typing import Any
 
 import gymnasium as gym
@@ -37,10 +35,8 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
-from mcl.angles import wrap_angle
 from mcl.motion_model import MotionModel
 from mcl.particle_filter import ParticleFilter
-from mcl.sensor_model import SensorModel
 from mcl.wrapper import (
     _RESET_OPTIONS,
     INIT_MODES,
@@ -48,6 +44,9 @@ from mcl.wrapper import (
     as_localization_config,
     correct_with_scan,
     filter_rng,
+    pose_error,
+    pose_estimate_space,
+    sensor_model_for_lidar,
 )
 from racecar_sim.vector_env import car_seeds
 
@@ -98,26 +97,18 @@ class LocalizedVectorEnv(VectorWrapper):
         self.dt = float(inner.dt)
         lidar = cars[0].lidar
         self._lidar_max_range = float(lidar.params.max_range)
-        sensor_params = replace(config.sensor, mount_offset=float(lidar.params.mount_offset))
-        self.sensor_model = SensorModel(
-            self.map, sensor_params, beam_angles=np.asarray(lidar.angles, dtype=np.float64)
-        )
+        self.sensor_model = sensor_model_for_lidar(self.map, config.sensor, lidar)
         self.motion_model = MotionModel(config.motion)
         self.uncertainty = bool(uncertainty)
         self._clock = clock
         n = self.num_envs
         self.filters: list[ParticleFilter | None] = [None] * n
         self._rngs: list[np.random.Generator | None] = [None] * n
-        self._init = config.init
         self._ended = np.zeros(n, dtype=np.bool_)
         single = spaces.Dict(
             {
                 **env.single_observation_space.spaces,
-                "pose_estimate": spaces.Box(
-                    low=np.array([-np.inf, -np.inf, -math.pi]),
-                    high=np.array([np.inf, np.inf, math.pi]),
-                    dtype=np.float64,
-                ),
+                "pose_estimate": pose_estimate_space(),
             }
         )
         self.single_observation_space = single
@@ -159,7 +150,6 @@ class LocalizedVectorEnv(VectorWrapper):
             n_eff = self._correct(i, obs["scan"][i])
             estimates[i] = self._pf(i).estimate()
             self._record(report, i, estimates[i], truth[i], n_eff, self._clock() - t0, True)
-        self._init = init
         self._ended[mask] = False
         return self._observe(obs, estimates), {**infos, "localization": self._finish(report, mask)}
 
@@ -174,11 +164,11 @@ class LocalizedVectorEnv(VectorWrapper):
         fresh = np.asarray(infos.get("new_scan", np.ones(self.num_envs, dtype=np.bool_)))
         odom = np.asarray(obs["odom"], dtype=np.float64)
         report = self._empty_report()
-        estimates = self._estimates()
+        estimates = np.empty((self.num_envs, 3))  # every row is set below
         for i in range(self.num_envs):
             t0 = self._clock()
             if self._ended[i]:  # next-step autoreset: this is the car's first observation
-                self._start(i, self._init, truth[i], None)
+                self._start(i, self.config.init, truth[i], None)  # as the single wrapper's reset
                 n_eff, corrected = self._correct(i, obs["scan"][i]), True
             else:
                 pf = self._pf(i)
@@ -258,8 +248,7 @@ class LocalizedVectorEnv(VectorWrapper):
     ) -> None:
         pf = self._pf(i)
         report["estimate"][i] = estimate
-        report["position_error"][i] = math.hypot(estimate[0] - truth[0], estimate[1] - truth[1])
-        report["heading_error"][i] = wrap_angle(estimate[2] - truth[2])
+        report["position_error"][i], report["heading_error"][i] = pose_error(estimate, truth)
         report["n_eff"][i] = n_eff
         report["update_s"][i] = update_s
         report["corrected"][i] = corrected

@@ -47,6 +47,9 @@ __all__ = [
     "correct_with_scan",
     "filter_rng",
     "localization_report",
+    "pose_error",
+    "pose_estimate_space",
+    "sensor_model_for_lidar",
 ]
 
 INIT_MODES: tuple[str, ...] = ("pose", "global")
@@ -166,6 +169,34 @@ def correct_with_scan(pf: ParticleFilter, scan: np.ndarray, lidar_max_range: flo
     return pf.last_effective_sample_size
 
 
+def pose_estimate_space() -> spaces.Box:
+    """The ``pose_estimate`` observation: [x m, y m, theta rad in [-pi, pi)], world frame."""
+    return spaces.Box(
+        low=np.array([-np.inf, -np.inf, -math.pi]),
+        high=np.array([np.inf, np.inf, math.pi]),
+        dtype=np.float64,
+    )
+
+
+def sensor_model_for_lidar(
+    occupancy_map: OccupancyMap, params: SensorModelParams, lidar: Any
+) -> SensorModel:
+    """The sensor model of ``params`` for an env's lidar: its beam angles and mount offset."""
+    return SensorModel(
+        occupancy_map,
+        replace(params, mount_offset=float(lidar.params.mount_offset)),
+        beam_angles=np.asarray(lidar.angles, dtype=np.float64),
+    )
+
+
+def pose_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """(position error m, heading error rad = estimate minus truth wrapped to [-pi, pi))."""
+    return (
+        float(math.hypot(estimate[0] - truth[0], estimate[1] - truth[1])),
+        float(wrap_angle(estimate[2] - truth[2])),
+    )
+
+
 def localization_report(
     pf: ParticleFilter,
     estimate: np.ndarray,
@@ -176,10 +207,11 @@ def localization_report(
 ) -> dict[str, Any]:
     """``info["localization"]`` of one car (keys in :class:`LocalizationWrapper`'s docstring)."""
     unc = pf.uncertainty()
+    position_error, heading_error = pose_error(estimate, truth)
     return {
         "estimate": estimate,
-        "position_error": float(math.hypot(estimate[0] - truth[0], estimate[1] - truth[1])),
-        "heading_error": float(wrap_angle(estimate[2] - truth[2])),
+        "position_error": position_error,
+        "heading_error": heading_error,
         "n_eff": float(n_eff),
         "update_s": float(update_s),
         "corrected": fresh,
@@ -269,8 +301,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._lidar_max_range = float(lidar.params.max_range)
         angles = np.asarray(lidar.angles, dtype=np.float64)
         if sensor_model is None:
-            sensor_params = replace(config.sensor, mount_offset=float(lidar.params.mount_offset))
-            sensor_model = SensorModel(self.map, sensor_params, beam_angles=angles)
+            sensor_model = sensor_model_for_lidar(self.map, config.sensor, lidar)
         elif sensor_model.beam_angles is None or not np.array_equal(
             sensor_model.beam_angles, angles
         ):
@@ -289,11 +320,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.observation_space = spaces.Dict(
             {
                 **env.observation_space.spaces,
-                "pose_estimate": spaces.Box(
-                    low=np.array([-np.inf, -np.inf, -math.pi]),
-                    high=np.array([np.inf, np.inf, math.pi]),
-                    dtype=np.float64,
-                ),
+                "pose_estimate": pose_estimate_space(),
             }
         )
         self.log: ErrorLogWriter | None = ErrorLogWriter(log_path) if log_path is not None else None

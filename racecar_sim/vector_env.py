@@ -50,13 +50,20 @@ def car_seeds(seed: int | list[int | None] | None, n: int) -> list[int | None]:
     """Each of ``n`` cars' reset seed: ``seed + i`` for an int, None for None, or the list given.
 
     Raises:
-        ValueError: a list whose length is not ``n``.
+        ValueError: anything else (a float, a bool, a string), or a list whose length is not ``n``.
     """
     if seed is None:
         return [None] * n
-    if isinstance(seed, int | np.integer):
+    if isinstance(seed, int | np.integer) and not isinstance(seed, bool | np.bool_):
         return [int(seed) + i for i in range(n)]
-    seeds = list(seed)
+    if not isinstance(seed, list | tuple | np.ndarray) or not all(
+        s is None or (isinstance(s, int | np.integer) and not isinstance(s, bool | np.bool_))
+        for s in seed
+    ):
+        raise ValueError(
+            f"reset: seed must be an int, a list of {n} ints or None, or None; got {seed!r}"
+        )
+    seeds = [None if s is None else int(s) for s in seed]
     if len(seeds) != n:
         raise ValueError(f"reset: {len(seeds)} seeds given for num_envs={n} cars")
     return seeds

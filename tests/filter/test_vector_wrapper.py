@@ -91,3 +91,27 @@ def test_wrong_env_and_config() -> None:
         env.reset(seed=0, options={"init_pose": [1.0, 2.0]})
     obs, _ = env.reset(seed=0, options={"init_pose": [[1.0, 2.0, 0.0]], "init_spread": 0.01})
     assert np.hypot(*(obs["pose_estimate"][0, :2] - [1.0, 2.0])) < 0.2  # started where told
+
+
+def test_init_option_holds_for_that_reset_only() -> None:
+    """A global start asked for at reset: the autoresets after it start as the config says, as
+    with single wrappers (same seeds, same estimates)."""
+    n = 2
+    fast = LocalizedVectorEnv(
+        gym.make_vec(
+            "RacecarSim-v0", num_envs=n, vectorization_mode="vector_entry_point",
+            max_episode_steps=4, **SETTINGS,
+        ),
+        CONFIG,
+    )  # fmt: skip
+    sync = _sync(n, 4)
+    got, want = fast.reset(seed=7, options={"init": "global"}), sync.reset(
+        seed=7, options={"init": "global"}
+    )
+    np.testing.assert_array_equal(got[0]["pose_estimate"], want[0]["pose_estimate"])
+    actions = np.tile([0.0, 1.0], (n, 1))
+    for t in range(7):  # an autoreset at step 5
+        o1, *_, i1 = fast.step(actions)
+        o2, *_, i2 = sync.step(actions)
+        np.testing.assert_array_equal(o1["pose_estimate"], o2["pose_estimate"], f"step {t}")
+    assert np.all(i1["localization"]["position_error"] < 0.5)  # the autoreset started at the pose

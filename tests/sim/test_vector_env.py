@@ -58,6 +58,13 @@ def test_vector_env_equals_sync_vector_env_of_single_envs(parallel: bool) -> Non
     sync.close()
 
 
+@pytest.mark.parametrize("seed", [1.5, True, "12", [1, 2.5, 3], [1, 2]])
+def test_bad_seeds_name_the_seed(seed) -> None:
+    env = RacecarVectorEnv(3, **SETTINGS)
+    with pytest.raises(ValueError, match="seed"):
+        env.reset(seed=seed)
+
+
 def test_reset_seeds_per_car_lists_and_mask() -> None:
     env = RacecarVectorEnv(3, **SETTINGS)
     single = gym.make("RacecarSim-v0", **SETTINGS)
