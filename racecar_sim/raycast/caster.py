@@ -339,6 +339,10 @@ class RayCaster:
         rows = np.ascontiguousarray(rows, dtype=np.float64)
         if rows.ndim != 2 or rows.shape[0] != angles.shape[0] or rows.shape[1] < 1:
             raise ValueError(f"rows must have shape ({angles.shape[0]}, W), got {rows.shape}")
+        if poses.ndim != 2 or poses.shape[1] != 3:
+            raise ValueError(f"poses must have shape (N, 3) or (3,), got {poses.shape}")
+        if not math.isfinite(offset):
+            raise ValueError(f"offset must be a finite number of metres, got {offset!r}")
         if self.method != "lut" or self.dtype != np.float64:
             if offset != 0.0:
                 th = poses[:, 2]
@@ -349,8 +353,6 @@ class RayCaster:
             top = rows.shape[1] - 1
             d = np.floor(np.clip(ranges * per_metre, 0.0, top) + 0.5).astype(np.int64)
             return rows[np.arange(rows.shape[0])[None, :], d].sum(axis=1)
-        if poses.ndim != 2 or poses.shape[1] != 3:
-            raise ValueError(f"poses must have shape (N, 3) or (3,), got {poses.shape}")
         if not (np.isfinite(poses).all() and np.isfinite(angles).all()):
             raise ValueError("poses and angles must be finite (found NaN or inf)")
         out = np.empty(poses.shape[0], dtype=np.float64)

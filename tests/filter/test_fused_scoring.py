@@ -69,10 +69,31 @@ def test_cast_score_exact_method_matches_table_lookup(room) -> None:
     np.testing.assert_array_equal(lut.cast_score(poses, angles, rows, 4.0), lut_hand)
 
 
-def test_cast_score_rejects_mismatched_rows(room) -> None:
-    caster = RayCaster(room, 10.0, method="lut")
+@pytest.mark.parametrize("method", ["lut", "exact"])
+def test_cast_score_rejects_bad_input(room, method: str) -> None:
+    caster = RayCaster(room, 10.0, method=method)
     with pytest.raises(ValueError, match="rows must have shape"):
         caster.cast_score(np.zeros(3), np.zeros(4), np.zeros((3, 10)), 1.0)
+    with pytest.raises(ValueError, match="poses must have shape"):
+        caster.cast_score(np.zeros((5, 2)), np.zeros(4), np.zeros((4, 10)), 1.0)
+    with pytest.raises(ValueError, match="offset"):
+        caster.cast_score(np.zeros((5, 3)), np.zeros(4), np.zeros((4, 10)), 1.0, offset=np.nan)
+
+
+def test_cast_score_offset_is_a_cast_from_the_point_ahead(room) -> None:
+    """Both paths: scoring with a mount offset equals scoring poses moved that far ahead."""
+    rng = np.random.default_rng(8)
+    poses = room.sample_free_poses(rng, 40, clearance=0.5)
+    ahead = poses + np.column_stack([0.3 * np.cos(poses[:, 2]), 0.3 * np.sin(poses[:, 2]), 0 * poses[:, 2]])
+    angles = np.linspace(-2.0, 2.0, 9)
+    rows = rng.normal(size=(9, 41))
+    for method in ("exact", "lut"):
+        caster = RayCaster(room, 10.0, method=method)
+        np.testing.assert_allclose(
+            caster.cast_score(poses, angles, rows, 4.0, offset=0.3),
+            caster.cast_score(ahead, angles, rows, 4.0),
+            rtol=0, atol=1e-9,
+        )  # fmt: skip
 
 
 @pytest.mark.slow

@@ -114,4 +114,7 @@ def test_init_option_holds_for_that_reset_only() -> None:
         o1, *_, i1 = fast.step(actions)
         o2, *_, i2 = sync.step(actions)
         np.testing.assert_array_equal(o1["pose_estimate"], o2["pose_estimate"], f"step {t}")
+        np.testing.assert_array_equal(
+            i1["localization"]["position_error"], i2["localization"]["position_error"]
+        )
     assert np.all(i1["localization"]["position_error"] < 0.5)  # the autoreset started at the pose
