@@ -215,8 +215,9 @@ def _sweep_direction(kind, index, th, sub, box, unit, cap, row, pend_i, pend_t):
                 break
             px = bx + t * dx
             py = by + t * dy
-            col = int(math.floor(px))
-            rv = int(math.floor(py))
+            # clamped as at the entry: rounding may put the landing point on the box's far edge
+            col = min(max(int(math.floor(px)), u0), u1 - 1)
+            rv = min(max(int(math.floor(py)), v0), v1 - 1)
         if npend > 0:
             _store(row, pend_i, pend_t, npend, t, unit, cap)
             written += npend
