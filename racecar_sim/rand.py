@@ -1,4 +1,6 @@
-"""A fast seeded random stream inside numba kernels, for the lidar's beam noise.
+"""A fast seeded random stream inside numba kernels: the lidar's beam noise (seeded once per scan
+from the env's generator) and the particle filter's motion noise (seeded once per predict from the
+filter's generator, :mod:`mcl.step_kernels`).
 
 A scan needs one uniform and (for most beams) one standard normal per beam. Drawn through numpy's
 ``Generator`` that is two calls and ~14 us per 1080-beam scan, most of it the normals; here the

@@ -129,11 +129,12 @@ class Lidar:
     def add_noise(self, ranges: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """The beam noise alone: true ``ranges`` (metres, any shape) -> float32 noisy ranges.
 
-        See the module docstring for the model. Draws one 64-bit seed from ``rng`` and then, per
-        beam in order, one uniform and (for a Gaussian beam) one standard normal from that seed's
-        :mod:`racecar_sim.rand` stream. The uniform both picks the beam's part and, rescaled to
-        [0, 1) within that part's interval, gives the random return's or the short return's
-        distance, so no further draws are needed.
+        See the module docstring for the model. Draws one 64-bit seed from ``rng``; beam ``i``
+        then takes one uniform and one standard normal from counters ``2i + 1`` and ``2i + 2`` of
+        that seed's :mod:`racecar_sim.rand` stream (:func:`~racecar_sim.rand.uniforms_and_normals`;
+        the normal is used by Gaussian beams only). The uniform both picks the beam's part and,
+        rescaled to [0, 1) within that part's interval, gives the random return's or the short
+        return's distance, so no further draws are needed.
 
         Raises:
             ValueError: a range is NaN, negative or beyond ``max_range``.

@@ -51,9 +51,10 @@ def test_the_space_holds_the_walls_near_the_car_and_not_the_far_ones() -> None:
     assert len(held) < len(segs)  # the far ones stay out
 
 
-def _drive_lazy_and_full(seed: int) -> int:
+def _drive_lazy_and_full(seed: int) -> tuple[int, set]:
     """Drive one car with walls loaded near it and one with all walls on the same random commands
-    (placements now and then); assert bit-for-bit equal motion; return the contacts seen."""
+    (placements now and then); assert bit-for-bit equal motion; return the contacts seen and the
+    blocks of tiles the lazy car held its walls for."""
     grid = pillar_hall(seed % 7)
     lazy, full = RacecarPhysics(grid), RacecarPhysics(grid)
     full._walls.ensure(0.0, 0.0, math.inf)
@@ -62,6 +63,7 @@ def _drive_lazy_and_full(seed: int) -> int:
     for phys in (lazy, full):
         phys.reset(start)
     hits = 0
+    blocks = set()
     for k in range(400):
         if k % 150 == 149:
             pose = np.array([*grid.map_to_world(rng.uniform(1.0, 19.0, 2)), rng.uniform(-3, 3)])
@@ -76,7 +78,8 @@ def _drive_lazy_and_full(seed: int) -> int:
         hits += hit
         assert np.array_equal(lazy.pose, full.pose), f"step {k}"
         assert np.array_equal(lazy.twist, full.twist)
-    return hits
+        blocks.add(lazy._walls._block)
+    return hits, blocks
 
 
 @settings(max_examples=8, deadline=None)
@@ -89,8 +92,10 @@ def test_walls_near_the_car_give_the_motion_of_all_walls(seed: int) -> None:
 def test_the_drive_crosses_tiles_and_hits_walls() -> None:
     """The equality above is not vacuous: the car meets walls and changes tiles."""
     grid = pillar_hall(3 % 7)
-    assert _drive_lazy_and_full(3) > 0
+    hits, blocks = _drive_lazy_and_full(3)
+    assert hits > 0
     assert len(tiles_for(grid)._tiles) > 9  # more tiles than one block
+    assert len(blocks - {None}) >= 2, blocks  # and the lazy car's walls moved with it
 
 
 def test_tiles_are_shared_by_the_cars_of_a_map() -> None:
