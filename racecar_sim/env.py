@@ -307,9 +307,13 @@ class RacecarEnv(gym.Env):
             # pymunk must see obstacles near the car (free steps only know the map's walls)
             physics.free_steps = not self.obstacles.near(physics.pose, _OBSTACLE_REACH)
         collided = physics.step((steer, speed), self.dt)
+        return collided, self._tick()
+
+    def _tick(self) -> bool:
+        """Advance the clock by one step (``time``, seconds); returns whether a scan is due."""
         self._n_steps += 1
         self.time = self._n_steps * self.dt
-        return collided, self.time + _EPS_TIME >= self._next_scan
+        return self.time + _EPS_TIME >= self._next_scan
 
     def _measure_odometry(self, twist: np.ndarray) -> np.ndarray:
         vx, vy, om = twist.tolist()  # the physics' twist: finite, no checks needed

@@ -31,7 +31,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from racecar_sim.config import EnvConfig, merge_settings
-from racecar_sim.env import _EPS_TIME, RacecarEnv
+from racecar_sim.env import RacecarEnv
 from racecar_sim.free_batch import FreeStepBatch
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.rand import seed_from
@@ -246,11 +246,10 @@ class RacecarVectorEnv(VectorEnv):
             env = envs[i]
             if i not in done_free:
                 poses[i] = env.physics.pose
-            env._n_steps += 1  # the clock, as RacecarEnv._advance
-            env.time = env._n_steps * env.dt
+            scan_due = env._tick()  # the clock, as RacecarEnv._advance
             times[i] = env.time
             n_steps[i] = env._n_steps
-            if env.time + _EPS_TIME >= env._next_scan:
+            if scan_due:
                 fresh[i] = True
                 due.append(i)
         scans = np.empty((n, self._n_beams), dtype=np.float32)
