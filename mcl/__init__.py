@@ -13,6 +13,7 @@ from mcl.motion_model import MotionModel, MotionModelParams
 from mcl.particle_filter import ParticleFilter
 from mcl.sensor_model import SensorModel, SensorModelParams
 from mcl.uncertainty import ClusterParams, Uncertainty
+from mcl.vector_wrapper import LocalizedVectorEnv
 from mcl.wrapper import LocalizationConfig, LocalizationWrapper
 from racecar_sim import __version__
 
@@ -23,6 +24,7 @@ __all__ = [
     "KLDParams",
     "LocalizationConfig",
     "LocalizationWrapper",
+    "LocalizedVectorEnv",
     "MotionModel",
     "MotionModelParams",
     "ParticleFilter",

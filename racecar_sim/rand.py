@@ -81,13 +81,18 @@ def seed_from(rng: np.random.Generator) -> int:
 
 
 @nb.njit(cache=True, inline="always")
+def _mix(z):
+    """SplitMix64's output function of a counter value."""
+    z = (z ^ (z >> _S30)) * _MIX1
+    z = (z ^ (z >> _S27)) * _MIX2
+    return z ^ (z >> _S31)
+
+
+@nb.njit(cache=True, inline="always")
 def next_u64(state):
     """SplitMix64: (new state, a uniform uint64)."""
     state = state + _GOLDEN
-    z = state
-    z = (z ^ (z >> _S30)) * _MIX1
-    z = (z ^ (z >> _S27)) * _MIX2
-    return state, z ^ (z >> _S31)
+    return state, _mix(state)
 
 
 @nb.njit(cache=True, inline="always")
@@ -147,14 +152,6 @@ def uniforms(seed, out):
     state = np.uint64(seed)
     for i in range(out.shape[0]):
         state, out[i] = uniform(state)
-
-
-@nb.njit(cache=True, inline="always")
-def _mix(z):
-    """SplitMix64's output function of a counter value."""
-    z = (z ^ (z >> _S30)) * _MIX1
-    z = (z ^ (z >> _S27)) * _MIX2
-    return z ^ (z >> _S31)
 
 
 @nb.njit(cache=True, error_model="numpy")

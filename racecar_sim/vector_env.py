@@ -113,6 +113,12 @@ class RacecarVectorEnv(VectorEnv):
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if render_mode is not None:
             raise ValueError("RacecarVectorEnv does not render; use render_mode=None")
+        if parallel is not None and not isinstance(parallel, bool):
+            raise ValueError(f"parallel must be True, False or None, got {parallel!r}")
+        if workers is not None and (
+            not isinstance(workers, int) or isinstance(workers, bool) or workers < 1
+        ):
+            raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
         if max_episode_steps is not None and (
             not isinstance(max_episode_steps, int) or max_episode_steps < 1
         ):

@@ -58,6 +58,14 @@ def test_vector_env_equals_sync_vector_env_of_single_envs(parallel: bool) -> Non
     sync.close()
 
 
+@pytest.mark.parametrize(
+    ("setting", "value"), [("parallel", "false"), ("workers", 0), ("workers", "x"), ("workers", True)]
+)
+def test_bad_thread_settings_name_the_setting(setting: str, value) -> None:
+    with pytest.raises(ValueError, match=setting):
+        RacecarVectorEnv(2, **SETTINGS, **{setting: value})
+
+
 @pytest.mark.parametrize("seed", [1.5, True, "12", [1, 2.5, 3], [1, 2]])
 def test_bad_seeds_name_the_seed(seed) -> None:
     env = RacecarVectorEnv(3, **SETTINGS)
