@@ -53,7 +53,7 @@ from mcl.augmented import LikelihoodAverages
 from mcl.filter_params import ParticleFilterParams, spread_sd
 from mcl.kld import kld_count
 from mcl.motion_model import MotionModel, twist_to_odometry
-from mcl.resampling import resample
+from mcl.resampling import resample_particles
 from mcl.sensor_model import SensorModel
 from mcl.step_kernels import bayes_update, covariance_about, pose_moments
 from mcl.uncertainty import Uncertainty, assess
@@ -110,6 +110,7 @@ class ParticleFilter:
         self._log_weights: np.ndarray | None = None
         self._weights: np.ndarray | None = None
         self._mean_memo: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._ess_memo: tuple[np.ndarray | None, float] = (None, math.nan)  # weights, their ESS
         self.n_updates = 0
         self.n_resamples = 0
         self.n_degenerate = 0
@@ -150,9 +151,9 @@ class ParticleFilter:
 
     @property
     def effective_sample_size(self) -> float:
-        """Kish's 1 / sum(w^2), in [1, N]."""
+        """Kish's 1 / sum(w^2), in [1, N] (the last weight update's while its weights stand)."""
         w = self._require()[1]
-        return float(1.0 / np.dot(w, w))
+        return self._ess_memo[1] if w is self._ess_memo[0] else float(1.0 / np.dot(w, w))
 
     def set_particles(self, particles: np.ndarray, weights: np.ndarray | None = None) -> None:
         """Replace the particles (M, 3) world frame and their weights (uniform when None).
@@ -181,14 +182,6 @@ class ParticleFilter:
                 lw = np.log(w / w.sum())
         self._particles = p
         self._set_log_weights(lw)
-
-    def _adopt(self, particles: np.ndarray) -> None:
-        """Take drawn particles (already valid and wrapped) with uniform weights: what
-        :meth:`set_particles` gives for them, without its checks and copies."""
-        n = particles.shape[0]
-        self._particles = particles
-        self._weights = np.full(n, 1.0 / n)
-        self._log_weights = np.full(n, -math.log(n))
 
     def _set_log_weights(self, log_weights: np.ndarray) -> None:
         """Store log-weights normalised so that the weights sum to 1 (max must be finite)."""
@@ -307,6 +300,7 @@ class ParticleFilter:
         self._log_weights = lw
         self._weights = w
         self.last_effective_sample_size = float(1.0 / sum_w2)
+        self._ess_memo = (w, self.last_effective_sample_size)
 
     def needs_resampling(self) -> bool:
         """Whether the effective sample size is at most ``resample_threshold`` x N, or augmented
@@ -334,8 +328,9 @@ class ParticleFilter:
             n = particles.shape[0] if n is None else n
             n_random = int(self.rng.binomial(n, p_random)) if p_random > 0.0 else 0
         n_random = min(n_random, n - 1)  # keep at least one particle of the belief
-        idx = resample(self.params.resampling, weights, self.rng, n - n_random)
-        self._adopt(particles[idx])
+        n, how = n - n_random, self.params.resampling  # drawn: valid and wrapped, set directly
+        idx, self._particles = resample_particles(how, particles, weights, self.rng, n)
+        self._weights, self._log_weights = np.full(n, 1.0 / n), np.full(n, -math.log(n))
         self.pending_random = n_random
         self.n_resamples += 1
         return idx

@@ -12,7 +12,9 @@ Each resampler draws ``n`` indexes (default: as many as there are weights) with
 ``stratified``
     One uniform draw inside each of the n strata [k/n, (k+1)/n) (Kitagawa 1996).
 
-Both are O(n log n) with ``np.searchsorted`` on the cumulative weights (vectorised, no Python loop).
+Multinomial and stratified are O(n log n) with ``np.searchsorted`` on the cumulative weights,
+systematic one merge of its ascending pointers with them (numba). The particle filter draws through
+:func:`resample_particles`, whose systematic path also copies the drawn particles in that kernel.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from mcl.step_kernels import systematic_pick
+from mcl.step_kernels import systematic_pick, systematic_resample
 
 __all__ = [
     "RESAMPLERS",
@@ -29,6 +31,7 @@ __all__ = [
     "multinomial",
     "normalize_weights",
     "resample",
+    "resample_particles",
     "stratified",
     "systematic",
 ]
@@ -116,3 +119,21 @@ def resample(
             f"unknown resampling method {method!r}; choose one of {sorted(RESAMPLERS)}"
         ) from None
     return fn(weights, rng, n)
+
+
+def resample_particles(
+    method: str, particles: np.ndarray, weights: np.ndarray, rng: np.random.Generator, n: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(idx, particles[idx])`` for ``idx = resample(method, weights, rng, n)``: the particle
+    filter's step, for its own valid weights (not checked) and (N, 3) float64 particles; ``n``
+    is checked as :func:`resample` checks it.
+
+    ``"systematic"`` runs as one numba kernel (:func:`mcl.step_kernels.systematic_resample`: the
+    same draw of ``rng`` and the same indexes up to the rounding of the weights' sum, which is a
+    running sum there and numpy's pairwise one in :func:`systematic`).
+    """
+    n = _count(weights, n)
+    if method == "systematic":
+        return systematic_resample(particles, weights, rng.random(), n)
+    idx = resample(method, weights, rng, n)
+    return idx, particles[idx]

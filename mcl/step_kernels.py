@@ -20,7 +20,9 @@ from racecar_sim.rand import normal, uniform
 __all__ = [
     "bayes_update",
     "compose_into",
-    "covariance_about", "move_noisy_into", "noise_into", "pose_moments", "systematic_pick", "wrap"]
+    "covariance_about", "move_noisy_into", "noise_into", "pose_moments", "systematic_pick",
+    "systematic_resample", "wrap", "wrap_near",
+]
 
 _TWO_PI = 2.0 * math.pi
 
@@ -32,11 +34,35 @@ def wrap(a):
     return out - _TWO_PI if out >= math.pi else out
 
 
+
+@nb.njit(cache=True, inline="always")
+def wrap_near(a):
+    """``(wrap(a), ok)`` for an angle within about one turn of [-pi, pi) (radians): a shift by
+    2 pi or none, bit for bit :func:`wrap`, without its float remainder (a library call the
+    compiler evaluates on every iteration of a loop, even when a branch skips it: ~7 ns). ``ok``
+    is False when ``a + pi`` is outside [-2 pi, 4 pi) or NaN; the value is then not wrapped and
+    the caller redoes it with :func:`wrap`.
+
+    In range the remainder is exact: ``mod(x, 2 pi)`` is ``x`` on [0, 2 pi), ``x - 2 pi`` on
+    [2 pi, 4 pi) (exact by Sterbenz's lemma) and the rounded ``x + 2 pi`` on [-2 pi, 0), which is
+    what numpy's floor-mod adds to the (exact) C remainder of a negative ``x``.
+    """
+    x = a + math.pi
+    r = x
+    if x >= _TWO_PI:
+        r = x - _TWO_PI
+    elif x < 0.0:
+        r = x + _TWO_PI
+    out = r - math.pi
+    out = out - _TWO_PI if out >= math.pi else out
+    return out, (x >= -_TWO_PI) & (x < 2.0 * _TWO_PI)
+
 @nb.njit(cache=True)
 def compose_into(particles, odometry, out):
     """``out[i]``: pose ``particles[i]`` (N, 3) moved by the car-frame displacement
     ``odometry[j]`` (``j = i``, or 0 when ``odometry`` is (1, 3)), theta wrapped."""
     shared = odometry.shape[0] == 1
+    ok = True
     for i in range(particles.shape[0]):
         j = 0 if shared else i
         th = particles[i, 2]
@@ -46,7 +72,11 @@ def compose_into(particles, odometry, out):
         dy = odometry[j, 1]
         out[i, 0] = particles[i, 0] + c * dx - s * dy
         out[i, 1] = particles[i, 1] + s * dx + c * dy
-        out[i, 2] = wrap(th + odometry[j, 2])
+        out[i, 2], near = wrap_near(th + odometry[j, 2])
+        ok &= near
+    if not ok:
+        for i in range(particles.shape[0]):
+            out[i, 2] = wrap(particles[i, 2] + odometry[0 if shared else i, 2])
 
 
 @nb.njit(cache=True, inline="always")
@@ -76,6 +106,9 @@ def move_noisy_into(particles, odometry, coefficients, gaussian, seed, out):
     draws for particle ``i`` with the same seed (the same doubles), in one pass without
     temporaries. Car-frame displacement, world poses, theta wrapped."""
     state = np.uint64(seed)
+    ok = True
+    last = math.nan
+    c = s = 0.0
     for i in range(particles.shape[0]):
         state, z0 = _draw(state, gaussian)
         state, z1 = _draw(state, gaussian)
@@ -84,11 +117,19 @@ def move_noisy_into(particles, odometry, coefficients, gaussian, seed, out):
         dy = odometry[1] + z1 * coefficients[1]
         dth = odometry[2] + z2 * coefficients[2]
         th = particles[i, 2]
-        c = math.cos(th)
-        s = math.sin(th)
+        if th != last or th == 0.0:  # resampled copies share a heading (and cos, sin; not +-0)
+            c = math.cos(th)
+            s = math.sin(th)
+            last = th
         out[i, 0] = particles[i, 0] + c * dx - s * dy
         out[i, 1] = particles[i, 1] + s * dx + c * dy
-        out[i, 2] = wrap(th + dth)
+        theta, near = wrap_near(th + dth)
+        out[i, 2] = theta if near else th + dth  # unwrapped: outside [-pi, pi), redone below
+        ok &= near
+    if not ok:
+        for i in range(particles.shape[0]):
+            if not -math.pi <= out[i, 2] < math.pi:
+                out[i, 2] = wrap(out[i, 2])
 
 
 @nb.njit(cache=True)
@@ -160,12 +201,19 @@ def pose_moments(particles, weights, with_covariance):
     my = 0.0
     ms = 0.0
     mc = 0.0
+    last = math.nan
+    c = s = 0.0
     for i in range(n):
         w = weights[i]
         mx += w * particles[i, 0]
         my += w * particles[i, 1]
-        ms += w * math.sin(particles[i, 2])
-        mc += w * math.cos(particles[i, 2])
+        th = particles[i, 2]
+        if th != last:  # resampled copies share a heading (and its cos, sin; ms, mc never -0)
+            c = math.cos(th)
+            s = math.sin(th)
+            last = th
+        ms += w * s
+        mc += w * c
     mean = np.empty(3)
     mean[0] = mx
     mean[1] = my
@@ -178,12 +226,25 @@ def pose_moments(particles, weights, with_covariance):
 def covariance_about(particles, weights, mean):
     """(3, 3) weighted covariance of the poses about ``mean`` (3,), heading deviations wrapped;
     ``weights`` sum to 1."""
+    cov, ok = _covariance(particles, weights, mean, True)
+    return cov if ok else _covariance(particles, weights, mean, False)[0]
+
+
+@nb.njit(cache=True, inline="always")
+def _covariance(particles, weights, mean, near):
+    """:func:`covariance_about` with the heading deviations wrapped by :func:`wrap_near` when
+    ``near`` (then ``ok`` says whether every deviation was in its range), else by :func:`wrap`."""
     cov = np.zeros((3, 3))
+    ok = True
     for i in range(particles.shape[0]):
         w = weights[i]
         d0 = particles[i, 0] - mean[0]
         d1 = particles[i, 1] - mean[1]
-        d2 = wrap(particles[i, 2] - mean[2])
+        if near:
+            d2, inside = wrap_near(particles[i, 2] - mean[2])
+            ok &= inside
+        else:
+            d2 = wrap(particles[i, 2] - mean[2])
         cov[0, 0] += w * d0 * d0
         cov[0, 1] += w * d0 * d1
         cov[0, 2] += w * d0 * d2
@@ -193,4 +254,40 @@ def covariance_about(particles, weights, mean):
     cov[1, 0] = cov[0, 1]
     cov[2, 0] = cov[0, 2]
     cov[2, 1] = cov[1, 2]
-    return cov
+    return cov, ok
+
+
+@nb.njit(cache=True)
+def systematic_resample(particles, weights, offset, n):
+    """Systematic resampling of ``particles`` (N, 3) by ``weights`` (N,), in one pass each for
+    the cumulative weights, the picks and the copies: ``(idx, drawn)`` with ``idx`` the (n,)
+    int64 indexes :func:`systematic_pick` gives for pointers ``(offset + k) / n`` on the
+    normalised cumulative weights (``cumsum(w / sum(w))``, then divided by its last element so
+    that it ends at exactly 1, as :func:`mcl.resampling.systematic` does; the sum here is a
+    plain running one), and ``drawn = particles[idx]``. The weights must be non-negative and
+    finite with a positive sum (the filter's always are).
+    """
+    m = weights.shape[0]
+    total = 0.0
+    for i in range(m):
+        total += weights[i]
+    cdf = np.empty(m)
+    run = 0.0
+    for i in range(m):
+        run += weights[i] / total
+        cdf[i] = run
+    last = cdf[m - 1]
+    for i in range(m):
+        cdf[i] /= last
+    idx = np.empty(n, dtype=np.int64)
+    drawn = np.empty((n, 3))
+    j = 0
+    for k in range(n):
+        ptr = (offset + k) / n
+        while j < m - 1 and cdf[j] <= ptr:
+            j += 1
+        idx[k] = j
+        drawn[k, 0] = particles[j, 0]
+        drawn[k, 1] = particles[j, 1]
+        drawn[k, 2] = particles[j, 2]
+    return idx, drawn

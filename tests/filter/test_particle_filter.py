@@ -100,6 +100,7 @@ def test_weights_sum_to_one_after_any_update(small_filter, log_lik: np.ndarray) 
     assert math.isclose(w.sum(), 1.0, rel_tol=1e-12)
     assert np.all(np.isfinite(pf.estimate()))
     assert 1.0 - 1e-9 <= pf.effective_sample_size <= 50 * (1 + 1e-9)
+    assert pf.effective_sample_size == pytest.approx(1.0 / np.dot(w, w), rel=1e-12)
     usable = np.isfinite(log_lik)
     if usable.any():
         assert np.all(w[~usable] == 0.0)  # NaN, +inf and -inf count as impossible
@@ -154,6 +155,20 @@ def test_resampling_policies(room, sensor) -> None:
     assert counts["always"] == 3
     assert counts["never"] == 0
     assert 1 <= counts[0.5] <= 3  # a 0.3 m cloud is mostly unlikely: the first correction resamples
+
+
+def test_effective_sample_size_follows_the_weights_that_stand(room, sensor) -> None:
+    """The update's own sum of squares serves while its weights stand, never after them."""
+    pf = _pf(room, sensor, n=4, resample_threshold="never")
+    pf.set_particles(np.array([TRUTH] * 4))
+    pf.update_weights(np.log([1.0, 1.0, 2.0, 4.0]))
+    assert pf.effective_sample_size == pytest.approx(64 / 22, rel=1e-12)
+    assert pf.effective_sample_size == pf.last_effective_sample_size
+    pf.set_particles(pf.particles, [1.0, 0.0, 0.0, 1.0])
+    assert pf.effective_sample_size == pytest.approx(2.0, rel=1e-12)
+    pf.resample()
+    assert pf.effective_sample_size == pytest.approx(4.0, rel=1e-12)
+    assert pf.last_effective_sample_size == pytest.approx(64 / 22, rel=1e-12)
 
 
 def test_resampling_makes_weights_uniform_and_keeps_heavy_particles(room, sensor) -> None:

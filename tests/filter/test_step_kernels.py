@@ -10,7 +10,17 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from mcl.angles import circular_mean, wrap_angle
-from mcl.step_kernels import compose_into, pose_moments, systematic_pick, wrap
+from mcl.step_kernels import (
+    compose_into,
+    covariance_about,
+    move_noisy_into,
+    noise_into,
+    pose_moments,
+    systematic_pick,
+    systematic_resample,
+    wrap,
+    wrap_near,
+)
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, allow_infinity=False)
 
@@ -101,3 +111,169 @@ def test_bayes_update_matches_the_numpy_formulas(old, data):
     np.testing.assert_allclose(w, expected_w, rtol=1e-12, atol=1e-300)
     np.testing.assert_allclose(np.exp(lw), expected_w, rtol=1e-9, atol=1e-300)
     np.testing.assert_allclose(sum_w2, np.dot(expected_w, expected_w), rtol=1e-12)
+
+
+_TURN = 2.0 * math.pi
+_EDGES = [
+    k * _TURN - math.pi + d
+    for k in range(-3, 4)
+    for d in (0.0, 1e-15, -1e-15, 4e-16, -4e-16)
+] + [0.0, -0.0, math.pi, -math.pi, 5e-324, -5e-324, 1e300, -1e300, math.nan]
+
+
+@settings(deadline=None)
+@given(st.lists(st.one_of(st.floats(-30.0, 30.0), st.sampled_from(_EDGES)), min_size=1, max_size=40))
+def test_wrap_near_is_wrap_bit_for_bit_where_it_says_ok(angles):
+    """In its range (a + pi in [-2 pi, 4 pi)) the shift equals the float remainder, sign of zero
+    included; outside it (or NaN) it says so."""
+    for a in angles:
+        got, ok = wrap_near(a)
+        x = a + math.pi
+        assert ok == (-_TURN <= x < 2 * _TURN)
+        if ok:
+            want = wrap(a)
+            assert got == want and math.copysign(1, got) == math.copysign(1, want), a
+
+
+def test_wrap_near_is_wrap_over_its_whole_range():
+    """Dense over [-3 pi, 3 pi) (all of its range): every value as the remainder gives it."""
+    angles = np.random.default_rng(3).uniform(-3 * math.pi, 3 * math.pi, 20_000)
+    for a in angles.tolist():
+        got, ok = wrap_near(a)
+        assert ok and got == wrap(a), a
+
+
+def _cloud_with_copies(p, copies):
+    """The poses repeated as resampling repeats them (consecutive copies), headings 0.0 and -0.0
+    among them."""
+    p = np.repeat(p, copies, axis=0)
+    p[::5, 2] = 0.0
+    p[1::7, 2] = -0.0
+    return p
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    p=arrays(np.float64, st.tuples(st.integers(1, 15), st.just(3)), elements=finite),
+    copies=st.integers(1, 4),
+    odo=arrays(np.float64, 3, elements=st.floats(-5, 5)),
+    dtheta=st.sampled_from([0.0, 0.3, 12.0, -40.0]),
+    gaussian=st.booleans(),
+    seed=st.integers(0, 2**62),
+)
+def test_move_noisy_into_is_compose_of_the_noise_bit_for_bit(p, copies, odo, dtheta, gaussian, seed):
+    """Odometry plus :func:`noise_into`'s draws, composed by :func:`compose_into` (which takes
+    every cos and sin afresh): the same doubles, with copies of a heading (whose cos and sin
+    the kernel reuses) and turns large enough to need the full remainder."""
+    p = _cloud_with_copies(p, copies)
+    p[:, 2] = wrap_angle(p[:, 2]) if dtheta == 0.0 else p[:, 2]
+    odo = odo.copy()
+    odo[2] += dtheta
+    coefficients = np.array([0.02, 0.01, 0.5])
+    noise = np.empty_like(p)
+    noise_into(coefficients, gaussian, seed, noise)
+    want = np.empty_like(p)
+    compose_into(p, odo[None, :] + noise, want)
+    got = np.empty_like(p)
+    move_noisy_into(p, odo, coefficients, gaussian, seed, got)
+    assert np.array_equal(got, want)
+    assert np.array_equal(np.signbit(got), np.signbit(want))
+    assert np.array_equal(got[:, 2], wrap_angle(p[:, 2] + (odo[None, :] + noise)[:, 2]))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    p=arrays(np.float64, st.tuples(st.integers(1, 15), st.just(3)), elements=finite),
+    copies=st.integers(1, 4),
+    raw=st.lists(st.floats(0.01, 10), min_size=60, max_size=60),
+    wrapped=st.booleans(),
+)
+def test_pose_moments_are_the_plain_loop_bit_for_bit(p, copies, raw, wrapped):
+    """The mean (reusing the cos and sin of repeated headings) and the covariance (headings
+    wrapped by a shift in range, by the remainder outside it) as a plain Python loop over the
+    same formula, in the same order, computes them."""
+    p = _cloud_with_copies(p, copies)
+    if wrapped:
+        p[:, 2] = wrap_angle(p[:, 2])
+    w = np.array(raw[: p.shape[0]])
+    w /= w.sum()
+    mx = my = ms = mc = 0.0
+    for (x, y, th), wi in zip(p.tolist(), w.tolist(), strict=True):
+        mx, my = mx + wi * x, my + wi * y
+        ms, mc = ms + wi * math.sin(th), mc + wi * math.cos(th)
+    want_mean = np.array([mx, my, float(wrap_angle(math.atan2(ms, mc)))])
+    mean, cov = pose_moments(p, w, True)
+    assert np.array_equal(mean, want_mean)
+    want = np.zeros((3, 3))
+    for (x, y, th), wi in zip(p.tolist(), w.tolist(), strict=True):
+        d = np.array([x - mean[0], y - mean[1], float(wrap_angle(th - mean[2]))])
+        for a, b in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
+            want[a, b] += wi * d[a] * d[b]
+    want[1, 0], want[2, 0], want[2, 1] = want[0, 1], want[0, 2], want[1, 2]
+    assert np.array_equal(cov, want)
+    assert np.array_equal(covariance_about(p, w, mean), want)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    counts=arrays(np.int64, st.integers(1, 60), elements=st.integers(0, 1000)),
+    offset=st.floats(0, 1, exclude_max=True),
+    n=st.integers(1, 90),
+)
+def test_systematic_resample_is_numpy_systematic(counts, offset, n):
+    """Integer weights, whose sums are exact in any order: the same indexes as numpy's
+    cumulative sum and binary search, and the particles copied from them."""
+    if counts.sum() == 0:
+        counts[-1] = 3
+    w = counts.astype(np.float64)
+    particles = np.arange(3 * w.size, dtype=np.float64).reshape(-1, 3) * 0.5
+    cdf = np.cumsum(w / w.sum())
+    cdf /= cdf[-1]
+    pointers = (offset + np.arange(n)) / n
+    want = np.minimum(np.searchsorted(cdf, pointers, side="right"), cdf.size - 1)
+    idx, drawn = systematic_resample(particles, w, offset, n)
+    assert np.array_equal(idx, want)
+    assert np.array_equal(drawn, particles[want])
+    assert (w[idx] > 0).all()
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    w=arrays(np.float64, st.integers(1, 60), elements=st.floats(0, 10)),
+    seed=st.integers(0, 2**32),
+    n=st.integers(1, 90),
+)
+def test_resample_particles_keeps_systematic_counts(w, seed, n):
+    """Any float weights: every particle drawn floor or ceil of n w_i / sum(w) times (the
+    systematic invariant), zero weights never, from one draw of the generator as
+    :func:`mcl.resampling.systematic`; the other methods are their function plus the copy."""
+    from mcl.resampling import resample, resample_particles
+
+    if w.sum() <= 0:
+        w[0] = 1.0
+    particles = np.column_stack([np.arange(w.size), -np.arange(w.size), np.zeros(w.size)]) * 1.0
+    rng = np.random.default_rng(seed)
+    idx, drawn = resample_particles("systematic", particles, w, rng, n)
+    counts = np.bincount(idx, minlength=w.size)
+    expected = n * w / w.sum()
+    assert (counts >= np.floor(expected - 1e-9)).all() and (counts <= np.ceil(expected + 1e-9)).all()
+    assert (counts[w == 0] == 0).all()
+    assert np.array_equal(drawn, particles[idx])
+    assert rng.random() == np.random.default_rng(seed).random(2)[1]
+    for method in ("multinomial", "stratified"):
+        idx, drawn = resample_particles(method, particles, w, np.random.default_rng(seed), n)
+        assert np.array_equal(idx, resample(method, w, np.random.default_rng(seed), n))
+        assert np.array_equal(drawn, particles[idx])
+
+
+def test_move_noisy_into_takes_the_sine_of_each_signed_zero_heading():
+    """Headings 0.0 then -0.0 compare equal, but their sines differ in sign, which shows in an
+    exactly-zero result: ``-0.0 - sin(h) * 1.0`` is -0.0 for h = 0.0 and +0.0 for h = -0.0."""
+    seed = 7
+    z = np.empty((2, 3))
+    noise_into(np.ones(3), True, seed, z)
+    coefficients = np.array([-0.0 if z[1, 0] > 0 else 0.0, 0.0, 0.0])  # noise of dx: -0.0
+    particles = np.array([[-0.0, 0.0, 0.0], [-0.0, 0.0, -0.0]])
+    out = np.empty_like(particles)
+    move_noisy_into(particles, np.array([-0.0, 1.0, 0.0]), coefficients, True, seed, out)
+    assert math.copysign(1.0, out[1, 0]) == 1.0
