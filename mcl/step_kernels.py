@@ -259,33 +259,53 @@ def _covariance(particles, weights, mean, near):
 
 @nb.njit(cache=True)
 def systematic_resample(particles, weights, offset, n):
-    """Systematic resampling of ``particles`` (N, 3) by ``weights`` (N,), in one pass each for
-    the cumulative weights, the picks and the copies: ``(idx, drawn)`` with ``idx`` the (n,)
-    int64 indexes :func:`systematic_pick` gives for pointers ``(offset + k) / n`` on the
-    normalised cumulative weights (``cumsum(w / sum(w))``, then divided by its last element so
-    that it ends at exactly 1, as :func:`mcl.resampling.systematic` does; the sum here is a
-    plain running one), and ``drawn = particles[idx]``. The weights must be non-negative and
-    finite with a positive sum (the filter's always are).
+    """Systematic resampling of ``particles`` (N, 3) by ``weights`` (N,): ``(idx, drawn)`` with
+    ``idx`` the (n,) int64 indexes :func:`systematic_pick` gives for pointers
+    ``(offset + k) / n`` on the normalised cumulative weights (``cumsum(w / sum(w))``, then
+    divided by its last element so that it ends at exactly 1, as
+    :func:`mcl.resampling.systematic` does; the sum here is a plain running one), and
+    ``drawn = particles[idx]``. The weights must be non-negative and finite with a positive sum
+    (the filter's always are).
+
+    Without the merge's data-dependent branches (a misprediction or two per pointer, most of its
+    time): ``idx[k]`` is the number of bins ``j`` whose cumulative weight is at or below pointer
+    ``k``, i.e. whose first pointer not below it, ``e_j``, is at most ``k``. ``e_j`` is
+    ``ceil(n cdf_j - offset)``, corrected by a step where rounding puts a pointer on the other side
+    of ``cdf_j`` (rare, so well predicted); a histogram of the ``e_j`` and its running sum give
+    ``idx``.
     """
     m = weights.shape[0]
     total = 0.0
     for i in range(m):
         total += weights[i]
     cdf = np.empty(m)
+    for i in range(m):  # the divisions in loops of their own, which vectorise
+        cdf[i] = weights[i] / total
     run = 0.0
     for i in range(m):
-        run += weights[i] / total
+        run += cdf[i]
         cdf[i] = run
     last = cdf[m - 1]
     for i in range(m):
         cdf[i] /= last
+    pointers = np.empty(n + 1)
+    for k in range(n + 1):
+        pointers[k] = (offset + k) / n
+    starts = np.zeros(n + 1, dtype=np.int64)  # starts[e]: bins whose first pointer >= cdf is e
+    for j in range(m):
+        c = cdf[j]
+        e = min(max(math.ceil(c * n - offset), 0), n)
+        while e > 0 and pointers[e - 1] >= c:
+            e -= 1
+        while e < n and pointers[e] < c:
+            e += 1
+        starts[e] += 1
     idx = np.empty(n, dtype=np.int64)
     drawn = np.empty((n, 3))
-    j = 0
+    below = 0
     for k in range(n):
-        ptr = (offset + k) / n
-        while j < m - 1 and cdf[j] <= ptr:
-            j += 1
+        below += starts[k]
+        j = min(below, m - 1)
         idx[k] = j
         drawn[k, 0] = particles[j, 0]
         drawn[k, 1] = particles[j, 1]
