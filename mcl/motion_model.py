@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mcl.step_kernels import compose_into, move_noisy_into, noise_into
+from mcl.step_kernels import compose_into, move_noisy, noise_into
 from racecar_sim.rand import seed_from
 
 __all__ = [
@@ -145,9 +145,15 @@ class MotionModel:
 
     def __init__(self, params: MotionModelParams | None = None) -> None:
         self.params = params if params is not None else MotionModelParams()
+        self._coefficients_of: tuple[MotionModelParams | None, np.ndarray] = (None, np.zeros(3))
 
     def _coefficients(self) -> np.ndarray:
-        return np.asarray(self.params.coefficients, dtype=np.float64).reshape(3)
+        """``params.coefficients`` as a (3,) array, made once per ``params`` object."""
+        params, coefficients = self._coefficients_of
+        if params is not self.params:
+            coefficients = np.asarray(self.params.coefficients, dtype=np.float64).reshape(3)
+            self._coefficients_of = (self.params, coefficients)
+        return coefficients
 
     def sample_noise(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """(n, 3) car-frame odometry perturbations (metres, metres, radians) for ``n`` particles.
@@ -181,13 +187,11 @@ class MotionModel:
         if particles.ndim != 2 or particles.shape[1] != 3:
             raise ValueError(f"particles must have shape (N, 3), got {particles.shape}")
         odo = np.asarray(odometry, dtype=np.float64)
-        if odo.shape != (3,) or not np.isfinite(odo).all():
+        if odo.shape != (3,) or not all(map(math.isfinite, odo.tolist())):
             raise ValueError(f"odometry must be three finite numbers [dx, dy, dtheta], got {odo}")
         if self.params.scheme == "none":
             return compose(particles, odo)
-        out = np.empty(particles.shape)
-        move_noisy_into(
+        return move_noisy(
             np.ascontiguousarray(particles), odo, self._coefficients(),
-            self.params.scheme == "gaussian", seed_from(rng), out,
+            self.params.scheme == "gaussian", seed_from(rng),
         )  # fmt: skip
-        return out

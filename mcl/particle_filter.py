@@ -55,7 +55,7 @@ from mcl.kld import kld_count
 from mcl.motion_model import MotionModel, twist_to_odometry
 from mcl.resampling import resample_particles
 from mcl.sensor_model import SensorModel
-from mcl.step_kernels import bayes_update, covariance_about, pose_moments
+from mcl.step_kernels import bayes_step, covariance_about, pose_moments
 from mcl.uncertainty import Uncertainty, assess
 from racecar_sim.maps import OccupancyMap
 
@@ -111,6 +111,7 @@ class ParticleFilter:
         self._weights: np.ndarray | None = None
         self._mean_memo: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._ess_memo: tuple[np.ndarray | None, float] = (None, math.nan)  # weights, their ESS
+        self._uniform = (np.empty(0), np.empty(0))  # the weights, log-weights of the last draw
         self.n_updates = 0
         self.n_resamples = 0
         self.n_degenerate = 0
@@ -256,19 +257,19 @@ class ParticleFilter:
     def predict(self, twist: np.ndarray, dt: float) -> None:
         """Move the particles by a car-frame twist [vx, vy, omega] held for ``dt`` seconds."""
         twist = np.asarray(twist, dtype=np.float64)
-        if twist.shape != (3,) or not np.isfinite(twist).all():
+        if twist.shape != (3,) or not all(map(math.isfinite, values := twist.tolist())):
             raise ValueError(f"twist must be three finite numbers [vx, vy, omega], got {twist!r}")
         if not (math.isfinite(dt) and dt >= 0):
             raise ValueError(f"dt must be a non-negative number of seconds, got {dt!r}")
-        self.move(twist_to_odometry(twist, dt))
+        self.move(twist_to_odometry(values, dt))
 
     def move(self, odometry: np.ndarray) -> None:
         """Move the particles by a car-frame displacement [dx, dy, dtheta] (metres, radians)."""
         particles, _ = self._require()
         self._particles = self.motion_model.evaluate(particles, odometry, self.rng)
-        odo = np.asarray(odometry, dtype=np.float64)
-        self._moved[0] += math.hypot(odo[0], odo[1])
-        self._moved[1] += abs(float(odo[2]))
+        dx, dy, dtheta = np.asarray(odometry, dtype=np.float64).tolist()
+        self._moved[0] += math.hypot(dx, dy)
+        self._moved[1] += abs(dtheta)
 
     def update_weights(self, log_likelihood: np.ndarray) -> None:
         """Multiply the weights by ``exp(log_likelihood)`` (N,) and normalise (Bayes rule).
@@ -284,9 +285,7 @@ class ParticleFilter:
             )
         self.n_updates += 1
         assert self._log_weights is not None
-        lw = np.empty_like(self._log_weights)
-        w = np.empty_like(self._log_weights)
-        top, total, sum_w2 = bayes_update(self._log_weights, ll, lw, w)  # one numba pass
+        lw, w, top, total, sum_w2 = bayes_step(self._log_weights, ll)  # one numba call
         if not math.isfinite(top):
             self.n_degenerate += 1
             self.last_log_mean_likelihood = -math.inf
@@ -330,7 +329,9 @@ class ParticleFilter:
         n_random = min(n_random, n - 1)  # keep at least one particle of the belief
         n, how = n - n_random, self.params.resampling  # drawn: valid and wrapped, set directly
         idx, self._particles = resample_particles(how, particles, weights, self.rng, n)
-        self._weights, self._log_weights = np.full(n, 1.0 / n), np.full(n, -math.log(n))
+        if self._uniform[0].shape[0] != n:  # never written in place, so shared across draws
+            self._uniform = (np.full(n, 1.0 / n), np.full(n, -math.log(n)))
+        self._weights, self._log_weights = self._uniform
         self.pending_random = n_random
         self.n_resamples += 1
         return idx

@@ -18,9 +18,9 @@ import numpy as np
 from racecar_sim.rand import normal, uniform
 
 __all__ = [
-    "bayes_update",
+    "bayes_step", "bayes_update",
     "compose_into",
-    "covariance_about", "move_noisy_into", "noise_into", "pose_moments", "systematic_pick",
+    "covariance_about", "move_noisy", "move_noisy_into", "noise_into", "pose_moments", "systematic_pick",
     "systematic_resample", "wrap", "wrap_near",
 ]
 
@@ -130,6 +130,24 @@ def move_noisy_into(particles, odometry, coefficients, gaussian, seed, out):
         for i in range(particles.shape[0]):
             if not -math.pi <= out[i, 2] < math.pi:
                 out[i, 2] = wrap(out[i, 2])
+
+
+@nb.njit(cache=True)
+def move_noisy(particles, odometry, coefficients, gaussian, seed):
+    """:func:`move_noisy_into` into a new (N, 3) array, returned (one call from Python)."""
+    out = np.empty(particles.shape)
+    move_noisy_into(particles, odometry, coefficients, gaussian, seed, out)
+    return out
+
+
+@nb.njit(cache=True)
+def bayes_step(log_weights, log_likelihood):
+    """:func:`bayes_update` into new arrays: ``(new_log_weights, new_weights, top, total,
+    sum_w2)`` (one call from Python)."""
+    new_log_weights = np.empty(log_weights.shape[0])
+    new_weights = np.empty(log_weights.shape[0])
+    top, total, sum_w2 = bayes_update(log_weights, log_likelihood, new_log_weights, new_weights)
+    return new_log_weights, new_weights, top, total, sum_w2
 
 
 @nb.njit(cache=True)

@@ -204,3 +204,17 @@ def test_evaluate_adds_exactly_the_noise_sample_noise_draws(scheme, seed, n, odo
     np.testing.assert_allclose(moved, compose(particles, odo + noise), rtol=0, atol=1e-12)
     np.testing.assert_array_equal(moved, model.evaluate(particles, odo, np.random.default_rng(seed)))
     assert not np.array_equal(moved, model.evaluate(particles, odo, np.random.default_rng(seed + 1)))
+
+
+def test_new_params_take_effect_on_the_next_draw() -> None:
+    """The coefficients array is kept per ``params`` object: replacing ``params`` changes the
+    noise of the next evaluate (the same draws, scaled by the new coefficients)."""
+    particles = np.zeros((5, 3))
+    odo = np.array([0.1, 0.0, 0.0])
+    model = MotionModel(MotionModelParams(coefficients=(0.01, 0.01, 0.01)))
+    small = model.evaluate(particles, odo, np.random.default_rng(4))
+    model.params = MotionModelParams(coefficients=(1.0, 1.0, 1.0))
+    large = model.evaluate(particles, odo, np.random.default_rng(4))
+    noise = MotionModel(model.params).sample_noise(5, np.random.default_rng(4))
+    np.testing.assert_allclose(large[:, 0], odo[0] + noise[:, 0], atol=1e-12)
+    np.testing.assert_allclose(small[:, 0] - odo[0], (large[:, 0] - odo[0]) / 100, atol=1e-12)

@@ -13,6 +13,7 @@ from mcl.angles import circular_mean, wrap_angle
 from mcl.step_kernels import (
     compose_into,
     covariance_about,
+    move_noisy,
     move_noisy_into,
     noise_into,
     pose_moments,
@@ -94,7 +95,7 @@ def test_compose_into_matches_the_formula(p, odo):
 def test_bayes_update_matches_the_numpy_formulas(old, data):
     """Normalised log-weights, weights, the log mean likelihood and Kish's sum of squares as the
     numpy code computed them; NaN and +inf likelihoods count as impossible."""
-    from mcl.step_kernels import bayes_update
+    from mcl.step_kernels import bayes_step, bayes_update
 
     n = old.size
     old = old - np.log(np.exp(old).sum())  # normalised, as the filter keeps them
@@ -106,6 +107,9 @@ def test_bayes_update_matches_the_numpy_formulas(old, data):
     assert top == want.max()
     if not np.isfinite(top):
         return
+    step = bayes_step(old, ll)  # the same into new arrays
+    assert np.array_equal(step[0], lw) and np.array_equal(step[1], w)
+    assert step[2:] == (top, total, sum_w2)
     np.testing.assert_allclose(total, np.exp(want - top).sum(), rtol=1e-12)
     expected_w = np.exp(want - top) / np.exp(want - top).sum()
     np.testing.assert_allclose(w, expected_w, rtol=1e-12, atol=1e-300)
@@ -177,6 +181,7 @@ def test_move_noisy_into_is_compose_of_the_noise_bit_for_bit(p, copies, odo, dth
     got = np.empty_like(p)
     move_noisy_into(p, odo, coefficients, gaussian, seed, got)
     assert np.array_equal(got, want)
+    assert np.array_equal(move_noisy(p, odo, coefficients, gaussian, seed), want)
     assert np.array_equal(np.signbit(got), np.signbit(want))
     assert np.array_equal(got[:, 2], wrap_angle(p[:, 2] + (odo[None, :] + noise)[:, 2]))
 
