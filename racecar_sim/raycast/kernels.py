@@ -34,6 +34,7 @@ __all__ = [
     "march_rays",
     "padded_occupancy",
     "to_metres",
+    "traverse",
 ]
 
 JUMP_MIN = 2
@@ -100,11 +101,22 @@ def cast_ray_from(field, gu, gv, dx, dy, t0, max_t):
     v = field[rv, col]
     if v == OCCUPIED:
         return -1.0
+    return traverse(field, gu, gv, dx, dy, t0, px, py, col, rv, v, max_t)
+
+
+@nb.njit(cache=True, inline="always")
+def traverse(field, gu, gv, dx, dy, t, px, py, col, rv, v, max_t):
+    """The traversal of :func:`cast_ray_from` from the free cell ``(col, rv)`` whose field value is
+    ``v``, holding the point ``(px, py) = (gu + t dx, gv + t dy)`` at parameter ``t`` (cells).
+
+    With ``v != 0`` it jumps first (``col, rv`` are then recomputed and may be anything); with
+    ``v == 0`` it steps cell by cell from that point. Returns the range in cells (``max_t`` if
+    clipped).
+    """
     step_x = 1 if dx > 0.0 else -1
     step_y = 1 if dy > 0.0 else -1
     tdelta_x = 1.0 / abs(dx) if dx != 0.0 else _BIG
     tdelta_y = 1.0 / abs(dy) if dy != 0.0 else _BIG
-    t = t0
     while True:
         if v != 0:
             # Jump through free space; landing stays inside the padded grid (the ring is occupied).
