@@ -29,7 +29,7 @@ import numba as nb
 import numpy as np
 
 from racecar_sim.raycast.fallback import guided_casts
-from racecar_sim.raycast.kernels import CHUNK, to_metres
+from racecar_sim.raycast.kernels import to_metres
 from racecar_sim.raycast.lut_build import (
     FLAG,
     PARALLEL_MIN_ENTRIES,
@@ -37,6 +37,7 @@ from racecar_sim.raycast.lut_build import (
     LutTable,
     build_lut,
 )
+from racecar_sim.raycast.shared_work import fetch_add, run_shared
 from racecar_sim.validation import check_number
 
 __all__ = ["PARALLEL_MIN_ENTRIES", "LutParams", "LutTable", "build_lut", "lut_rays", "lut_score"]
@@ -45,7 +46,7 @@ _SANE = 1.5  # cells an interpolated range may lie outside the two table ranges
 _TURN = 4294967296.0  # 2**32: a full turn in the fixed-point angles
 _MASK32 = 0xFFFFFFFF
 _GROUP = 16  # poses whose fallback casts go together (about 8 per pose at 100 beams)
-_BLOCK_RAYS = 4 * CHUNK  # rays per work item of the parallel query (each allocates its buffers)
+_BLOCK_RAYS = 8192  # rays per item of the shared query: 80 poses at 100 beams, 0.05-0.1 ms
 
 
 @dataclass(frozen=True)
@@ -330,19 +331,23 @@ def _lut_poses(
     return sink
 
 
-@nb.njit(cache=True, parallel=True)
-def _lut_parallel(
+@nb.njit(cache=True, nogil=True)
+def _lut_shared(
     table, index, unit, sub, tol, guide, field, gu, gv, heading, cos_h, sin_h,
-    afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores,
+    afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores, counter,
 ):  # fmt: skip
-    """:func:`_lut_poses` over every pose, in blocks of about ``_BLOCK_RAYS`` rays on numba's threads."""
+    """:func:`_lut_poses` over blocks of about ``_BLOCK_RAYS`` rays taken from ``counter`` until
+    none is left (see :mod:`.shared_work`); one of the threads that share the poses."""
     n = gu.shape[0]
     blk = max(1, _BLOCK_RAYS // max(1, cos_a.shape[0]))
-    for c in nb.prange((n + blk - 1) // blk):
+    while True:
+        i0 = fetch_add(counter, 1) * blk
+        if i0 >= n:
+            break
         _lut_poses(
             table, index, unit, sub, tol, guide, field, gu, gv, heading, cos_h, sin_h,
             afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores,
-            c * blk, min(n, (c + 1) * blk),
+            i0, min(n, i0 + blk),
         )  # fmt: skip
 
 
@@ -366,7 +371,7 @@ def _run(lut, tol, guide, field, gu, gv, heading, cos_h, sin_h, angles, cos_a, s
         float(top), scores,
     )  # fmt: skip
     if parallel:
-        _lut_parallel(*args)
+        run_shared(_lut_shared, args, nb.get_num_threads())
     else:
         _lut_poses(*args, 0, gu.shape[0])
 

@@ -1,0 +1,90 @@
+"""Work shared by threads that take items from one atomic counter: no thread waits for another to
+wake up.
+
+numba's ``prange`` (OpenMP) splits the work in fixed shares and ends with a barrier, so a parallel
+region lasts until the slowest thread has woken up and done its share. On a virtual machine whose
+idle CPU is halted, waking the second thread was measured to take from 0.1 to several milliseconds
+(more than a whole 4000-particle update), and a parallel region then ran slower than one thread.
+
+Here the calling thread and ``threads - 1`` pool threads each run the same ``nogil`` numba kernel,
+which takes items (blocks of work) with :func:`fetch_add` on a shared counter until none are left.
+A pool thread that the OS runs late finds fewer items, or none; a pool job that has not started
+when the calling thread has taken the last item is cancelled instead of waited for. The result does
+not depend on which thread did which item (each item writes its own outputs).
+"""
+
+from __future__ import annotations
+
+import atexit
+import threading
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+from numba.core import types
+from numba.extending import intrinsic
+
+__all__ = ["fetch_add", "run_shared"]
+
+
+@intrinsic
+def fetch_add(typingctx, counter, delta):
+    """``old = counter[0]; counter[0] += delta; return old`` as one atomic operation (int64).
+
+    For numba kernels only (an LLVM ``atomicrmw add``); ``counter`` is a contiguous int64 array.
+    """
+    if not (isinstance(counter, types.Array) and counter.dtype == types.int64):
+        return None
+    sig = types.int64(counter, types.int64)
+
+    def codegen(context, builder, signature, args):
+        array, step = args
+        data = context.make_array(signature.args[0])(context, builder, array).data
+        return builder.atomic_rmw("add", data, step, "seq_cst")
+
+    return sig, codegen
+
+
+_pool: ThreadPoolExecutor | None = None
+_pool_size = 0
+_pool_lock = threading.Lock()
+
+
+def _get_pool(workers: int) -> ThreadPoolExecutor:
+    """The module's pool of at least ``workers`` threads (created on first use, grown on demand)."""
+    global _pool, _pool_size
+    with _pool_lock:
+        if _pool is None or _pool_size < workers:
+            if _pool is not None:
+                _pool.shutdown(wait=False)
+            _pool = ThreadPoolExecutor(workers, thread_name_prefix="racecar-shared")
+            _pool_size = workers
+        return _pool
+
+
+@atexit.register
+def _shutdown() -> None:
+    if _pool is not None:
+        _pool.shutdown(wait=False, cancel_futures=True)
+
+
+def run_shared(kernel: Callable[..., object], args: tuple, threads: int) -> None:
+    """Run ``kernel(*args, counter)`` on this thread and on ``threads - 1`` pool threads.
+
+    ``kernel`` is a numba function compiled with ``nogil=True`` that takes items with
+    ``fetch_add(counter, 1)`` until the count passes its last item; ``counter`` is a fresh
+    int64 array ``[0]``. Returns once every item is done: pool jobs that had not started are
+    cancelled, started ones are waited for (each finishes at most the item it holds).
+    """
+    counter = np.zeros(1, dtype=np.int64)
+    if threads <= 1:
+        kernel(*args, counter)
+        return
+    pool = _get_pool(threads - 1)
+    jobs = [pool.submit(kernel, *args, counter) for _ in range(threads - 1)]
+    try:
+        kernel(*args, counter)
+    finally:
+        for job in jobs:
+            if not job.cancel():
+                job.result()
