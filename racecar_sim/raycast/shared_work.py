@@ -16,6 +16,7 @@ not depend on which thread did which item (each item writes its own outputs).
 from __future__ import annotations
 
 import atexit
+import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -66,6 +67,17 @@ def _get_pool(workers: int) -> ThreadPoolExecutor:
 def _shutdown() -> None:
     if _pool is not None:
         _pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _forget_pool() -> None:
+    """In a forked child the parent's pool threads do not exist: start a new pool on demand."""
+    global _pool, _pool_size
+    _pool = None
+    _pool_size = 0
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pool)
 
 
 def run_shared(kernel: Callable[..., object], args: tuple, threads: int) -> None:

@@ -81,3 +81,24 @@ def test_a_pool_thread_that_cannot_run_is_not_waited_for():
         release.set()
         for b in blockers:
             b.result()
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs os.fork")
+def test_a_forked_child_gets_its_own_pool():
+    """The parent's pool threads do not exist in a forked child; the child still uses two threads'
+    worth of items without hanging (a multiprocessing worker started by fork)."""
+    import multiprocessing
+
+    visits = np.zeros(2000, dtype=np.int64)
+    run_shared(_visit, (visits, 0), 2)  # the parent's pool exists
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(1) as pool:
+        assert pool.apply(_child_run, ()) == 2000
+
+
+def _child_run() -> int:
+    assert shared_work._pool is None  # forgotten at the fork
+    visits = np.zeros(2000, dtype=np.int64)
+    run_shared(_visit, (visits, 0), 2)
+    assert shared_work._pool is not None and shared_work._pool_size == 1
+    return int((visits == 1).sum())
