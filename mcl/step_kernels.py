@@ -1,9 +1,13 @@
 """Numba kernels of the particle filter's per-update steps: motion, resampling, moments.
 
-One pass over the particles each, without numpy temporaries: at 4 000 particles the numpy
+A few passes over the particles each, without numpy temporaries: at 4 000 particles the numpy
 versions spent more time allocating arrays and in per-call overhead than computing (issue 14's
 update profile: predict 0.31 ms, resample 0.19 ms, estimate + covariance 0.27 ms; these kernels
-do the same arithmetic in about a quarter of that). Frames and units as in
+do the same arithmetic in about a quarter of that). What remained was mostly libm: ``np.mod``'s
+float remainder in every wrap (:func:`wrap_near` shifts instead, bit for bit the same) and a call
+to ``sin`` and ``cos`` per heading (:func:`sincos_into` evaluates fdlibm's polynomials in a loop
+that vectorises, within one ulp of libm); and the resampling merge's branch mispredictions
+(:func:`systematic_resample` counts instead). Frames and units as in
 :mod:`mcl.motion_model` and :mod:`mcl.particle_filter`: world poses ``[x, y, theta]`` in metres
 and radians, theta wrapped to [-pi, pi) as :func:`mcl.angles.wrap_angle` does.
 """
@@ -18,11 +22,10 @@ import numpy as np
 from racecar_sim.rand import normal, uniform
 
 __all__ = [
-    "bayes_step", "bayes_update",
-    "compose_into",
-    "covariance_about", "move_noisy", "move_noisy_into", "noise_into", "pose_moments", "systematic_pick",
-    "systematic_resample", "wrap", "wrap_near",
-]
+    "bayes_step", "bayes_update", "compose_into", "covariance_about", "heading_sincos",
+    "move_noisy", "move_noisy_into", "noise_into", "pose_moments", "sincos_into", "sincos_near",
+    "systematic_pick", "systematic_resample", "wrap", "wrap_near",
+]  # fmt: skip
 
 _TWO_PI = 2.0 * math.pi
 
@@ -57,17 +60,89 @@ def wrap_near(a):
     out = out - _TWO_PI if out >= math.pi else out
     return out, (x >= -_TWO_PI) & (x < 2.0 * _TWO_PI)
 
+# fdlibm's (Sun, 1993) kernels of sin and cos on [-pi/4, pi/4] and its two-step Cody-Waite
+# reduction by pi/2 (k_sin.c, k_cos.c, e_rem_pio2.c).
+_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
+_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
+_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
+_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+_INV_PIO2 = 6.36619772367581382433e-01
+_PIO2_1 = 1.57079632673412561417e00
+_PIO2_2, _PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
+SINCOS_LIMIT = 1e5
+"""Largest ``|angle|`` (radians) :func:`sincos_near` reduces; beyond it the kernels use libm."""
+
+
+@nb.njit(cache=True, inline="always")
+def sincos_near(x):
+    """``(sin x, cos x, ok)`` without branches, so that loops over it vectorise (libm's sin and
+    cos are calls, ~10 ns a particle; this is ~2 ns in a vector loop). Within one ulp of libm
+    (about 3 % of the values differ from it, by one ulp). ``ok`` is False when
+    ``|x| > SINCOS_LIMIT`` or x is not finite; the values are then not to be used.
+    """
+    k = np.floor(x * _INV_PIO2 + 0.5)  # x = k pi/2 + y0 + y1, |y0| <= pi/4 (about)
+    t = x - k * _PIO2_1  # exact: k * _PIO2_1 has at most 53 bits for |k| < 2**20
+    w = k * _PIO2_2  # always fdlibm's second step (good to 118 bits; it takes it when needed)
+    r = t - w
+    w = k * _PIO2_2T - ((t - r) - w)
+    y0 = r - w
+    y1 = (r - y0) - w
+    z = y0 * y0
+    v = z * y0
+    rs = _S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))
+    s = y0 - ((z * (0.5 * y1 - v * rs) - y1) - v * _S1)
+    rc = z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
+    hz = 0.5 * z
+    one_minus = 1.0 - hz
+    c = one_minus + (((1.0 - one_minus) - hz) + (z * rc - y0 * y1))
+    q = k - 4.0 * np.floor(k * 0.25)  # quadrant 0..3
+    sin_x = s if q == 0.0 else (c if q == 1.0 else (-s if q == 2.0 else -c))
+    cos_x = c if q == 0.0 else (-s if q == 1.0 else (-c if q == 2.0 else s))
+    return sin_x, cos_x, abs(x) <= SINCOS_LIMIT
+
+
+@nb.njit(cache=True)
+def sincos_into(theta, sin_out, cos_out):
+    """``sin_out[i], cos_out[i]``: :func:`sincos_near` of ``theta[i]`` (contiguous 1-D arrays),
+    libm's where it is out of range."""
+    ok = True
+    for i in range(theta.shape[0]):
+        s, c, near = sincos_near(theta[i])
+        sin_out[i] = s
+        cos_out[i] = c
+        ok &= near
+    if not ok:
+        for i in range(theta.shape[0]):
+            if not abs(theta[i]) <= SINCOS_LIMIT:
+                sin_out[i] = math.sin(theta[i])
+                cos_out[i] = math.cos(theta[i])
+
+
+@nb.njit(cache=True)
+def heading_sincos(particles):
+    """``(sin, cos)`` (N,) of the headings ``particles[:, 2]`` by :func:`sincos_into`."""
+    n = particles.shape[0]
+    theta = np.empty(n)
+    for i in range(n):
+        theta[i] = particles[i, 2]
+    sin_t = np.empty(n)
+    cos_t = np.empty(n)
+    sincos_into(theta, sin_t, cos_t)
+    return sin_t, cos_t
+
+
 @nb.njit(cache=True)
 def compose_into(particles, odometry, out):
     """``out[i]``: pose ``particles[i]`` (N, 3) moved by the car-frame displacement
     ``odometry[j]`` (``j = i``, or 0 when ``odometry`` is (1, 3)), theta wrapped."""
     shared = odometry.shape[0] == 1
     ok = True
+    sin_t, cos_t = heading_sincos(particles)
     for i in range(particles.shape[0]):
         j = 0 if shared else i
         th = particles[i, 2]
-        c = math.cos(th)
-        s = math.sin(th)
+        c = cos_t[i]
+        s = sin_t[i]
         dx = odometry[j, 0]
         dy = odometry[j, 1]
         out[i, 0] = particles[i, 0] + c * dx - s * dy
@@ -107,8 +182,7 @@ def move_noisy_into(particles, odometry, coefficients, gaussian, seed, out):
     temporaries. Car-frame displacement, world poses, theta wrapped."""
     state = np.uint64(seed)
     ok = True
-    last = math.nan
-    c = s = 0.0
+    sin_t, cos_t = heading_sincos(particles)
     for i in range(particles.shape[0]):
         state, z0 = _draw(state, gaussian)
         state, z1 = _draw(state, gaussian)
@@ -117,10 +191,8 @@ def move_noisy_into(particles, odometry, coefficients, gaussian, seed, out):
         dy = odometry[1] + z1 * coefficients[1]
         dth = odometry[2] + z2 * coefficients[2]
         th = particles[i, 2]
-        if th != last or th == 0.0:  # resampled copies share a heading (and cos, sin; not +-0)
-            c = math.cos(th)
-            s = math.sin(th)
-            last = th
+        c = cos_t[i]
+        s = sin_t[i]
         out[i, 0] = particles[i, 0] + c * dx - s * dy
         out[i, 1] = particles[i, 1] + s * dx + c * dy
         theta, near = wrap_near(th + dth)
@@ -219,19 +291,13 @@ def pose_moments(particles, weights, with_covariance):
     my = 0.0
     ms = 0.0
     mc = 0.0
-    last = math.nan
-    c = s = 0.0
+    sin_t, cos_t = heading_sincos(particles)
     for i in range(n):
         w = weights[i]
         mx += w * particles[i, 0]
         my += w * particles[i, 1]
-        th = particles[i, 2]
-        if th != last:  # resampled copies share a heading (and its cos, sin; ms, mc never -0)
-            c = math.cos(th)
-            s = math.sin(th)
-            last = th
-        ms += w * s
-        mc += w * c
+        ms += w * sin_t[i]
+        mc += w * cos_t[i]
     mean = np.empty(3)
     mean[0] = mx
     mean[1] = my

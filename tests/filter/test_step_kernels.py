@@ -13,10 +13,13 @@ from mcl.angles import circular_mean, wrap_angle
 from mcl.step_kernels import (
     compose_into,
     covariance_about,
+    heading_sincos,
     move_noisy,
     move_noisy_into,
     noise_into,
     pose_moments,
+    sincos_into,
+    sincos_near,
     systematic_pick,
     systematic_resample,
     wrap,
@@ -166,9 +169,9 @@ def _cloud_with_copies(p, copies):
     seed=st.integers(0, 2**62),
 )
 def test_move_noisy_into_is_compose_of_the_noise_bit_for_bit(p, copies, odo, dtheta, gaussian, seed):
-    """Odometry plus :func:`noise_into`'s draws, composed by :func:`compose_into` (which takes
-    every cos and sin afresh): the same doubles, with copies of a heading (whose cos and sin
-    the kernel reuses) and turns large enough to need the full remainder."""
+    """Odometry plus :func:`noise_into`'s draws, composed by :func:`compose_into`: the same
+    doubles, with copies of a heading, headings +-0 and turns large enough to need the full
+    remainder."""
     p = _cloud_with_copies(p, copies)
     p[:, 2] = wrap_angle(p[:, 2]) if dtheta == 0.0 else p[:, 2]
     odo = odo.copy()
@@ -194,7 +197,7 @@ def test_move_noisy_into_is_compose_of_the_noise_bit_for_bit(p, copies, odo, dth
     wrapped=st.booleans(),
 )
 def test_pose_moments_are_the_plain_loop_bit_for_bit(p, copies, raw, wrapped):
-    """The mean (reusing the cos and sin of repeated headings) and the covariance (headings
+    """The mean (from :func:`sincos_into`'s sines and cosines) and the covariance (headings
     wrapped by a shift in range, by the remainder outside it) as a plain Python loop over the
     same formula, in the same order, computes them."""
     p = _cloud_with_copies(p, copies)
@@ -202,10 +205,12 @@ def test_pose_moments_are_the_plain_loop_bit_for_bit(p, copies, raw, wrapped):
         p[:, 2] = wrap_angle(p[:, 2])
     w = np.array(raw[: p.shape[0]])
     w /= w.sum()
+    sin_t, cos_t = np.empty(p.shape[0]), np.empty(p.shape[0])
+    sincos_into(np.ascontiguousarray(p[:, 2]), sin_t, cos_t)  # tested against libm below
     mx = my = ms = mc = 0.0
-    for (x, y, th), wi in zip(p.tolist(), w.tolist(), strict=True):
+    for (x, y, _), wi, s, c in zip(p.tolist(), w.tolist(), sin_t, cos_t, strict=True):
         mx, my = mx + wi * x, my + wi * y
-        ms, mc = ms + wi * math.sin(th), mc + wi * math.cos(th)
+        ms, mc = ms + wi * s, mc + wi * c
     want_mean = np.array([mx, my, float(wrap_angle(math.atan2(ms, mc)))])
     mean, cov = pose_moments(p, w, True)
     assert np.array_equal(mean, want_mean)
@@ -282,3 +287,58 @@ def test_move_noisy_into_takes_the_sine_of_each_signed_zero_heading():
     out = np.empty_like(particles)
     move_noisy_into(particles, np.array([-0.0, 1.0, 0.0]), coefficients, True, seed, out)
     assert math.copysign(1.0, out[1, 0]) == 1.0
+
+
+_LIBM_EDGES = [0.0, -0.0, 5e-324, -5e-324, 1e-300, math.pi, -math.pi, math.pi / 2, 1e5, -1e5]
+
+
+def _ulps(got, want):
+    return abs(got - want) / np.spacing(abs(want))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.one_of(st.floats(-4.0, 4.0), st.floats(-1e5, 1e5), st.sampled_from(_LIBM_EDGES)),
+        min_size=1,
+        max_size=50,
+    )
+)
+def test_sincos_is_libm_within_one_ulp(angles):
+    """In range: sin and cos within one ulp of libm's (math.sin, math.cos), zeros signed as
+    libm signs them."""
+    theta = np.array(angles)
+    s, c = np.empty_like(theta), np.empty_like(theta)
+    sincos_into(theta, s, c)
+    for a, si, ci in zip(angles, s.tolist(), c.tolist(), strict=True):
+        assert _ulps(si, math.sin(a)) <= 1.0 and _ulps(ci, math.cos(a)) <= 1.0, a
+        assert math.copysign(1.0, si) == math.copysign(1.0, math.sin(a)), a
+        assert sincos_near(a)[2]
+
+
+def test_sincos_is_libm_within_one_ulp_densely_and_near_multiples_of_half_pi():
+    """Dense over the headings' range and where the reduction by pi/2 cancels most bits."""
+    rng = np.random.default_rng(5)
+    near = [k * math.pi / 2 + d for k in range(-8, 9) for d in np.linspace(-1e-7, 1e-7, 201)]
+    theta = np.concatenate([rng.uniform(-math.pi, math.pi, 20_000), near])
+    s, c = np.empty_like(theta), np.empty_like(theta)
+    sincos_into(theta, s, c)
+    assert max(_ulps(si, math.sin(a)) for a, si in zip(theta.tolist(), s.tolist(), strict=True)) <= 1
+    assert max(_ulps(ci, math.cos(a)) for a, ci in zip(theta.tolist(), c.tolist(), strict=True)) <= 1
+
+
+def test_sincos_outside_its_range_is_libm():
+    """Beyond SINCOS_LIMIT and for inf and NaN: libm's values (what numba's math.sin gives)."""
+    from mcl.step_kernels import SINCOS_LIMIT
+
+    big = [2 * SINCOS_LIMIT, -3e7, 1e300, -1e300]
+    theta = np.array([*big, math.inf, -math.inf, math.nan])
+    s, c = np.empty_like(theta), np.empty_like(theta)
+    sincos_into(theta, s, c)
+    assert s[:4].tolist() == [math.sin(a) for a in big]
+    assert c[:4].tolist() == [math.cos(a) for a in big]
+    assert np.isnan(s[4:]).all() and np.isnan(c[4:]).all()
+    assert not sincos_near(2 * SINCOS_LIMIT)[2] and not sincos_near(math.nan)[2]
+    p = np.column_stack([np.zeros((theta.size, 2)), theta])
+    hs, hc = heading_sincos(p)
+    assert np.array_equal(hs, s, equal_nan=True) and np.array_equal(hc, c, equal_nan=True)
