@@ -13,6 +13,7 @@ from mcl.angles import circular_mean, wrap_angle
 from mcl.step_kernels import (
     compose_into,
     covariance_about,
+    exp_shifted_into,
     heading_sincos,
     move_noisy,
     move_noisy_into,
@@ -342,3 +343,39 @@ def test_sincos_outside_its_range_is_libm():
     p = np.column_stack([np.zeros((theta.size, 2)), theta])
     hs, hc = heading_sincos(p)
     assert np.array_equal(hs, s, equal_nan=True) and np.array_equal(hc, c, equal_nan=True)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.one_of(
+            st.floats(-720.0, 0.0),
+            st.floats(-1.0, 1.0),
+            st.sampled_from([0.0, -0.0, -708.0, 709.0, -745.0, -746.0, 710.0, -math.inf]),
+        ),
+        min_size=1,
+        max_size=50,
+    ),
+    st.sampled_from([0.0, 3.5, -120.25]),
+)
+def test_exp_shifted_is_libm_within_one_ulp(values, shift):
+    """exp(v - shift) within one ulp of libm's (math.exp); libm's own value (zero, subnormal,
+    infinite) outside the normal range."""
+    v = np.array(values)
+    out = np.empty_like(v)
+    exp_shifted_into(v, shift, out)
+    for x, got in zip((v - shift).tolist(), out.tolist(), strict=True):
+        want = math.exp(x) if x < 709.5 else math.inf
+        if -708.0 <= x <= 709.0:
+            assert _ulps(got, want) <= 1.0, x
+        else:
+            assert got == want, x
+
+
+def test_exp_shifted_is_libm_within_one_ulp_densely():
+    """Dense over the log-weights' range [-708, 0] (and the bottom of [0, 709])."""
+    v = np.concatenate([np.random.default_rng(6).uniform(-708.0, 0.0, 20_000), [0.0, 709.0]])
+    out = np.empty_like(v)
+    exp_shifted_into(v, 0.0, out)
+    assert max(_ulps(g, math.exp(x)) for x, g in zip(v.tolist(), out.tolist(), strict=True)) <= 1
+    assert out[-2] == 1.0
