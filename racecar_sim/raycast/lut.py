@@ -11,7 +11,8 @@ Query
     exactly, starting ``guide`` before the nearer table hit (or from the pose if that point is
     occupied): this *guided* fallback misses only an obstacle that both table rays passed.
 Kernel layout
-    Per pose, three loops over the beams: (1) the bracketing directions in 32-bit fixed point
+    Per pose, three loops over the beams (the vectorised ones in :mod:`.lut_beams`): (1) the
+    bracketing directions in 32-bit fixed point
     (a turn is 2**32) and the two table entries; (2) the interpolation, branch-free, so LLVM
     vectorises it (SIMD division; the bracketing directions come from the ray's by a rotation
     through the fixed-point remainder, a short Taylor series, instead of table look-ups);
@@ -30,10 +31,17 @@ import numpy as np
 
 from racecar_sim.raycast.fallback import guided_casts
 from racecar_sim.raycast.kernels import to_metres
+from racecar_sim.raycast.lut_beams import (
+    MASK32,
+    SANE,
+    TURN,
+    column,
+    directions,
+    interpolate,
+    unpack,
+)
 from racecar_sim.raycast.lut_build import (
-    FLAG,
     PARALLEL_MIN_ENTRIES,
-    RANGE_MASK,
     LutTable,
     build_lut,
 )
@@ -42,9 +50,6 @@ from racecar_sim.validation import check_number
 
 __all__ = ["PARALLEL_MIN_ENTRIES", "LutParams", "LutTable", "build_lut", "lut_rays", "lut_score"]
 
-_SANE = 1.5  # cells an interpolated range may lie outside the two table ranges
-_TURN = 4294967296.0  # 2**32: a full turn in the fixed-point angles
-_MASK32 = 0xFFFFFFFF
 _GROUP = 16  # poses whose fallback casts go together (about 8 per pose at 100 beams)
 _BLOCK_RAYS = 8192  # rays per item of the shared query: 80 poses at 100 beams, 0.05-0.1 ms
 
@@ -108,105 +113,6 @@ def _touch_next(index, table, gu, gv, i, x, y, sink):
     return sink
 
 
-_FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
-"""LLVM fast-math flags of the vectorised loops: no ``nnan`` / ``ninf``, the range checks rely on
-comparisons with infinities (a ray parallel to a wall divides by zero)."""
-
-
-@nb.njit(cache=True, inline="always")
-def _column(r, per_out, top):
-    """Score-table column (plus one half, truncated by the caller) of output range ``r``."""
-    d = r * per_out
-    return min(max(d, 0.0), top) + 0.5
-
-
-@nb.njit(cache=True, error_model="numpy", fastmath=_FAST)
-def _directions(hb, afix, n_angles, phi_unit, kb, phb):
-    """Ray ``b`` of a pose of fixed-point heading ``hb``: its lower table direction ``kb[b]``
-    and how far past it, ``phb[b]`` radians."""
-    for b in range(afix.shape[0]):
-        a = ((hb + afix[b]) & _MASK32) * n_angles
-        kb[b] = a >> 32
-        phb[b] = (a & _MASK32) * phi_unit
-
-
-@nb.njit(cache=True, error_model="numpy", fastmath=_FAST)
-def _unpack(e0b, e1b, c0b, c1b):
-    """Table entries to float32 range codes, the first negative where its planar flag is set."""
-    for b in range(e0b.shape[0]):
-        c0 = np.float32(e0b[b] & RANGE_MASK)
-        c0b[b] = -c0 if e0b[b] & FLAG else c0
-        c1b[b] = np.float32(e1b[b] & RANGE_MASK)
-
-
-@nb.njit(cache=True, error_model="numpy", fastmath=_FAST)
-def _interpolate(
-    phb, c0b, c1b, cos_a, sin_a, ch, sh, qx, qy, cxs, cys, inv_sub, unit, cos_d, sin_d,
-    tol_code, sat, max_t, max_t64, scale, max_out, per_out, top, tb, db,
-):  # fmt: skip
-    """One pose's interpolated ranges ``tb`` (cells; -1 where the ray must be cast) and score
-    columns ``db``, branch-free so that LLVM vectorises it (see :func:`_lut_poses`). ``c0b`` is
-    negative where the table flags the pair as one straight face.
-
-    float32 (arrays, scalars and constants; the score column in float64 from the float32 range,
-    as the ranges output computes it), 16 rays per AVX-512 instruction: the
-    positions are relative to the pose (a few hundred cells at most), so single precision keeps
-    them to 1e-4 cells; only the sweep line of a foot (``floor(sn)``, ``sn`` up to a few
-    thousand) can come out one line off, for about 1 ray in 2000 (then off by half a cell).
-    """
-    one = np.float32(1.0)
-    half = np.float32(0.5)
-    sixth = np.float32(1.0 / 6.0)
-    s120 = np.float32(1.0 / 120.0)
-    s24 = np.float32(1.0 / 24.0)
-    sane = np.float32(_SANE)
-    tiny = np.float32(1e-9)
-    minus = np.float32(-1.0)
-    zero = np.float32(0.0)
-    for b in range(phb.shape[0]):
-        dx = ch * cos_a[b] - sh * sin_a[b]
-        dy = sh * cos_a[b] + ch * sin_a[b]
-        ph = phb[b]  # the ray is ph radians past direction k0: rotate it back (Taylor series)
-        p2 = ph * ph
-        # Error below 1e-13 rad at K = 360, 3e-4 rad at the coarsest table (K = 8).
-        sp = ph * (one - p2 * (sixth - p2 * s120))
-        cp = one - p2 * (half - p2 * s24)
-        co0 = dx * cp + dy * sp
-        si0 = dy * cp - dx * sp
-        co1 = co0 * cos_d - si0 * sin_d
-        si1 = si0 * cos_d + co0 * sin_d
-        flat = c0b[b] < zero
-        c0 = abs(c0b[b])
-        c1 = c1b[b]
-        r0 = c0 * unit
-        r1 = c1 * unit
-        # Hit points relative to the pose (the feet of the cell centre on the sweep lines).
-        sn0 = cys * co0 - cxs * si0
-        dl0 = (np.floor(sn0) + half - sn0) * inv_sub
-        sn1 = cys * co1 - cxs * si1
-        dl1 = (np.floor(sn1) + half - sn1) * inv_sub
-        wx = qx - dl0 * si0 + r0 * co0
-        wy = qy + dl0 * co0 + r0 * si0
-        ex = qx - dl1 * si1 + r1 * co1 - wx
-        ey = qy + dl1 * co1 + r1 * si1 - wy
-        den = dx * ey - dy * ex
-        t = (wx * ey - wy * ex) / den
-        lo = min(r0, r1)
-        hi = max(r0, r1)
-        bad = (
-            ((abs(c0 - c1) > tol_code) & ~flat)
-            | (abs(den) <= tiny)
-            | (t < lo - sane)
-            | (t > hi + sane)
-        )
-        t = minus if bad else t
-        t = max_t if lo >= sat else t
-        tb[b] = t
-        t64 = np.float64(t)
-        r = max_out if t64 >= max_t64 else t64 * scale
-        db[b] = _column(r, per_out, top)
-
-
 @nb.njit(cache=True, error_model="numpy")
 def _lut_poses(
     table, index, unit, sub, tol, guide, field, gu, gv, heading, cos_h, sin_h,
@@ -225,9 +131,9 @@ def _lut_poses(
     delta = 2.0 * math.pi / n_angles
     cos_d = math.cos(delta)
     sin_d = math.sin(delta)
-    phi_unit = delta / _TURN
+    phi_unit = delta / TURN
     tol_code = tol / unit
-    sat = max_t + _SANE  # both table ranges beyond this: the ray reaches max range
+    sat = max_t + SANE  # both table ranges beyond this: the ray reaches max range
     want_ranges = ranges.shape[0] > 0
     kb = np.empty(m, dtype=np.int64)
     e0b = np.empty(m, dtype=np.uint16)
@@ -271,19 +177,19 @@ def _lut_poses(
             ch = cos_h[i]
             sh = sin_h[i]
             hf = heading[i] / (2.0 * math.pi)
-            hb = np.int64((hf - math.floor(hf)) * _TURN) & _MASK32
+            hb = np.int64((hf - math.floor(hf)) * TURN) & MASK32
             # (1) bracketing directions (vectorised) and table entries (gathers)
-            _directions(hb, afix, n_angles, phi_unit, kb, phb)
+            directions(hb, afix, n_angles, phi_unit, kb, phb)
             row = table[fi]
             for b in range(m):
                 k0 = kb[b]
                 # unsigned indexes: no wrap-around test for negative ones (3 % faster)
                 e0b[b] = row[np.uint64(k0)]
                 e1b[b] = row[np.uint64(k0 + 1 if k0 + 1 < n_angles else 0)]
-            _unpack(e0b, e1b, c0b, c1b)
+            unpack(e0b, e1b, c0b, c1b)
             # (2) interpolation, branch-free (vectorised); -1 marks a ray to cast
             tb = tbs[j]
-            _interpolate(
+            interpolate(
                 phb, c0b, c1b, cos_a32, sin_a32, f32(ch), f32(sh), f32(cx - x), f32(cy - y),
                 f32(cx * sub), f32(cy * sub), f32(inv_sub), f32(unit), f32(cos_d), f32(sin_d),
                 f32(tol_code), f32(sat), f32(max_t), max_t, scale, max_out, per_out, top, tb,
@@ -308,7 +214,7 @@ def _lut_poses(
             b = f_slot[q] - j * m
             t = f_t[q]
             tbs[j, b] = t
-            dbs[j, b] = _column(to_metres(t, max_t, scale, max_out), per_out, top)
+            dbs[j, b] = column(to_metres(t, max_t, scale, max_out), per_out, top)
         # output
         for i in range(g0, g1):
             j = i - g0
@@ -359,7 +265,7 @@ _NO_SCORES = np.empty(0, dtype=np.float64)
 def _fixed(angles: np.ndarray) -> np.ndarray:
     """Angles (radians) as int64 fixed point in [0, 2**32): a full turn is 2**32."""
     turns = np.asarray(angles, dtype=np.float64) / (2.0 * math.pi)
-    return np.floor((turns - np.floor(turns)) * _TURN).astype(np.int64) & _MASK32
+    return np.floor((turns - np.floor(turns)) * TURN).astype(np.int64) & MASK32
 
 
 def _run(lut, tol, guide, field, gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a, max_t,
