@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -248,6 +249,24 @@ def test_systematic_resample_is_numpy_systematic(counts, offset, n):
     assert (w[idx] > 0).all()
 
 
+@settings(max_examples=80, deadline=None)
+@given(
+    w=arrays(np.float64, st.integers(1, 60), elements=st.floats(0, 10)),
+    offset=st.one_of(st.just(0.0), st.floats(0, 1, exclude_max=True)),
+    n=st.integers(1, 90),
+)
+def test_systematic_resample_is_the_merge_on_its_cumulative_weights(w, offset, n):
+    """Any float weights: the counted picks are the merge's (:func:`systematic_pick`) on the
+    same cumulative weights (a running total, ``cumsum(w / total)`` ending at 1), ties
+    included."""
+    if w.sum() <= 0:
+        w[0] = 1.0
+    cdf = np.cumsum(w / np.add.accumulate(w)[-1])  # accumulate: the running (not pairwise) sum
+    cdf /= cdf[-1]
+    idx, _ = systematic_resample(np.zeros((w.size, 3)), w, offset, n)
+    assert np.array_equal(idx, systematic_pick(cdf, offset, n))
+
+
 @settings(max_examples=50, deadline=None)
 @given(
     w=arrays(np.float64, st.integers(1, 60), elements=st.floats(0, 10)),
@@ -379,3 +398,23 @@ def test_exp_shifted_is_libm_within_one_ulp_densely():
     exp_shifted_into(v, 0.0, out)
     assert max(_ulps(g, math.exp(x)) for x, g in zip(v.tolist(), out.tolist(), strict=True)) <= 1
     assert out[-2] == 1.0
+
+
+@pytest.mark.parametrize(
+    ("n", "offset", "c", "estimate_off_by"),
+    [
+        (2648, 0.6875, 0.15962518882175228, 1),  # pointers found by search near ties
+        (9562, 0.648547207079825, 0.7862004337175361, 1),
+        (48, 0.1875, 0.6705729166666667, -1),
+        (2982, 0.7221648081421175, 0.48749904923143605, -1),
+    ],
+)
+def test_systematic_resample_corrects_the_rounded_first_pointer(n, offset, c, estimate_off_by):
+    """Where ``ceil(n c - offset)`` is one off the first pointer not below ``c`` (rounding of
+    the product against that of the pointers), the kernel still gives the merge's picks."""
+    first = int(np.searchsorted((offset + np.arange(n + 1)) / n, c, side="left"))
+    assert math.ceil(c * n - offset) - first == estimate_off_by
+    w = np.array([c, 1.0 - c])
+    assert w.sum() == 1.0  # so the cumulative weights are exactly [c, 1]
+    idx, _ = systematic_resample(np.zeros((2, 3)), w, offset, n)
+    assert np.array_equal(idx, systematic_pick(np.array([c, 1.0]), offset, n))
