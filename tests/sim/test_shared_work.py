@@ -3,6 +3,7 @@ thread that cannot run does not hold the caller up."""
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 
@@ -83,7 +84,7 @@ def test_a_pool_thread_that_cannot_run_is_not_waited_for():
             b.result()
 
 
-@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="needs os.fork")
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
 def test_a_forked_child_gets_its_own_pool():
     """The parent's pool threads do not exist in a forked child; the child still uses two threads'
     worth of items without hanging (a multiprocessing worker started by fork)."""
@@ -102,3 +103,19 @@ def _child_run() -> int:
     run_shared(_visit, (visits, 0), 2)
     assert shared_work._pool is not None and shared_work._pool_size == 1
     return int((visits == 1).sum())
+
+
+@pytest.mark.skipif(
+    not hasattr(os, "sched_setaffinity") or len(os.sched_getaffinity(0)) < 2,
+    reason="needs Linux CPU affinity and two CPUs",
+)
+def test_pool_threads_are_kept_off_the_callers_cpu():
+    """Before waking the pool, its threads are allowed every CPU but the caller's (so Linux does
+    not wake them on the caller's CPU to share it)."""
+    visits = np.zeros(2000, dtype=np.int64)
+    run_shared(_visit, (visits, 0), 2)  # threads exist and have registered
+    run_shared(_visit, (visits, 0), 2)
+    assert shared_work._worker_ids
+    for tid in shared_work._worker_ids:
+        cpu = shared_work._worker_cpu[tid]
+        assert os.sched_getaffinity(tid) == os.sched_getaffinity(0) - {cpu}
