@@ -145,10 +145,11 @@ def _lut_poses(
     sin_a32 = sin_a.astype(np.float32)
     f32 = np.float32
     # Poses go in groups of _GROUP: their fallbacks are cast together (see .fallback).
-    cap = _GROUP * m
-    tbs = np.empty((_GROUP, m), dtype=np.float32)
-    dbs = np.empty((_GROUP, m))
-    off_map = np.empty(_GROUP, dtype=np.bool_)
+    group = max(1, min(_GROUP, i1 - i0))  # a single scan's call allocates for one pose only
+    cap = group * m
+    tbs = np.empty((group, m), dtype=np.float32)
+    dbs = np.empty((group, m))
+    off_map = np.empty(group, dtype=np.bool_)
     f_slot = np.empty(cap, dtype=np.int64)
     f_x = np.empty(cap)
     f_y = np.empty(cap)
@@ -160,8 +161,8 @@ def _lut_poses(
     i_state = np.empty((4, cap), dtype=np.int64)
     active = np.empty(cap, dtype=np.int64)
     sink = 0
-    for g0 in range(i0, i1, _GROUP):
-        g1 = min(i1, g0 + _GROUP)
+    for g0 in range(i0, i1, group):
+        g1 = min(i1, g0 + group)
         nf = 0
         for i in range(g0, g1):
             j = i - g0
