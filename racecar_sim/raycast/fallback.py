@@ -104,10 +104,11 @@ def guided_casts(field, x, y, dx, dy, t0, max_t, n, out, fstate, istate, active)
     while na > 0:
         nn = 0
         for q in range(na):
-            k = np.uint64(active[q])
+            k = np.uint64(active[q])  # unsigned: numba emits no wrap-around test for negatives
             a = tmx[k]
             b = tmy[k]
             go_x = a < b
+            # x + 1 * d or x + 0 * d (exactly x): as a select, LLVM made these branches again
             gx = 1.0 if go_x else 0.0
             t = a if go_x else b
             tmx[k] = a + gx * tdx[k]

@@ -56,6 +56,7 @@ _pool_size = 0
 _pool_lock = threading.Lock()
 _worker_ids: list[int] = []  # native thread ids of the pool's threads
 _worker_cpu: dict[int, int] = {}  # the CPU each was last kept off (see _keep_off)
+_libc: ctypes.CDLL | None = None  # the C library, for sched_getcpu
 
 
 def _get_pool(workers: int) -> ThreadPoolExecutor:
@@ -80,20 +81,13 @@ def _register() -> None:
 
 def _current_cpu() -> int:
     """The CPU this thread runs on (Linux with glibc or musl), or -1."""
+    global _libc
     try:
-        return int(_libc().sched_getcpu())
-    except (AttributeError, OSError):
+        if _libc is None:
+            _libc = ctypes.CDLL(None)
+        return int(_libc.sched_getcpu())
+    except (AttributeError, OSError, TypeError):  # no sched_getcpu (macOS), no CDLL(None) (Windows)
         return -1
-
-
-_LIBC = None
-
-
-def _libc():
-    global _LIBC
-    if _LIBC is None:
-        _LIBC = ctypes.CDLL(None)
-    return _LIBC
 
 
 def _keep_off(cpu: int) -> None:
