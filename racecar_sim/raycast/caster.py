@@ -18,7 +18,7 @@ Methods (``METHODS``)
     cell and the two bracketing directions (the true ray against the line through their hits),
     with an exact cast (started just before the table's hit) where the two disagree and the table
     does not flag them as one straight face; see :mod:`racecar_sim.raycast.lut` (query) and
-    :mod:`racecar_sim.raycast.lut_build` (table). For many poses (particles): about 6x the exact
+    :mod:`racecar_sim.raycast.lut_build` (table, :mod:`~racecar_sim.raycast.lut_table`). For many poses (particles): about 6x the exact
     method's rays per second on the Stata basement. Building the table takes seconds and ``2 K``
     bytes per free cell, so it is cached (below).
 ``"march"``

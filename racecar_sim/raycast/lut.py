@@ -1,4 +1,5 @@
-"""Lookup-table ray casting for particles: the query (the table and its build: :mod:`.lut_build`).
+"""Lookup-table ray casting for particles: the query (the table: :mod:`.lut_table`, its build:
+:mod:`.lut_build`).
 
 Everything here works in the pad frame of :mod:`racecar_sim.raycast.kernels` (cells).
 
@@ -40,11 +41,8 @@ from racecar_sim.raycast.lut_beams import (
     interpolate,
     unpack,
 )
-from racecar_sim.raycast.lut_build import (
-    PARALLEL_MIN_ENTRIES,
-    LutTable,
-    build_lut,
-)
+from racecar_sim.raycast.lut_build import PARALLEL_MIN_ENTRIES, build_lut
+from racecar_sim.raycast.lut_table import LutTable
 from racecar_sim.raycast.shared_work import fetch_add, run_shared
 from racecar_sim.validation import check_number
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from racecar_sim.raycast.lut_build import FLAG, RANGE_MASK
+from racecar_sim.raycast.lut_table import FLAG, RANGE_MASK
 
 __all__ = ["MASK32", "SANE", "TURN", "column", "directions", "interpolate", "unpack"]
 

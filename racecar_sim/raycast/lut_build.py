@@ -1,14 +1,9 @@
-"""Building the lookup table of the ``"lut"`` ray casting method (the query is in :mod:`.lut`).
+"""Building the lookup table of the ``"lut"`` ray casting method (its format: :mod:`.lut_table`;
+its planar flags: :mod:`.lut_flags`; the query: :mod:`.lut`).
 
 In the spirit of range_libc's CDDT/GLT (Walsh & Karaman, ICRA 2018), with its own build and query.
 Everything here works in the pad frame of :mod:`racecar_sim.raycast.kernels` (cells).
 
-Table
-    For every free cell and each of ``K`` directions ``theta_k = 2 pi k / K`` (map frame), a range
-    stored in the low 15 bits of a uint16 in units of ``cap / 32000`` cells, ``cap`` being the max
-    range plus two cells. Rows exist for free cells only (``index`` maps a cell to its row, -1 for
-    occupied cells), so the table holds ``2 K`` bytes per free cell: 223 MB for the Stata basement
-    at K = 360.
 Build: one sweep per direction (parallel over directions)
     For direction ``theta_k`` with normal ``n_k``, the parallel lines ``s = (j + 1/2) / sub``
     (``s`` the coordinate along ``n_k``) are each walked once, Amanatides–Woo, from one side of the
@@ -17,101 +12,33 @@ Build: one sweep per direction (parallel over directions)
     the exact range along that line from the foot ``F_k`` of its centre to the first occupied cell
     the line enters. Cost: one walk over the map per direction and line spacing, instead of one cast
     per (cell, direction); directions are swept in blocks and scattered into the row-major table.
-Planar flag (the high bit of entry ``k``)
-    Set when the two table rays ``k`` and ``k + 1`` of the cell see one straight face: their
-    ranges differ by more than :data:`FLAG_ABOVE` cells (closer pairs are judged by the query's
-    tolerance), and the exact range from the cell centre along the middle direction
-    ``theta_k + pi / K`` lies within :data:`FLAG_EPS` cells of where that ray meets the line
-    through the two table hits. The query interpolates flagged pairs however far apart their
-    ranges are (oblique walls, corridors seen lengthwise) instead of casting them.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import cv2
 import numba as nb
 import numpy as np
 
-from racecar_sim.raycast.kernels import cast_ray, cast_ray_from
+from racecar_sim.raycast.kernels import cast_ray
+from racecar_sim.raycast.lut_flags import flag_parallel, flag_rows
+from racecar_sim.raycast.lut_table import (
+    CAP_MARGIN,
+    CODE_MAX,
+    FLAG_ABOVE,
+    FLAG_EPS,
+    LutTable,
+)
 
-__all__ = [
-    "CODE_MAX",
-    "FLAG",
-    "FLAG_ABOVE",
-    "FLAG_EPS",
-    "PARALLEL_MIN_ENTRIES",
-    "RANGE_MASK",
-    "LutTable",
-    "build_lut",
-]
+__all__ = ["PARALLEL_MIN_ENTRIES", "build_lut"]
 
 PARALLEL_MIN_ENTRIES = 4_000_000
 """Tables with fewer entries (free cells x directions) are built on the calling thread."""
 
-CODE_MAX = 32000
-"""Range code of the cap range (the low 15 bits of an entry)."""
-RANGE_MASK = 0x7FFF
-"""Bits of an entry holding the range code."""
-FLAG = 0x8000
-"""Bit of entry ``k`` set when rays ``k`` and ``k + 1`` see one straight face (module docstring)."""
-FLAG_ABOVE = 1.0
-"""Cells: pairs of table ranges differing by more are checked for the planar flag."""
-FLAG_EPS = 0.15
-"""Cells: how far the middle ray's exact range may lie from the interpolated one for the flag."""
-
 _UNSET = 65535  # marks an entry the sweep has not written yet
-_CAP_MARGIN = 2.0  # cells stored beyond max_range, so a pose offset inside its cell stays right
-_GUIDE = 2.0  # cells: the flag check's exact cast starts this far before the nearer table hit
-
-
-@dataclass(frozen=True, eq=False)
-class LutTable:
-    """A built range table (pad frame, cells; see the module docstring).
-
-    Attributes:
-        table: uint16 (n_free, K) entries, one row per free cell: the range code in the low
-            15 bits (:data:`RANGE_MASK`), the planar flag in the high bit (:data:`FLAG`).
-        index: int32 (H + 2, W + 2) row of each free pad-frame cell, -1 elsewhere.
-        unit: cells per code unit.
-        sub_lines: sweep lines per cell width used to build it.
-        cos_k: float64 (K + 1,) cosines of the table directions (the last repeats the first).
-        sin_k: float64 (K + 1,) their sines.
-        build_seconds: wall time of the build.
-        n_flagged: entries with the planar flag.
-    """
-
-    table: np.ndarray
-    index: np.ndarray
-    unit: float
-    sub_lines: int
-    cos_k: np.ndarray
-    sin_k: np.ndarray
-    build_seconds: float
-    n_flagged: int = 0
-
-    @property
-    def n_angles(self) -> int:
-        """K, the number of table directions."""
-        return int(self.table.shape[1])
-
-    @property
-    def nbytes(self) -> int:
-        """Bytes held by the table and its index."""
-        return int(self.table.nbytes + self.index.nbytes)
-
-
-@nb.njit(cache=True, inline="always")
-def foot_hit(cx, cy, c, s, r, sub, inv_sub):
-    """Hit point (x, y) of the table ray of direction (c, s) and range r for centre (cx, cy)."""
-    sn = (cy * c - cx * s) * sub
-    dl = (math.floor(sn) + 0.5 - sn) * inv_sub
-    return cx - dl * s + r * c, cy + dl * c + r * s
-
-
 @nb.njit(cache=True, inline="always")
 def _store(row, pend_i, pend_t, npend, t_hit, unit, cap):
     for q in range(npend):
@@ -325,7 +252,7 @@ def build_lut(
     # Free bounding box plus its occupied ring (always inside the padded grid): lines leave the
     # box only after entering an occupied cell.
     box = np.array([cols[0] - 1, cols[-1] + 2, rows[0] - 1, rows[-1] + 2], dtype=np.int64)
-    cap = float(max_cells) + _CAP_MARGIN
+    cap = float(max_cells) + CAP_MARGIN
     unit = cap / CODE_MAX
     table = np.empty((n_free, n_angles), dtype=np.uint16)
     buf = np.empty((min(block, n_angles), n_free), dtype=np.uint16)
@@ -355,9 +282,9 @@ def build_lut(
         float(flag_eps),
     )  # fmt: skip
     if parallel:
-        n_flagged = int(_flag_parallel(*flag_args))
+        n_flagged = int(flag_parallel(*flag_args))
     else:
-        n_flagged = int(_flag_rows(*flag_args, 0, n_free))
+        n_flagged = int(flag_rows(*flag_args, 0, n_free))
     return LutTable(
         table=table,
         index=index,
@@ -368,70 +295,3 @@ def build_lut(
         build_seconds=time.perf_counter() - start,
         n_flagged=n_flagged,
     )
-
-
-@nb.njit(cache=True, error_model="numpy")
-def _flag_rows(
-    table, rv_of, col_of, field, unit, sub, cos_k, sin_k, cos_m, sin_m, cap, above, eps, i_lo, i_hi
-):
-    """Set the planar flag on rows ``i_lo <= i < i_hi`` (see the module docstring); returns the
-    number of entries flagged. ``cos_m``, ``sin_m``: the K middle directions."""
-    n_angles = table.shape[1]
-    inv_sub = 1.0 / sub
-    above_code = above / unit
-    flagged = 0
-    for i in range(i_lo, i_hi):
-        cx = col_of[i] + 0.5
-        cy = rv_of[i] + 0.5
-        for k in range(n_angles):
-            k1 = k + 1 if k + 1 < n_angles else 0
-            c0 = np.int32(table[i, k] & RANGE_MASK)
-            c1 = np.int32(table[i, k1] & RANGE_MASK)
-            if abs(c0 - c1) <= above_code:
-                continue
-            r0 = c0 * unit
-            r1 = c1 * unit
-            if max(r0, r1) >= cap - _CAP_MARGIN:
-                continue  # one ray leaves the range: nothing to interpolate
-            h0x, h0y = foot_hit(cx, cy, cos_k[k], sin_k[k], r0, sub, inv_sub)
-            h1x, h1y = foot_hit(cx, cy, cos_k[k + 1], sin_k[k + 1], r1, sub, inv_sub)
-            ex = h1x - h0x
-            ey = h1y - h0y
-            wx = h0x - cx
-            wy = h0y - cy
-            dx = cos_m[k]
-            dy = sin_m[k]
-            den = dx * ey - dy * ex
-            if abs(den) <= 1e-9:
-                continue
-            t = (wx * ey - wy * ex) / den
-            # The exact middle ray, cast only as far as it matters (a hit beyond the farther
-            # table hit is no plane either).
-            t_lim = max(max(r0, r1), t) + 1.0
-            te = -1.0
-            t0 = min(r0, r1) - _GUIDE
-            if t0 > 0.0:
-                te = cast_ray_from(field, cx, cy, dx, dy, t0, t_lim)
-            if te < 0.0:
-                te = cast_ray(field, cx, cy, dx, dy, t_lim)
-            if te < t_lim and abs(te - t) <= eps:
-                table[i, k] |= FLAG
-                flagged += 1
-    return flagged
-
-
-@nb.njit(cache=True, parallel=True)
-def _flag_parallel(
-    table, rv_of, col_of, field, unit, sub, cos_k, sin_k, cos_m, sin_m, cap, above, eps
-):
-    """:func:`_flag_rows` over every row, in blocks of 1024 rows on numba's threads."""
-    n = table.shape[0]
-    blk = 1024
-    n_blk = (n + blk - 1) // blk
-    counts = np.zeros(n_blk, dtype=np.int64)
-    for bi in nb.prange(n_blk):
-        counts[bi] = _flag_rows(
-            table, rv_of, col_of, field, unit, sub, cos_k, sin_k, cos_m, sin_m, cap, above, eps,
-            bi * blk, min(bi * blk + blk, n),
-        )  # fmt: skip
-    return counts.sum()
