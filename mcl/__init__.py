@@ -9,12 +9,13 @@ imports ``mcl``.
 from mcl.augmented import AugmentedParams
 from mcl.filter_params import DEFAULT_PARTICLES, ParticleFilterParams
 from mcl.kld import KLDParams
+from mcl.localization import LocalizationConfig
 from mcl.motion_model import MotionModel, MotionModelParams
 from mcl.particle_filter import ParticleFilter
 from mcl.sensor_model import SensorModel, SensorModelParams
 from mcl.uncertainty import ClusterParams, Uncertainty
 from mcl.vector_wrapper import LocalizedVectorEnv
-from mcl.wrapper import LocalizationConfig, LocalizationWrapper
+from mcl.wrapper import LocalizationWrapper
 from racecar_sim import __version__
 
 __all__ = [

@@ -7,7 +7,7 @@ weigh and resample with its scan when it is fresh, and put the estimate into the
 agent trained on N cars acts on localized poses. The filters share one sensor model (its tables
 are built once for the map and lidar) and one motion model; each car has its own particles and
 its own random generator, derived from the car's reset seed exactly as the single wrapper derives
-its own (:func:`~mcl.wrapper.filter_rng`). So car ``i`` localizes exactly as
+its own (:func:`~mcl.localization.filter_rng`). So car ``i`` localizes exactly as
 ``LocalizationWrapper(gymnasium.make("RacecarSim-v0", ...), config)`` reset with seed ``s + i``
 (tested against Gymnasium's ``SyncVectorEnv`` over such wrappers, autoresets included).
 
@@ -35,11 +35,9 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
-from mcl.motion_model import MotionModel
-from mcl.particle_filter import ParticleFilter
-from mcl.wrapper import (
-    _RESET_OPTIONS,
+from mcl.localization import (
     INIT_MODES,
+    RESET_OPTIONS,
     LocalizationConfig,
     as_localization_config,
     correct_with_scan,
@@ -48,6 +46,8 @@ from mcl.wrapper import (
     pose_estimate_space,
     sensor_model_for_lidar,
 )
+from mcl.motion_model import MotionModel
+from mcl.particle_filter import ParticleFilter
 from racecar_sim.vector_env import car_seeds
 
 __all__ = ["LocalizedVectorEnv"]
@@ -61,7 +61,7 @@ class LocalizedVectorEnv(VectorWrapper):
     Args:
         env: the vector env (``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``,
             i.e. :class:`racecar_sim.vector_env.RacecarVectorEnv`), in next-step autoreset mode.
-        config: :class:`~mcl.wrapper.LocalizationConfig` or a mapping of its fields (the adaptive
+        config: :class:`~mcl.localization.LocalizationConfig` or a mapping of its fields (the adaptive
             filter is not supported here).
         uncertainty: also report each car's uncertainty (covariance summary, clusters,
             ``ambiguous``); costs about a millisecond per car and step at 1500 particles.
@@ -121,7 +121,7 @@ class LocalizedVectorEnv(VectorWrapper):
         """Reset the cars (all, or ``options["reset_mask"]``) and start their filters."""
         n = self.num_envs
         options = dict(options or {})
-        mine = {k: options.pop(k) for k in _RESET_OPTIONS if k in options}
+        mine = {k: options.pop(k) for k in RESET_OPTIONS if k in options}
         init = mine.get("init", self.config.init)
         if init not in INIT_MODES:
             raise ValueError(f"reset option init = {init!r}; choose one of {list(INIT_MODES)}")

@@ -35,8 +35,9 @@ from gymnasium import spaces
 
 from mcl.agents.track import Track, track_for_map
 from mcl.filter_params import ParticleFilterParams
+from mcl.localization import LocalizationConfig
 from mcl.sensor_model import SensorModel, SensorModelParams
-from mcl.wrapper import LocalizationConfig, LocalizationWrapper
+from mcl.wrapper import LocalizationWrapper
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import DEFAULT_MAP
 from racecar_sim.validation import check_number

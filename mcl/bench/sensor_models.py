@@ -21,8 +21,8 @@ from pathlib import Path
 
 from mcl.bench import SHARED, STATA
 from mcl.experiments.runs import RunSpec, run_one
+from mcl.localization import LocalizationConfig
 from mcl.sensor_model import SensorModelParams
-from mcl.wrapper import LocalizationConfig
 from racecar_sim.config import LidarParams
 
 MODELS = {

@@ -32,8 +32,8 @@ from mcl.cli.common import (
     positive_int,
 )
 from mcl.experiments.recovery import RecoveryConfig, recovery_localization, run_recovery_experiment
+from mcl.localization import LocalizationConfig
 from mcl.sensor_model import SensorModelParams
-from mcl.wrapper import LocalizationConfig
 from racecar_sim.maps import DEFAULT_MAP
 
 EXAMPLES = """\

@@ -48,9 +48,9 @@ from mcl.experiments.recovery_report import write_tables
 from mcl.experiments.runner import Executor, run_pending, run_spec_safely
 from mcl.experiments.runs import DRIVERS, RunResult, RunSpec
 from mcl.kld import KLDParams
+from mcl.localization import LocalizationConfig
 from mcl.particle_filter import ParticleFilterParams
 from mcl.sensor_model import SensorModelParams
-from mcl.wrapper import LocalizationConfig
 from racecar_sim.maps import DEFAULT_MAP
 
 __all__ = [

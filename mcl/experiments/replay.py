@@ -33,10 +33,10 @@ from mcl.augmented import AugmentedParams
 from mcl.filter_params import ParticleFilterParams
 from mcl.io.bag_reader import BagData
 from mcl.kld import KLDParams
+from mcl.localization import LocalizationConfig
 from mcl.motion_model import MotionModel, compose, twist_to_odometry
 from mcl.particle_filter import ParticleFilter
 from mcl.sensor_model import SensorModel, SensorModelParams
-from mcl.wrapper import LocalizationConfig
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
 

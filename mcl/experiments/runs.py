@@ -27,9 +27,10 @@ from mcl.error_log import read_error_log
 from mcl.experiments.metrics import DIVERGED_M, ErrorStats, error_stats
 from mcl.experiments.scenarios import make_scenario
 from mcl.filter_params import DEFAULT_PARTICLES
+from mcl.localization import LocalizationConfig
 from mcl.motion_model import MotionModelParams
 from mcl.sensor_model import SensorModel
-from mcl.wrapper import LocalizationConfig, LocalizationWrapper
+from mcl.wrapper import LocalizationWrapper
 from racecar_sim.drivers import PurePursuit, WallFollower, waypoints_from_drive
 from racecar_sim.env import EnvConfig, RacecarEnv
 from racecar_sim.maps import DEFAULT_MAP, OccupancyMap, resolve_map
@@ -72,7 +73,7 @@ class RunSpec:
             default to ``terminate_on_collision=False`` so that each lasts its full duration.
         drive_on: ``"truth"`` or ``"estimate"``: the pose pure pursuit steers by.
         config: the filter's settings (sensor model, particle filter, ...) apart from ``motion``
-            and ``n_particles``; None for :class:`~mcl.wrapper.LocalizationConfig` defaults.
+            and ``n_particles``; None for :class:`~mcl.localization.LocalizationConfig` defaults.
         scenario_settings: keyword arguments of the scenario as (name, value) pairs.
         filter_map: bundled name or YAML path of the map the filter holds, when it differs from
             the world ``map`` (same world frame; size and resolution may differ); None = ``map``.

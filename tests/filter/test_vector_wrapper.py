@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
+from mcl.localization import LocalizationConfig
 from mcl.vector_wrapper import LocalizedVectorEnv
-from mcl.wrapper import LocalizationConfig, LocalizationWrapper
+from mcl.wrapper import LocalizationWrapper
 
 SETTINGS = {"map": "corridor", "dt": 0.03, "terminate_on_collision": True, "max_range": 12.0}
 CONFIG = LocalizationConfig().with_particles(300)

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
 from mcl import LocalizationConfig, LocalizationWrapper, ParticleFilter
 from mcl.error_log import HEADER, ErrorLogWriter, count_rows, read_error_log
-from mcl.wrapper import filter_rng
+from mcl.localization import filter_rng
 from racecar_sim.env import RacecarEnv
 from racecar_sim.render import ESTIMATE_COLOUR, PARTICLE_COLOUR
 
