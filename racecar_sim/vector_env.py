@@ -23,7 +23,6 @@ import os
 import statistics
 import time
 from collections.abc import Mapping
-from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -36,7 +35,8 @@ from racecar_sim.free_batch import FreeStepBatch
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
-from racecar_sim.raycast.scan import scans_serial_nogil
+from racecar_sim.raycast.scan import scans_serial_nogil, scans_shared
+from racecar_sim.raycast.shared_work import run_shared
 
 __all__ = ["PROBE_EVERY", "RacecarVectorEnv", "car_seeds"]
 
@@ -83,9 +83,10 @@ class RacecarVectorEnv(VectorEnv):
             and the other one is tried again every :data:`PROBE_EVERY` casts, because on a
             machine whose cores are busy with other programs a worker thread can wait
             milliseconds to run, and then threads make every step slower.
-        workers: casting threads (default: the number of CPUs). Plain Python threads, each
-            casting its share of the cars in a numba kernel that releases the GIL: no thread
-            spins while waiting, so a busy machine slows the cast but does not stall it.
+        workers: casting threads (default: the number of CPUs): this one and pool threads of
+            :mod:`racecar_sim.raycast.shared_work`, each casting chunks of cars in a numba kernel
+            that releases the GIL: no thread spins while waiting, and none waits for another to
+            wake, so a busy machine slows the cast but does not stall it.
         render_mode: only None (no rendering).
 
     Raises:
@@ -165,7 +166,6 @@ class RacecarVectorEnv(VectorEnv):
         self._autoreset = np.zeros(num_envs, dtype=np.bool_)
         self._last_odom = np.zeros((num_envs, 3), dtype=np.float32)
         self._workers = max(1, int(workers if workers is not None else (os.cpu_count() or 1)))
-        self._pool: ThreadPoolExecutor | None = None
         self._physics = FreeStepBatch([env.physics for env in self.envs])
 
     # ------------------------------------------------------------------ gymnasium API
@@ -301,12 +301,6 @@ class RacecarVectorEnv(VectorEnv):
         self._last_odom = odom
         return {"scan": scans, "odom": odom}, rewards, terminated, truncated, infos
 
-    def close_extras(self, **kwargs: Any) -> None:
-        """Stop the casting threads (the env stays usable; they restart on demand)."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
-
     # ------------------------------------------------------------------ internals
     def _empty_obs(self) -> dict[str, np.ndarray]:
         n = self.num_envs
@@ -320,9 +314,10 @@ class RacecarVectorEnv(VectorEnv):
         and store them in the cars.
 
         Each car draws its scan's seed from its own generator, as its
-        :meth:`~racecar_sim.sensors.Lidar.measure` would. In parallel, the threads (this one and
-        the workers) take chunks of cars from one queue; a chunk's cast and noise (a numba kernel
-        without the GIL) run alongside the other threads' chunks.
+        :meth:`~racecar_sim.sensors.Lidar.measure` would. In parallel, this thread and
+        ``workers - 1`` pool threads take chunks of cars from one atomic counter
+        (:mod:`racecar_sim.raycast.shared_work`): a thread that the OS runs late takes fewer
+        chunks, and one that has not started when they run out is not waited for.
         """
         if not due:
             return
@@ -333,32 +328,16 @@ class RacecarVectorEnv(VectorEnv):
         ranges = np.empty((k, m))
         status = np.zeros(k, dtype=np.int64)
 
-        def share(lo: int, hi: int) -> None:
-            scans_serial_nogil(
-                self._field, sub[lo:hi], self._geometry, self._cos_a, self._sin_a, seeds[lo:hi],
-                self._noise, ranges[lo:hi], out[lo:hi], status[lo:hi],
-            )  # fmt: skip
-
         parallel = self._choose_parallel() if self.parallel is None else self.parallel
         workers = self._workers if parallel else 1
         start = time.perf_counter()
+        args = (self._field, sub, self._geometry, self._cos_a, self._sin_a, seeds, self._noise,
+                ranges, out, status)  # fmt: skip
         if workers > 1 and k > 1:
-            # Small chunks pulled from one iterator (each next() is atomic under the GIL): a
-            # worker thread that the OS runs late takes fewer chunks, and this thread the rest.
             size = max(1, -(-k // (_CHUNKS_PER_WORKER * workers)))
-            chunks = iter(range(0, k, size))
-
-            def pull() -> None:
-                for lo in chunks:
-                    share(lo, min(lo + size, k))
-
-            pool = self._get_pool()
-            jobs = [pool.submit(pull) for _ in range(workers - 1)]
-            pull()
-            for job in jobs:
-                job.result()
+            run_shared(scans_shared, (*args, size), workers)
         else:
-            share(0, k)
+            scans_serial_nogil(*args)
         if self.parallel is None:
             times = self._cast_times[int(workers > 1 and k > 1)]
             times.append((time.perf_counter() - start) / k)
@@ -385,7 +364,3 @@ class RacecarVectorEnv(VectorEnv):
             return not faster
         return faster
 
-    def _get_pool(self) -> ThreadPoolExecutor:
-        if self._pool is None:
-            self._pool = ThreadPoolExecutor(self._workers - 1, thread_name_prefix="racecar-cast")
-        return self._pool

@@ -23,6 +23,7 @@ import numpy as np
 
 from racecar_sim.rand import uniforms_and_normals
 from racecar_sim.raycast.kernels import OCCUPIED
+from racecar_sim.raycast.shared_work import fetch_add
 
 __all__ = [
     "GEOMETRY_FIELDS",
@@ -31,6 +32,7 @@ __all__ = [
     "scan_geometry",
     "scan_with_noise",
     "scans_serial_nogil",
+    "scans_shared",
     "scans_with_noise",
 ]
 
@@ -306,6 +308,23 @@ def _scans_serial(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, ou
             field, poses[k, 0], poses[k, 1], poses[k, 2], geometry, cos_a, sin_a, seeds[k],
             noise, ranges[k], out[k],
         )  # fmt: skip
+
+
+@nb.njit(cache=True, nogil=True)
+def scans_shared(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status, chunk,
+                 counter):  # fmt: skip
+    """:func:`scans_with_noise`'s cars in chunks of ``chunk`` taken from ``counter`` until none is
+    left: one of the threads of :func:`racecar_sim.raycast.shared_work.run_shared`."""
+    n = poses.shape[0]
+    while True:
+        k0 = fetch_add(counter, 1) * chunk
+        if k0 >= n:
+            break
+        for k in range(k0, min(n, k0 + chunk)):
+            status[k] = _scan_one(
+                field, poses[k, 0], poses[k, 1], poses[k, 2], geometry, cos_a, sin_a, seeds[k],
+                noise, ranges[k], out[k],
+            )  # fmt: skip
 
 
 def scans_with_noise(
