@@ -30,6 +30,7 @@ import numba as nb
 import numpy as np
 
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.raycast.shared_work import fetch_add, run_shared
 
 __all__ = ["PARALLEL_MIN_POINTS", "FieldTable", "likelihood_table", "score_endpoints"]
 
@@ -112,15 +113,18 @@ def _score_span(codes, lo, step, off_map, gu, gv, c, s, bx, by, squash, out, i0,
         out[i] = squash * _score_one(codes, lo, step, off_map, gu, gv, c, s, bx, by, i)
 
 
-@nb.njit(cache=True, parallel=True)
-def _score_parallel(codes, lo, step, off_map, gu, gv, c, s, bx, by, squash, out):
+@nb.njit(cache=True, nogil=True)
+def _score_shared(codes, lo, step, off_map, gu, gv, c, s, bx, by, squash, out, counter):
+    """:func:`_score_span` over blocks of 64 particles taken from ``counter`` (shared work,
+    :mod:`racecar_sim.raycast.shared_work`)."""
     n = gu.shape[0]
     blk = 64
-    for k in nb.prange((n + blk - 1) // blk):
-        _score_span(
-            codes, lo, step, off_map, gu, gv, c, s, bx, by, squash, out, k * blk,
-            min(n, (k + 1) * blk),
-        )  # fmt: skip
+    while True:
+        i0 = fetch_add(counter, 1) * blk
+        if i0 >= n:
+            break
+        _score_span(codes, lo, step, off_map, gu, gv, c, s, bx, by, squash, out, i0,
+                    min(n, i0 + blk))  # fmt: skip
 
 
 def score_endpoints(
@@ -159,7 +163,7 @@ def score_endpoints(
     if parallel is None:
         parallel = lidar.shape[0] * len(ranges) >= PARALLEL_MIN_POINTS
     if parallel:
-        _score_parallel(*args)
+        run_shared(_score_shared, args, nb.get_num_threads())
     else:
         _score_span(*args, 0, lidar.shape[0])
     return out

@@ -36,6 +36,7 @@ from mcl.likelihood_field import likelihood_table, score_endpoints
 from mcl.sensor_params import MODELS, SensorModelParams
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
+from racecar_sim.raycast.shared_work import fetch_add, run_shared
 
 __all__ = ["MODELS", "SensorModel", "SensorModelParams", "beam_table"]
 
@@ -80,16 +81,22 @@ def _score_row(ranges, z_obs, log_table, px_per_m, z_max, out, i):
     out[i] = acc
 
 
-@nb.njit(cache=True, parallel=True)
-def _score_parallel(ranges, z_obs, log_table, px_per_m, z_max, out):
-    """Log-likelihood sums for every particle (row of ``ranges``), threads over particles."""
-    for i in nb.prange(ranges.shape[0]):
-        _score_row(ranges, z_obs, log_table, px_per_m, z_max, out, i)
+@nb.njit(cache=True, nogil=True)
+def _score_shared(ranges, z_obs, log_table, px_per_m, z_max, out, counter):
+    """Log-likelihood sums for blocks of 256 particles (rows of ``ranges``) taken from
+    ``counter``: one of the threads sharing the particles (:mod:`racecar_sim.raycast.shared_work`)."""
+    n = ranges.shape[0]
+    while True:
+        i0 = fetch_add(counter, 1) * 256
+        if i0 >= n:
+            break
+        for i in range(i0, min(n, i0 + 256)):
+            _score_row(ranges, z_obs, log_table, px_per_m, z_max, out, i)
 
 
 @nb.njit(cache=True)
 def _score_serial(ranges, z_obs, log_table, px_per_m, z_max, out):
-    """Same as :func:`_score_parallel` on one thread."""
+    """Same as :func:`_score_shared` on one thread, all the particles."""
     for i in range(ranges.shape[0]):
         _score_row(ranges, z_obs, log_table, px_per_m, z_max, out, i)
 
@@ -257,8 +264,11 @@ class SensorModel:
         parallel = self.params.parallel
         if parallel is None:
             parallel = expected.size >= PARALLEL_MIN_LOOKUPS
-        kernel = _score_parallel if parallel else _score_serial
-        kernel(expected, z_px, self._log_table, 1.0 / self.m_per_px, float(self.z_max), out)
+        args = (expected, z_px, self._log_table, 1.0 / self.m_per_px, float(self.z_max), out)
+        if parallel:
+            run_shared(_score_shared, args, nb.get_num_threads())
+        else:
+            _score_serial(*args)
         return out
 
     # ------------------------------------------------------------------ API

@@ -20,6 +20,8 @@ import cv2
 import numba as nb
 import numpy as np
 
+from racecar_sim.raycast.shared_work import fetch_add, run_shared
+
 __all__ = [
     "CHUNK",
     "JUMP_MIN",
@@ -260,14 +262,18 @@ def _exact_span(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
         out[i, b] = to_metres(r, max_t, scale, max_out)
 
 
-@nb.njit(cache=True, parallel=True)
-def _exact_parallel(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out):
+@nb.njit(cache=True, nogil=True)
+def _exact_shared(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, counter):
+    """:func:`_exact_span` over chunks of ``CHUNK`` rays taken from ``counter`` (shared work)."""
     total = gu.shape[0] * cos_a.shape[0]
-    for c in nb.prange((total + CHUNK - 1) // CHUNK):
-        q1 = min(total, (c + 1) * CHUNK)
+    while True:
+        q0 = fetch_add(counter, 1) * CHUNK
+        if q0 >= total:
+            break
         _exact_span(
-            field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, c * CHUNK, q1
-        )
+            field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, q0,
+            min(total, q0 + CHUNK),
+        )  # fmt: skip
 
 
 @nb.njit(cache=True)
@@ -286,16 +292,20 @@ def _march_span(
         out[i, b] = to_metres(r, max_t, scale, max_out)
 
 
-@nb.njit(cache=True, parallel=True)
-def _march_parallel(
-    field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out, out
-):
+@nb.njit(cache=True, nogil=True)
+def _march_shared(
+    field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out, out,
+    counter,
+):  # fmt: skip
+    """:func:`_march_span` over chunks of ``CHUNK`` rays taken from ``counter`` (shared work)."""
     total = gu.shape[0] * cos_a.shape[0]
-    for c in nb.prange((total + CHUNK - 1) // CHUNK):
-        q1 = min(total, (c + 1) * CHUNK)
+    while True:
+        q0 = fetch_add(counter, 1) * CHUNK
+        if q0 >= total:
+            break
         _march_span(
             field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out,
-            out, c * CHUNK, q1,
+            out, q0, min(total, q0 + CHUNK),
         )  # fmt: skip
 
 
@@ -303,11 +313,13 @@ def exact_rays(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out,
     """Fill ``out`` (N, M) with exact ranges: cells times ``scale``, exactly ``max_out`` if clipped.
 
     Poses as pad-frame (gu, gv) in cells and heading cos/sin in the map frame; beams as cos/sin
-    relative to the heading; ``max_t`` in cells. ``parallel``: spread chunks of rays over numba's
-    threads (worth it from about :data:`PARALLEL_MIN_RAYS` rays).
+    relative to the heading; ``max_t`` in cells. ``parallel``: share chunks of rays among numba's
+    thread count of threads (:mod:`~racecar_sim.raycast.shared_work`; worth it from about
+    :data:`PARALLEL_MIN_RAYS` rays).
     """
     if parallel:
-        _exact_parallel(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out)
+        args = (field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out)
+        run_shared(_exact_shared, args, nb.get_num_threads())
     else:
         _exact_span(
             field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, 0, out.size
@@ -321,6 +333,6 @@ def march_rays(
     """Like :func:`exact_rays` with :func:`march_ray` (approximate)."""
     args = (field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out)
     if parallel:
-        _march_parallel(*args, out)
+        run_shared(_march_shared, (*args, out), nb.get_num_threads())
     else:
         _march_span(*args, out, 0, out.size)

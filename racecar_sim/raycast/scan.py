@@ -23,7 +23,7 @@ import numpy as np
 
 from racecar_sim.rand import uniforms_and_normals
 from racecar_sim.raycast.kernels import OCCUPIED
-from racecar_sim.raycast.shared_work import fetch_add
+from racecar_sim.raycast.shared_work import fetch_add, run_shared
 
 __all__ = [
     "GEOMETRY_FIELDS",
@@ -292,15 +292,6 @@ def scan_with_noise(field, pose, geometry, cos_a, sin_a, seed, noise, ranges, ou
     )
 
 
-@nb.njit(cache=True, parallel=True)
-def _scans_parallel(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status):
-    for k in nb.prange(poses.shape[0]):
-        status[k] = _scan_one(
-            field, poses[k, 0], poses[k, 1], poses[k, 2], geometry, cos_a, sin_a, seeds[k],
-            noise, ranges[k], out[k],
-        )  # fmt: skip
-
-
 @nb.njit(cache=True, nogil=True)
 def _scans_serial(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status):
     for k in range(poses.shape[0]):
@@ -332,13 +323,14 @@ def scans_with_noise(
 ) -> np.ndarray:
     """:func:`scan_with_noise` for K cars at once: poses (K, 3), seeds (K,), ranges, out (K, M).
 
-    ``parallel`` spreads the cars over numba's threads. Returns the (K,) statuses. The serial
-    kernel releases the GIL (:func:`scans_serial_nogil`), so Python threads can also share the
-    cars out.
+    ``parallel`` shares the cars, one at a time, among numba's thread count of threads
+    (:mod:`~racecar_sim.raycast.shared_work`). Returns the (K,) statuses. The serial kernel
+    releases the GIL (:func:`scans_serial_nogil`), so Python threads can also share the cars out.
     """
     status = np.zeros(poses.shape[0], dtype=np.int64)
     if parallel:
-        _scans_parallel(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status)
+        args = (field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status, 1)
+        run_shared(scans_shared, args, nb.get_num_threads())
     else:
         _scans_serial(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status)
     return status

@@ -349,3 +349,27 @@ def test_measure_rejects_a_bad_pose_naming_it(grid: OccupancyMap) -> None:
     for bad in ([1.0, math.nan, 0.0], [1.0, 2.0]):
         with pytest.raises(ValueError, match="pose"):
             lidar.measure(np.array(bad), np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("parallel", [False, True])
+def test_scans_of_many_cars_equal_one_scan_each(grid: OccupancyMap, parallel: bool) -> None:
+    """scans_with_noise (threads sharing the cars, or one thread) gives each car the scan
+    scan_with_noise gives it alone, noise included."""
+    from racecar_sim.raycast.scan import scan_with_noise, scans_with_noise
+
+    lidar = Lidar(grid)
+    rng = np.random.default_rng(4)
+    poses = grid.sample_free_poses(rng, 12, clearance=0.3)
+    seeds = rng.integers(0, 2**62, size=12)
+    m = lidar.angles.size
+    args = (lidar._caster.field, poses, lidar._geometry, lidar._cos_a, lidar._sin_a, seeds,
+            lidar._noise)  # fmt: skip
+    ranges, out = np.empty((12, m)), np.empty((12, m), dtype=np.float32)
+    status = scans_with_noise(*args, ranges, out, parallel)
+    assert not status.any()
+    for k in range(12):
+        one_r, one = np.empty(m), np.empty(m, dtype=np.float32)
+        assert scan_with_noise(args[0], poses[k], args[2], args[3], args[4], int(seeds[k]),
+                               args[6], one_r, one) == 0  # fmt: skip
+        np.testing.assert_array_equal(out[k], one)
+        np.testing.assert_array_equal(ranges[k], one_r)
