@@ -55,8 +55,9 @@ INSTALL_HINT = (
 STAGES = ("predict", "cast", "weigh", "resample", "estimate")
 
 
-_SPIN_PAUSE_S = 0.03
-"""Seconds of pause after each round of timed updates (see :func:`compare`)."""
+_ROUND_PAUSE_S = 0.03
+"""Seconds of pause after each round of timed updates, as between a lidar's scans (see
+:func:`compare`)."""
 
 
 def available() -> bool:
@@ -325,9 +326,10 @@ def compare(
     default_threads = numba.get_num_threads()
     try:
         for k in range(warmup + updates):
-            # The peer first, on a quiet machine: after a parallel region numba's OpenMP threads
-            # spin for about 10 ms (measured), which would take the second core from whatever
-            # runs next; each round therefore ends with a pause longer than that.
+            # The peer first, on a quiet machine, and each round ends with a pause, as between
+            # scans. (Added when our update used numba's OpenMP threads, which spin about 10 ms
+            # after a parallel region and took the second core from the peer; the update now
+            # shares work through racecar_sim.raycast.shared_work, whose threads block instead.)
             c = time.process_time()
             state["p"], r = peer.step(state["p"], odometry, scan[idx], angles)
             if k >= warmup:
@@ -340,7 +342,7 @@ def compare(
                 if k >= warmup:
                     runs[f"ours/{t}"].append(r)
                     cpu[f"ours/{t}"].append(time.process_time() - c)
-            time.sleep(_SPIN_PAUSE_S)
+            time.sleep(_ROUND_PAUSE_S)
     finally:
         numba.set_num_threads(default_threads)
     med = {name: _median_total(r) for name, r in runs.items()}
