@@ -7,8 +7,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import settings
 
 from racecar_sim.maps import OccupancyMap, bundled, load_map
+
+# No test may depend on how long a first numba call takes: a kernel that compiles, or loads from the
+# on-disk cache (about a third of a second on a fresh machine), is not a flaky failure. Every property
+# test therefore runs without a deadline; tests/test_no_deadlines.py keeps any test from setting one.
+settings.register_profile("no_deadline", deadline=None)
+settings.load_profile("no_deadline")
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED_MAPS = REPO.parent / "shared" / "maps"
