@@ -76,10 +76,12 @@ class ParticleFilter:
     The filter starts empty: call :meth:`initialize` or :meth:`initialize_global` first.
 
     Attributes:
-        n_updates: corrections applied. n_resamples: resampling steps. n_degenerate: corrections
-        after which every weight was zero or not finite (see the module docstring).
+        n_updates: corrections applied.
+        n_resamples: resampling steps.
+        n_degenerate: corrections after which every weight was zero or not finite (see the
+            module docstring).
         last_log_mean_likelihood: log of the weighted mean likelihood of the last scan,
-        ``log sum_i w_i p(z | x_i)`` with the weights before the correction (for augmented MCL).
+            ``log sum_i w_i p(z | x_i)`` with the weights before the correction (for augmented MCL).
         last_effective_sample_size: Kish's effective sample size right after the last weight
             update, before any resampling (NaN before the first).
         averages: the :class:`~mcl.augmented.LikelihoodAverages` of augmented MCL.

@@ -253,7 +253,8 @@ def run_one(
             every step (e.g. :class:`mcl.io.DriveRecorder` writing a bag).
 
     Raises:
-        whatever the map, the env, the driver or the filter raises; the log keeps the rows written.
+        Exception: whatever the map, the env, the driver or the filter raises; the log keeps the
+            rows written.
     """
     if isinstance(frame_every, bool) or not isinstance(frame_every, int) or frame_every < 1:
         raise ValueError(f"frame_every must be a positive integer, got {frame_every!r}")

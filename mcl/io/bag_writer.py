@@ -24,6 +24,7 @@ import os
 import shutil
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 
 from racecar_sim.maps import OccupancyMap
@@ -289,7 +290,7 @@ class DriveRecorder:
         wrapped: the wrapper around a ``RacecarSim-v0`` env (its lidar and map are recorded).
     """
 
-    def __init__(self, path: str | os.PathLike[str], wrapped) -> None:
+    def __init__(self, path: str | os.PathLike[str], wrapped: gym.Env) -> None:
         env = wrapped.unwrapped
         lidar = env.lidar
         self.max_range = float(lidar.params.max_range)
