@@ -18,7 +18,7 @@ from mcl.experiments.runs import RunResult
 from mcl.motion_model import uniform_to_gaussian
 
 if TYPE_CHECKING:
-    from mcl.experiments.noise_sweep import ExperimentConfig
+    from mcl.experiments.noise_config import ExperimentConfig
 
 __all__ = [
     "METRICS",

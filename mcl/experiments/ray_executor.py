@@ -26,7 +26,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from mcl.experiments.runner import Runner, worker_died
+from mcl.experiments.executors import Runner, worker_died
 from mcl.experiments.runs import RunResult, RunSpec
 
 __all__ = ["RayExecutor", "require_ray"]

@@ -21,7 +21,7 @@ from mcl.error_log import read_error_log
 from mcl.experiments.plots import plot_error_vs_time, plot_overlay, save_figure
 
 if TYPE_CHECKING:
-    from mcl.experiments.recovery import RecoveryConfig, RecoveryRun
+    from mcl.experiments.recovery_config import RecoveryConfig, RecoveryRun
 
 __all__ = ["plot_convergence_curve", "plot_particles", "write_recovery_plots"]
 

@@ -17,7 +17,7 @@ import numpy as np
 from mcl.experiments.convergence import RecoveryStats
 
 if TYPE_CHECKING:
-    from mcl.experiments.recovery import RecoveryConfig, RecoveryRun
+    from mcl.experiments.recovery_config import RecoveryConfig, RecoveryRun
 
 __all__ = ["summary_markdown", "write_tables"]
 

@@ -17,9 +17,10 @@ from concurrent.futures import as_completed as futures_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any, Protocol, TextIO
+from typing import Any, TextIO
 
 from mcl.error_log import read_error_log
+from mcl.experiments.executors import Executor, Runner, worker_died
 from mcl.experiments.metrics import DIVERGED_M, error_stats
 from mcl.experiments.runs import RunResult, RunSpec, run_one
 
@@ -67,30 +68,6 @@ def run_spec_safely(spec: RunSpec, log_path: Path, diverged_m: float = DIVERGED_
 def skipped_result(spec: RunSpec, log_path: Path, diverged_m: float) -> RunResult:
     stats = error_stats(read_error_log(log_path), diverged_m)
     return RunResult(spec=spec, status="skipped", stats=stats, log_path=log_path)
-
-
-Runner = Callable[[RunSpec, Path, float], RunResult]
-"""``runner(spec, log_path, diverged_m) -> RunResult``: one run (a module-level function, so that
-worker processes, local or on a Ray cluster, can import it)."""
-
-
-class Executor(Protocol):
-    """Where runs execute: :class:`InlineExecutor`, :class:`PoolExecutor` or
-    :class:`mcl.experiments.ray_executor.RayExecutor`.
-
-    ``run_all(runner, todo, diverged_m)`` runs ``runner(spec, path, diverged_m)`` for every
-    ``(spec, path)`` of ``todo`` and yields each :class:`RunResult` as it finishes. A run whose
-    worker process died comes back as a ``"failed"`` result; the others go on.
-    """
-
-    def run_all(
-        self, runner: Runner, todo: Sequence[tuple[RunSpec, Path]], diverged_m: float
-    ) -> Iterator[RunResult]: ...
-
-
-def worker_died(spec: RunSpec, path: Path, why: str) -> RunResult:
-    """The ``"failed"`` result of a run whose worker process died (its log keeps its rows)."""
-    return RunResult(spec=spec, status="failed", stats=None, log_path=path, error=why)
 
 
 class InlineExecutor:
