@@ -13,13 +13,13 @@ from racecar_sim.maps import draw
 
 EXAMPLES = """\
 examples:
-  racecar-sim make-maps                     redraw the maps shipped in racecar_sim/maps/data
+  racecar-sim make-maps                     redraw the bundled maps (in a checkout: its maps/)
   racecar-sim make-maps --out /tmp/maps     draw them elsewhere (e.g. to compare)
 """
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Draw every bundled map into ``--out`` (default: the package's own map folder)."""
+    """Draw every bundled map into ``--out`` (default: the bundled maps' folder, ``maps/`` in a checkout)."""
     parser = Parser("racecar-sim make-maps", (draw.__doc__ or "").split("\n\n")[0], EXAMPLES)
     parser.add_argument(
         "--out", type=Path, default=draw.bundled_dir(), metavar="DIR", help="output folder"

@@ -1,4 +1,9 @@
-"""The maps shipped with the package (package data in ``racecar_sim/maps/data``), found by name."""
+"""The bundled maps, found by name.
+
+They live in the repository's top-level ``maps/`` folder (drawn by ``racecar-sim make-maps``); a
+wheel carries them as package data in ``racecar_sim/maps/data`` (``setup.py`` copies them there at
+build time). :func:`maps_dir` is the one place that decides which folder holds them.
+"""
 
 from __future__ import annotations
 
@@ -8,21 +13,40 @@ from pathlib import Path
 from racecar_sim.maps.grid import MapError, OccupancyMap
 from racecar_sim.maps.loader import load_map
 
-__all__ = ["DEFAULT_MAP", "bundled", "bundled_names", "resolve_map"]
+__all__ = ["DEFAULT_MAP", "bundled", "bundled_names", "maps_dir", "resolve_map"]
 
 DEFAULT_MAP = "basement_loop"
 """Name of the bundled map used when none is given."""
 
-def _bundled_dir() -> Path:
+
+def checkout_maps_dir() -> Path | None:
+    """The top-level ``maps/`` folder of the source checkout this package runs from (a clone, or
+    an editable install of one), or None when the package is installed from a wheel."""
+    top = Path(__file__).resolve().parents[2]
+    if (top / "pyproject.toml").is_file() and (top / "maps").is_dir():
+        return top / "maps"
+    return None
+
+
+def maps_dir() -> Path:
+    """The folder holding the bundled maps (``NAME.yaml`` + ``NAME.png``).
+
+    ``$RACECAR_SIM_MAPS`` when set; else the checkout's top-level ``maps/`` when the package runs
+    from a source checkout (:func:`checkout_maps_dir`); else the package data an installed wheel
+    carries, ``racecar_sim/maps/data``.
+    """
     env = os.environ.get("RACECAR_SIM_MAPS")
     if env:
         return Path(env)
+    checkout = checkout_maps_dir()
+    if checkout is not None:
+        return checkout
     return Path(__file__).resolve().parent / "data"
 
 
 def bundled_names() -> list[str]:
-    """Names of the maps shipped in the package's ``racecar_sim/maps/data`` folder (sorted)."""
-    folder = _bundled_dir()
+    """Names of the bundled maps in :func:`maps_dir` (sorted)."""
+    folder = maps_dir()
     if not folder.is_dir():
         return []
     return sorted(p.stem for p in folder.glob("*.yaml"))
@@ -34,7 +58,7 @@ def bundled(name: str = DEFAULT_MAP) -> Path:
     Raises:
         MapError: no bundled map has that name; the message lists the ones there are.
     """
-    path = _bundled_dir() / f"{name}.yaml"
+    path = maps_dir() / f"{name}.yaml"
     if not path.is_file():
         raise MapError(f"no bundled map named {name!r}; bundled maps: {', '.join(bundled_names())}")
     return path

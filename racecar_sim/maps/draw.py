@@ -1,4 +1,4 @@
-"""Draw the occupancy maps that ship with the package (``racecar_sim/maps/data/*.yaml`` + ``*.png``).
+"""Draw the bundled occupancy maps (``maps/*.yaml`` + ``*.png`` at the top of the repository).
 
 Every map is a ROS ``map_server`` pair: an 8-bit grayscale PNG (0 = occupied, 254 = free,
 205 = unknown, used for everything outside the building) and a YAML file with the resolution
@@ -31,6 +31,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+
+from racecar_sim.maps.bundled import maps_dir
 
 RESOLUTION = 0.05  # metres per cell
 FREE = 254  # free cell value
@@ -352,5 +354,6 @@ def draw_maps(out_dir: Path) -> list[Path]:
 
 
 def bundled_dir() -> Path:
-    """The package's own map folder, where :func:`draw_maps` writes by default."""
-    return Path(__file__).resolve().parent / "data"
+    """Where :func:`draw_maps` writes by default: the bundled maps' folder
+    (:func:`racecar_sim.maps.bundled.maps_dir`; in a checkout, its top-level ``maps/``)."""
+    return maps_dir()

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-BUNDLED = sorted(p.stem for p in (REPO / "racecar_sim" / "maps" / "data").glob("*.yaml"))
+BUNDLED = sorted(p.stem for p in (REPO / "maps").glob("*.yaml"))
 
 DRIVE = textwrap.dedent(
     """
@@ -67,9 +67,9 @@ def test_wheel_installs_into_a_fresh_venv_and_drives(tmp_path: Path) -> None:
 
     src = tmp_path / "src"  # build from a copy: the checkout gets no build/ or egg-info
     ignore = shutil.ignore_patterns("__pycache__", "*.egg-info", "build", "*.pyc", "*.nbi", "*.nbc")
-    for name in ("racecar_sim", "mcl"):
+    for name in ("racecar_sim", "mcl", "maps"):
         shutil.copytree(REPO / name, src / name, ignore=ignore)
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "setup.py", "MANIFEST.in", "README.md"):
         shutil.copy2(REPO / name, src / name)
     dist = tmp_path / "dist"
     done = _run(
