@@ -20,6 +20,7 @@ from racecar_sim.noise_profiles import profile_document
 from racecar_sim.obstacles import ObstacleParams
 from racecar_sim.scan_effects import OdometryBias, ScanEffects
 from racecar_sim.validation import check_number, read_yaml_mapping
+from racecar_sim.vesc import ImuParams
 
 __all__ = [
     "CarParams",
@@ -244,6 +245,10 @@ class EnvConfig:
             mapping ``{scale, offset}``); None = none.
         obstacles: unmapped boxes and walking people (:class:`racecar_sim.obstacles.ObstacleParams`
             or a mapping of its fields); None = none.
+        odom_lead: seconds by which the wheel odometry leads the body's motion (the body gets each
+            command this much later, rounded to whole steps; :mod:`racecar_sim.vesc`); 0 = none.
+        imu: a yaw-rate gyro in ``obs["imu"]`` (:class:`racecar_sim.vesc.ImuParams`, a mapping
+            ``{sigma, bias}`` or True for its defaults); None = no IMU.
     """
 
     map: str | os.PathLike[str] | OccupancyMap | None = None
@@ -269,6 +274,8 @@ class EnvConfig:
     scan_effects: Any = None
     odom_bias: Any = None
     obstacles: Any = None
+    odom_lead: float = 0.0
+    imu: Any = None
 
     def __post_init__(self) -> None:
         if self.noise_profile is not None:
@@ -280,6 +287,8 @@ class EnvConfig:
                 raise ValueError(f"odom_bias must be a mapping {{scale, offset}}, got {self.odom_bias!r}")
             object.__setattr__(self, "odom_bias", OdometryBias(**dict(self.odom_bias)))
         object.__setattr__(self, "obstacles", ObstacleParams.from_setting(self.obstacles))
+        object.__setattr__(self, "imu", ImuParams.from_setting(self.imu))
+        check_number("", "odom_lead", self.odom_lead, low=0)
         if isinstance(self.car, Mapping):
             object.__setattr__(self, "car", from_mapping(CarParams, dict(self.car)))
         elif not isinstance(self.car, CarParams):

@@ -24,6 +24,7 @@ from racecar_sim.obstacles import Obstacles
 from racecar_sim.physics import RacecarPhysics
 from racecar_sim.render import MapRenderer
 from racecar_sim.sensors import Lidar, Odometry
+from racecar_sim.vesc import CommandDelay, lead_steps, wheel_twist
 
 __all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
 
@@ -43,7 +44,8 @@ class RacecarEnv(gym.Env):
     about its rear axle with steering-rate and acceleration limits, driving in a pymunk world
     whose walls are the map's occupied-cell edges, so it cannot pass through walls and every wall
     contact is reported. A lidar ``mount_offset`` ahead of the rear axle casts exact rays on the
-    grid and adds beam-model noise; the odometry reports the car-frame twist with Gaussian noise.
+    grid and adds beam-model noise; the odometry reports what a VESC measures (wheel speed and
+    the steering angle through the bicycle formula, :mod:`racecar_sim.vesc`) with Gaussian noise.
     Frames: ``world`` (the map's frame), ``car`` (x forward, y left, origin at the rear axle).
 
     ## Action Space
@@ -61,8 +63,12 @@ class RacecarEnv(gym.Env):
       taken at ``lidar_rate``: at reset, then at the end of the first step whose end time reaches
       each next multiple of ``1 / lidar_rate``. Between scans the last scan is repeated
       (``info["new_scan"]`` tells which steps carry a fresh one).
-    * ``odom``: ``Box(-inf, inf, (3,), float32)``, noisy car-frame twist ``[vx, vy, omega]``
-      (m/s, m/s, rad/s) averaged over the step, new every step.
+    * ``odom``: ``Box(-inf, inf, (3,), float32)``, the VESC's noisy car-frame twist ``[vx, vy,
+      omega]`` (m/s, m/s, rad/s) at the end of the step, new every step: ``[wheel_speed, 0,
+      wheel_speed * tan(steer) / wheelbase]`` (:func:`racecar_sim.vesc.wheel_twist`), so a sliding
+      car's odometry disagrees with its true twist (``info["twist"]``) as a real car's does.
+    * ``imu`` (only with the ``imu`` setting): ``Box(-inf, inf, (1,), float32)``, a gyro's yaw
+      rate (rad/s): the true yaw rate over the step plus bias and noise.
 
     ## Rewards
     The reward is the sum of the named terms in ``info["rewards"]``: ``progress``, metres driven
@@ -92,8 +98,8 @@ class RacecarEnv(gym.Env):
     :class:`EnvConfig`: ``n_beams``, ``fov``, ``max_range``, ``mount_offset``, ``lidar_rate``,
     ``dt``, ``substep``, ``terminate_on_collision``, ``collision_penalty``, ``start_clearance``,
     ``range_sigma``, ``p_short``, ``short_lambda``, ``p_max``, ``p_rand``,
-    ``odom_proportional``, ``odom_additive``, ``car`` (a ``CarParams`` or a mapping of its
-    fields). ``config`` names a YAML file (or is a mapping / :class:`EnvConfig`) with the same
+    ``odom_proportional``, ``odom_additive``, ``odom_lead``, ``imu``, ``car`` (a ``CarParams``
+    or a mapping of its fields). ``config`` names a YAML file (or is a mapping / :class:`EnvConfig`) with the same
     keys; keyword arguments override it. Unknown keys raise ``ValueError`` naming them.
     ``render_mode="rgb_array"`` makes :meth:`render` return an RGB ``uint8`` frame (H, W, 3) of
     the map, the car and the last scan's hits, plus whatever hooks added with
@@ -129,6 +135,12 @@ class RacecarEnv(gym.Env):
         self.physics = RacecarPhysics(self.map, self.car_params, substep=cfg.substep)
         self.lidar = Lidar(self.map, self.lidar_params)
         self.odometry = Odometry(self.odometry_noise)
+        self._wheelbase = float(self.car_params.wheelbase)
+        # The body gets each command odom_lead late; the odometry reads the wheels now (vesc.py).
+        self.command_delay = CommandDelay(
+            lead_steps(cfg.odom_lead, self.dt), self.car_params, self.dt, cfg.substep
+        )
+        self.imu = cfg.imu
         # Honest-world extras (None = off): correlated lidar failures, odometry bias, obstacles.
         self.scan_effects = cfg.scan_effects
         self.odom_bias = cfg.odom_bias
@@ -150,6 +162,8 @@ class RacecarEnv(gym.Env):
                 "odom": spaces.Box(-np.inf, np.inf, (3,), np.float32),
             }
         )
+        if self.imu is not None:
+            self.observation_space["imu"] = spaces.Box(-np.inf, np.inf, (1,), np.float32)
         # Plain floats of the action box for the per-step clipping.
         low, high = self.action_space.low, self.action_space.high
         self._steer_lo, self._speed_lo = float(low[0]), float(low[1])
@@ -214,8 +228,9 @@ class RacecarEnv(gym.Env):
         self.time = 0.0
         pose = self.physics.pose
         self._take_scan(pose)
+        self.command_delay.reset(self.physics.steer, self.physics.wheel_speed)
         twist = self.physics.twist
-        obs = {"scan": self._scan.copy(), "odom": self._measure_odometry(twist)}
+        obs = self._observation(twist)
         info = self._info(pose, twist, False, True, 0.0, 0.0)
         return obs, info
 
@@ -237,6 +252,8 @@ class RacecarEnv(gym.Env):
             raise ValueError(f"action must be finite [steer, speed], got {action!r}")
         steer = min(max(steer, self._steer_lo), self._steer_hi)
         speed = min(max(speed, self._speed_lo), self._speed_hi)
+        if self.command_delay.n:
+            steer, speed = self.command_delay.push(steer, speed)
 
         collided, fresh = self._advance(steer, speed)
         pose = self.physics.pose
@@ -245,7 +262,7 @@ class RacecarEnv(gym.Env):
         twist = self.physics.twist
         progress = float(twist[0]) * self.dt
         penalty = -self._penalty if collided else 0.0
-        obs = {"scan": self._scan.copy(), "odom": self._measure_odometry(twist)}
+        obs = self._observation(twist)
         info = self._info(pose, twist, collided, fresh, progress, penalty)
         terminated = collided and self._terminate
         return obs, progress + penalty, terminated, False, info
@@ -315,8 +332,23 @@ class RacecarEnv(gym.Env):
         self.time = self._n_steps * self.dt
         return self.time + _EPS_TIME >= self._next_scan
 
-    def _measure_odometry(self, twist: np.ndarray) -> np.ndarray:
-        vx, vy, om = twist.tolist()  # the physics' twist: finite, no checks needed
+    def _observation(self, twist: np.ndarray) -> dict[str, np.ndarray]:
+        """The step's observation: the last scan, the odometry, then (if on) the IMU's yaw rate
+        from the true ``twist``; in this order of draws from ``np_random``."""
+        obs = {"scan": self._scan.copy(), "odom": self._measure_odometry()}
+        imu = self.imu
+        if imu is not None:
+            rate = float(twist[2]) + imu.bias + imu.sigma * float(self.np_random.standard_normal())
+            obs["imu"] = np.array([rate], dtype=np.float32)
+        return obs
+
+    def _measure_odometry(self) -> np.ndarray:
+        """The VESC's noisy (and, with a profile, biased) twist from the wheels' state now."""
+        physics = self.physics
+        steer, speed = physics.steer, physics.wheel_speed
+        if self.command_delay.n:  # the wheels already have the commands the body has not
+            steer, speed = self.command_delay.wheels_ahead(steer, speed)
+        vx, vy, om = wheel_twist(speed, steer, self._wheelbase)
         odom = self.odometry.noisy(vx, vy, om, self.np_random)
         return odom if self.odom_bias is None else self.odom_bias.apply(odom)
 

@@ -220,6 +220,12 @@ class RacecarPhysics:
         """
         return self._speed
 
+    @property
+    def wheel_speed(self) -> float:
+        """Wheel speed a VESC reports, m/s (negative when reversing): the kinematic car's wheels
+        roll without slip, so it is :attr:`speed`."""
+        return self._speed
+
     def footprint(self, pose: np.ndarray | None = None) -> np.ndarray:
         """(4, 2) world corners of the car's box (rear right, front right, front left, rear left).
 

@@ -37,6 +37,7 @@ from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil, scans_shared
 from racecar_sim.raycast.shared_work import run_shared
+from racecar_sim.vesc import wheel_twist
 
 __all__ = ["PROBE_EVERY", "RacecarVectorEnv", "car_seeds"]
 
@@ -129,7 +130,11 @@ class RacecarVectorEnv(VectorEnv):
         cfg = merge_settings(config, {"map": map, **settings})
         grid = resolve_map(cfg.map)
         cfg = merge_settings(cfg, {"map": grid})
-        extras = [n for n in ("scan_effects", "odom_bias", "obstacles") if getattr(cfg, n) is not None]
+        extras = [
+            n for n in ("scan_effects", "odom_bias", "obstacles", "imu") if getattr(cfg, n) is not None
+        ]
+        if cfg.odom_lead:
+            extras.append("odom_lead")
         if extras:  # the batched cast and odometry below know the four-part noise only
             raise ValueError(
                 f"RacecarVectorEnv does not support {', '.join(extras)} (set by a noise profile or "
@@ -159,6 +164,7 @@ class RacecarVectorEnv(VectorEnv):
         self._cos_a, self._sin_a, self._noise = lidar._cos_a, lidar._sin_a, lidar._noise
         odo = first.odometry
         self._odo_prop, self._odo_add = odo._prop, odo._add
+        self._wheelbase = first._wheelbase
         self._low = first.action_space.low.astype(np.float64)
         self._high = first.action_space.high.astype(np.float64)
         self._penalty = float(cfg.collision_penalty)
@@ -263,12 +269,16 @@ class RacecarVectorEnv(VectorEnv):
 
         twist = self._physics.twists.copy()  # the cars' own twist arrays (resets: below)
         z = np.zeros((n, 6))
+        wheels = np.zeros((n, 3))  # the VESC's twist per car, as RacecarEnv._measure_odometry
+        wheelbase = self._wheelbase
         for i in stepped:
             env = envs[i]
+            p = env.physics
+            wheels[i] = wheel_twist(p.wheel_speed, p.steer, wheelbase)
             env.np_random.standard_normal(out=z[i])  # the odometry's draws, after the scan's
             if not fresh[i]:
                 scans[i] = env._scan
-        odom = (twist * (1.0 + self._odo_prop * z[:, :3]) + self._odo_add * z[:, 3:]).astype(
+        odom = (wheels * (1.0 + self._odo_prop * z[:, :3]) + self._odo_add * z[:, 3:]).astype(
             np.float32
         )
         progress = twist[:, 0] * self.dt

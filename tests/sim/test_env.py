@@ -233,15 +233,19 @@ def test_noisy_scan_is_redrawn_each_scan_only(map_spec) -> None:
         assert np.array_equal(scans[k], scans[k - 1]) != new  # fresh noise only on a new scan
 
 
-def test_odometry_is_the_twist_that_explains_the_motion(map_spec) -> None:
+def test_twist_explains_the_motion_and_odometry_is_the_vesc_reading(map_spec) -> None:
     env = make(map_spec, terminate_on_collision=False, **QUIET)
     _, info = env.reset(seed=4)
     dt = env.dt
+    wheelbase = env.car_params.wheelbase
     for k in range(80):
         before = info["pose"]
         obs, reward, _, _, info = env.step(np.array([0.3 * math.sin(k / 10), 2.0]))
         vx, vy, om = info["twist"]
-        assert np.array_equal(obs["odom"], info["twist"].astype(np.float32))
+        # The odometry is what the VESC reads: wheel speed and the steering angle's yaw rate.
+        speed, steer = env.physics.wheel_speed, env.physics.steer
+        expected = [speed, 0.0, speed * math.tan(steer) / wheelbase]
+        assert np.array_equal(obs["odom"], np.array(expected, dtype=np.float32))
         # Integrate the constant twist over dt as an arc (SE(2) exponential).
         dth = om * dt
         a = math.sin(dth) / dth if dth else 1.0

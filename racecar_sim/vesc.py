@@ -1,0 +1,153 @@
+"""What the car's electronics measure of its own motion: the VESC's wheel odometry, its lead over
+the body's motion, and an optional IMU gyro.
+
+Wheel odometry (``obs["odom"]``)
+    A VESC knows the motor's speed (ERPM through the gear ratio: the *wheel* speed) and the steering
+    servo's angle; the MIT racecar's ``vesc_to_odom`` turns them into a car-frame twist with the
+    kinematic bicycle formula::
+
+        vx = wheel_speed,   vy = 0,   omega = wheel_speed * tan(steer) / wheelbase
+
+    (:func:`wheel_twist`). It never sees the body slide: in a slide the true yaw rate and lateral
+    speed differ from these, exactly as on the real car. The reading is instantaneous, taken at the
+    end of each env step.
+
+Lead (``odom_lead`` seconds)
+    On the real car ``/vesc/odom`` leads the motion that the scans see by about 0.13 s
+    (:func:`mcl.calibration.odometry_fit.best_lag`): the motor and the servo act on a command at
+    once and the VESC reports them, but the body follows later (drivetrain and tire compliance,
+    servo linkage). Simulated causally: the *body* (the physics) receives each command ``n =
+    round(odom_lead / dt)`` steps late (:class:`CommandDelay`), while the odometry reports the
+    wheel state the actuators already have, which is the state the physics will reach ``n`` steps
+    later: the physics' current wheel speed and steering angle driven through the car's steering
+    rate and acceleration limits by the ``n`` commands still on their way (:func:`actuate`, the
+    same arithmetic as :meth:`racecar_sim.physics.RacecarPhysics.step`). Nothing is read from the
+    future: the odometry is computed from commands already given.
+
+IMU (``obs["imu"]``, off unless ``imu`` is set)
+    A gyro's yaw rate: the true yaw rate of the body over the step (``info["twist"][2]``) plus a
+    constant bias and white noise (:class:`ImuParams`). It sees the slide that the wheel odometry
+    misses.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from racecar_sim.validation import check_number
+
+if TYPE_CHECKING:  # config imports this module (ImuParams)
+    from racecar_sim.config import CarParams
+
+__all__ = ["CommandDelay", "ImuParams", "actuate", "lead_steps", "wheel_twist"]
+
+
+def wheel_twist(wheel_speed: float, steer: float, wheelbase: float) -> tuple[float, float, float]:
+    """The VESC's car-frame twist (vx m/s, vy m/s, omega rad/s) from the wheel speed (m/s) and the
+    front wheel angle (radians): the kinematic bicycle formula, no lateral speed."""
+    return wheel_speed, 0.0, wheel_speed * math.tan(steer) / wheelbase
+
+
+def actuate(
+    steer: float,
+    speed: float,
+    target_steer: float,
+    target_speed: float,
+    car: CarParams,
+    dt: float,
+    substep: float,
+) -> tuple[float, float]:
+    """The wheel angle (rad) and wheel speed (m/s) after ``dt`` seconds of a command already
+    clipped to the car's limits, from ``steer``, ``speed``: the steering-rate, acceleration and
+    braking limits of :meth:`racecar_sim.physics.RacecarPhysics.step`, substep by substep, with the
+    same floating-point operations (no wall is known here)."""
+    n_sub = max(1, math.ceil(dt / substep - 1e-9))
+    h = dt / n_sub
+    max_dsteer = car.max_steer_rate * h
+    accel = car.max_accel * h
+    decel = car.max_decel * h
+    for _ in range(n_sub):
+        steer += min(max(target_steer - steer, -max_dsteer), max_dsteer)
+        if speed > 0.0 and target_speed < speed:  # braking forwards: stop before reversing
+            speed = max(speed - decel, target_speed, 0.0)
+        elif speed < 0.0 and target_speed > speed:  # braking backwards
+            speed = min(speed + decel, target_speed, 0.0)
+        else:
+            speed += min(max(target_speed - speed, -accel), accel)
+    return steer, speed
+
+
+def lead_steps(lead: float, dt: float) -> int:
+    """Whole env steps of ``lead`` seconds at ``dt`` seconds per step (rounded to the nearest)."""
+    return int(round(lead / dt))
+
+
+class CommandDelay:
+    """The commands on their way from the VESC to the body: a FIFO of ``n`` clipped commands.
+
+    Args:
+        n: steps of delay (0: every command goes through at once).
+        car: the car's limits (for :meth:`wheels_ahead`).
+        dt: seconds per env step; substep: the physics' longest substep, seconds.
+    """
+
+    def __init__(self, n: int, car: CarParams, dt: float, substep: float) -> None:
+        self.n = int(n)
+        self.car = car
+        self.dt = float(dt)
+        self.substep = float(substep)
+        self._queue: deque[tuple[float, float]] = deque()
+
+    def reset(self, steer: float, speed: float) -> None:
+        """Empty the queue, filled with the command that holds the wheels at ``steer``, ``speed``."""
+        self._queue = deque([(steer, speed)] * self.n)
+
+    def push(self, steer: float, speed: float) -> tuple[float, float]:
+        """Queue the new command; returns the one that reaches the body now (n steps old)."""
+        if self.n == 0:
+            return steer, speed
+        self._queue.append((steer, speed))
+        return self._queue.popleft()
+
+    def wheels_ahead(self, steer: float, speed: float) -> tuple[float, float]:
+        """The wheel angle and speed the actuators have now, for a body whose wheels are at
+        ``steer`` (rad), ``speed`` (m/s): those driven by the commands still queued."""
+        for target_steer, target_speed in self._queue:
+            steer, speed = actuate(
+                steer, speed, target_steer, target_speed, self.car, self.dt, self.substep
+            )
+        return steer, speed
+
+
+@dataclass(frozen=True)
+class ImuParams:
+    """A yaw-rate gyro: reported = true yaw rate + bias + N(0, sigma²), one draw per env step.
+
+    Attributes:
+        sigma: rad/s, standard deviation of the white noise per step.
+        bias: rad/s, constant offset.
+    """
+
+    sigma: float = 0.01
+    bias: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_number("ImuParams", "sigma", self.sigma, low=0)
+        check_number("ImuParams", "bias", self.bias)
+
+    @classmethod
+    def from_setting(cls, value: Any) -> ImuParams | None:
+        """None, ``True`` (the defaults), an :class:`ImuParams` or a mapping of its fields."""
+        if value is None or value is False:
+            return None
+        if value is True:
+            return cls()
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, Mapping) and not set(value) - {"sigma", "bias"}:
+            return cls(**dict(value))
+        raise ValueError(f"imu must be true, false, or a mapping {{sigma, bias}}, got {value!r}")

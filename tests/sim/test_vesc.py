@@ -1,0 +1,175 @@
+"""Tests of the VESC's view of the car (racecar_sim.vesc): wheel odometry, its lead, the IMU."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from racecar_sim.config import CarParams, EnvConfig, merge_settings
+from racecar_sim.env import RacecarEnv
+from racecar_sim.maps import OccupancyMap
+from racecar_sim.vector_env import RacecarVectorEnv
+from racecar_sim.vesc import ImuParams, actuate, lead_steps, wheel_twist
+
+QUIET = {
+    "range_sigma": 0.0, "p_short": 0.0, "p_max": 0.0, "p_rand": 0.0,
+    "odom_proportional": (0.0, 0.0, 0.0), "odom_additive": (0.0, 0.0, 0.0),
+}  # fmt: skip
+pytestmark = pytest.mark.filterwarnings(
+    "ignore:.*(symmetric and normalized|infinity. This is probably).*:UserWarning"
+)
+
+
+def open_map(size_m: float = 30.0) -> OccupancyMap:
+    """An empty square hall (walls 3 cells thick), centre at the world origin."""
+    n = int(size_m / 0.05)
+    occ = np.zeros((n, n), dtype=bool)
+    occ[:3] = occ[-3:] = True
+    occ[:, :3] = occ[:, -3:] = True
+    half = size_m / 2
+    return OccupancyMap(occupied=occ, resolution=0.05, origin=(-half, -half, 0.0), name="hall")
+
+
+HALL = open_map()
+
+
+def make(**kwargs) -> RacecarEnv:
+    kwargs.setdefault("n_beams", 20)
+    return RacecarEnv(HALL, **{**QUIET, **kwargs})
+
+
+def test_wheel_twist_is_the_bicycle_formula() -> None:
+    vx, vy, om = wheel_twist(3.0, 0.2, 0.33)
+    assert (vx, vy) == (3.0, 0.0)
+    assert om == pytest.approx(3.0 * math.tan(0.2) / 0.33, rel=1e-15)
+    assert wheel_twist(-1.0, 0.3, 0.33)[2] < 0  # reversing with the wheels left turns right
+
+
+@settings(max_examples=15)
+@given(speed=st.floats(0.5, 7.0), steer=st.floats(-0.42, 0.42))
+def test_kinematic_odometry_equals_the_true_twist_on_a_steady_command(speed, steer) -> None:
+    """On the kinematic car the VESC reading is the body's twist once the command is reached, to
+    float32 rounding and the substep's chord: the body moves ``v h`` along the chord of each
+    substep's arc, so its arc-length speed is ``v`` times ``1 + (omega h)² / 24`` to leading order."""
+    env = make()
+    env.reset(seed=0, options={"pose": [0.0, 0.0, 0.0]})
+    h = env.config.substep
+    for k in range(60):  # 1.5 s: the speed (7.5 m/s²) and the steering (3.2 rad/s) settle
+        obs, _, terminated, _, info = env.step(np.array([steer, speed]))
+        assert not terminated
+        if k >= 45:
+            chord = (info["twist"][2] * h) ** 2 / 24
+            assert obs["odom"][1] == 0.0 and abs(info["twist"][1]) < 1e-9
+            for c in (0, 2):
+                assert obs["odom"][c] == pytest.approx(info["twist"][c], rel=chord * 1.01 + 2e-7)
+
+
+def test_while_accelerating_the_reading_leads_the_step_average_by_less_than_a_step() -> None:
+    env = make()
+    env.reset(seed=0, options={"pose": [0.0, 0.0, 0.0]})
+    car = env.car_params
+    leads = []
+    for _ in range(50):  # 5 m/s reached after 0.67 s
+        obs, _, _, _, info = env.step(np.array([0.1, 5.0]))
+        gap = float(obs["odom"][0]) - float(info["twist"][0])
+        assert -1e-4 <= gap <= car.max_accel * env.dt  # wheel speed at the end of the step
+        leads.append(gap)
+    assert max(leads) > 0.1  # the reading does differ while the speed changes
+    assert abs(leads[-1]) < 1e-4  # and not once it has settled
+
+
+@settings(max_examples=20)
+@given(commands=st.lists(st.tuples(st.floats(-0.5, 0.5), st.floats(-3.0, 8.0)), min_size=1,
+                         max_size=12))  # fmt: skip
+def test_actuate_is_the_physics_own_arithmetic(commands) -> None:
+    env = make()
+    env.reset(seed=0, options={"pose": [0.0, 0.0, 0.0]})
+    car, p = env.car_params, env.physics
+    for steer_cmd, speed_cmd in commands:
+        target = (min(max(steer_cmd, -car.max_steer), car.max_steer),
+                  min(max(speed_cmd, -car.max_reverse_speed), car.max_speed))  # fmt: skip
+        expected = actuate(p.steer, p.wheel_speed, *target, car, env.dt, env.config.substep)
+        env.step(np.array([steer_cmd, speed_cmd]))
+        assert (p.steer, p.wheel_speed) == expected  # bit for bit
+
+
+def _drive(env: RacecarEnv, n: int) -> tuple[np.ndarray, np.ndarray]:
+    env.reset(seed=3, options={"pose": [0.0, 0.0, 0.0]})
+    odom, poses = [], []
+    for k in range(n):
+        obs, _, _, _, info = env.step(np.array([0.35 * math.sin(k / 6), 2.0 + 2.0 * math.sin(k / 9)]))
+        odom.append(obs["odom"])
+        poses.append(info["pose"])
+    return np.array(odom), np.array(poses)
+
+
+def test_odometry_leads_the_motion_by_odom_lead() -> None:
+    """With a lead the odometry reads the same as without, while the body follows n steps late."""
+    n = lead_steps(0.13, 0.025)
+    assert n == 5
+    odom0, poses0 = _drive(make(), 80)
+    odom_l, poses_l = _drive(make(odom_lead=0.13), 80)
+    np.testing.assert_array_equal(odom_l, odom0)
+    np.testing.assert_allclose(poses_l[n:], poses0[:-n], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(poses_l[:n - 1], np.zeros((n - 1, 3)), atol=1e-12)  # still waiting
+    assert np.abs(poses_l[-1] - poses0[-1]).max() > 0.05  # the lead is not nothing
+
+
+def test_profile_has_the_measured_lead_and_bias() -> None:
+    cfg = merge_settings(None, {"noise_profile": "mit_racecar"})
+    assert cfg.odom_lead == pytest.approx(0.13)
+    assert cfg.odom_bias.scale[0] < -0.03 and cfg.odom_bias.scale[2] > 0.05
+
+
+def test_imu_is_off_by_default_and_reports_the_true_yaw_rate_with_noise() -> None:
+    plain = make()
+    assert "imu" not in plain.observation_space.spaces
+    assert "imu" not in plain.reset(seed=0)[0]
+    env = make(imu={"sigma": 0.02, "bias": 0.05})
+    check_env(env)
+    env.reset(seed=1, options={"pose": [0.0, 0.0, 0.0]})
+    errors = []
+    for _ in range(400):
+        obs, _, _, _, info = env.step(np.array([0.3, 2.0]))
+        assert obs["imu"].shape == (1,) and obs["imu"].dtype == np.float32
+        errors.append(float(obs["imu"][0]) - info["twist"][2])
+    assert np.mean(errors) == pytest.approx(0.05, abs=0.005)
+    assert np.std(errors) == pytest.approx(0.02, rel=0.15)
+    assert make(imu=True).imu == ImuParams()
+
+
+def test_imu_draws_after_the_odometry_so_the_rest_is_unchanged() -> None:
+    noisy = {"odom_additive": (0.05, 0.05, 0.05)}
+    a, b = make(**noisy), make(imu=True, **noisy)
+    oa, _ = a.reset(seed=5)
+    ob, _ = b.reset(seed=5)
+    assert np.array_equal(oa["odom"], ob["odom"]) and np.array_equal(oa["scan"], ob["scan"])
+
+
+@pytest.mark.parametrize(
+    ("setting", "value", "message"),
+    [("odom_lead", -0.1, "odom_lead"), ("imu", {"sigma": -1}, "ImuParams.sigma"),
+     ("imu", {"gain": 1}, "imu must be")],
+)  # fmt: skip
+def test_bad_settings_name_the_setting(setting, value, message) -> None:
+    with pytest.raises(ValueError, match=message):
+        EnvConfig(**{setting: value})
+
+
+@pytest.mark.parametrize(("setting", "value"), [("odom_lead", 0.1), ("imu", True)])
+def test_vector_env_refuses_what_it_does_not_simulate(setting, value) -> None:
+    with pytest.raises(ValueError, match=setting):
+        RacecarVectorEnv(2, HALL, n_beams=10, **{setting: value})
+
+
+def test_car_params_wheelbase_sets_the_yaw_rate() -> None:
+    env = make(car=CarParams(wheelbase=0.5))
+    env.reset(seed=0, options={"pose": [0.0, 0.0, 0.0]})
+    for _ in range(40):
+        obs, *_ = env.step(np.array([0.2, 2.0]))
+    assert obs["odom"][2] == pytest.approx(2.0 * math.tan(0.2) / 0.5, rel=1e-6)
