@@ -136,7 +136,11 @@ class AdaptiveParticleFilter(ParticleFilter):
         self._track_motion = self.motion_model
         mp = self.motion_model.params
         self._search_motion = MotionModel(
-            replace(mp, coefficients=tuple(c * a.search_noise for c in mp.coefficients))
+            replace(
+                mp,
+                coefficients=tuple(c * a.search_noise for c in mp.coefficients),
+                alphas=tuple(v * a.search_noise**2 for v in mp.alphas),  # variances: k² each
+            )
         )
         self.tracking = False
         self.n_mode_switches = 0

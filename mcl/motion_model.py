@@ -9,7 +9,10 @@ radians). Composition is the SE(2) product of the pose matrices, vectorised over
 
 Noise is added to each particle's copy of the odometry before composing (the MIT RSS lab's scheme):
 ``"uniform"`` draws each component from [-c, c], ``"gaussian"`` from N(0, sigma^2), ``"none"`` adds
-nothing. The coefficients are per update, not per second.
+nothing. The coefficients are per update, not per second. ``"alpha"`` is the odometry model of
+Probabilistic Robotics (table 5.6, ROS amcl's ``alpha1..alpha4``): noise on a turn, a translation
+and a turn that grows with the motion of the update (:mod:`mcl.alpha_motion`), plus the
+coefficients as a constant floor.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from mcl.alpha_motion import alpha_odometry_into
 from mcl.step_kernels import compose_into, move_noisy, noise_into
 from racecar_sim.rand import seed_from
 
@@ -32,7 +36,7 @@ __all__ = [
     "uniform_to_gaussian",
 ]
 
-SCHEMES: tuple[str, ...] = ("uniform", "gaussian", "none")
+SCHEMES: tuple[str, ...] = ("uniform", "gaussian", "none", "alpha")
 """Noise schemes accepted by :class:`MotionModelParams`."""
 
 _SQRT3 = math.sqrt(3.0)
@@ -74,14 +78,19 @@ class MotionModelParams:
     """Noise of the odometry motion model.
 
     Attributes:
-        scheme: ``"uniform"``, ``"gaussian"`` or ``"none"``.
+        scheme: ``"uniform"``, ``"gaussian"``, ``"none"`` or ``"alpha"``.
         coefficients: per-update noise of the car-frame odometry (dx metres, dy metres, dtheta
-            radians): the half-width c for ``"uniform"``, the standard deviation for ``"gaussian"``,
-            ignored for ``"none"``. One number applies to all three components.
+            radians): the half-width c for ``"uniform"``, the standard deviation for ``"gaussian"``
+            and for the constant floor of ``"alpha"``, ignored for ``"none"``. One number applies
+            to all three components.
+        alphas: ``"alpha"`` only: a1 (rad² of rotation noise variance per rad² of rotation), a2
+            (rad² per m² of translation), a3 (m² of translation variance per m²), a4 (m² per rad²);
+            amcl's ``odom_alpha1..4`` (:mod:`mcl.alpha_motion`).
     """
 
     scheme: str = "gaussian"
     coefficients: float | tuple[float, float, float] = (0.02, 0.01, 0.02)
+    alphas: tuple[float, float, float, float] = (0.2, 0.08, 0.16, 0.02)
 
     def __post_init__(self) -> None:
         if self.scheme not in SCHEMES:
@@ -89,6 +98,16 @@ class MotionModelParams:
                 f"MotionModelParams.scheme = {self.scheme!r}; choose one of {list(SCHEMES)}"
             )
         object.__setattr__(self, "coefficients", _three("coefficients", self.coefficients))
+        try:
+            alphas = tuple(float(a) for a in self.alphas)
+        except (TypeError, ValueError):
+            alphas = ()
+        if len(alphas) != 4 or not all(math.isfinite(a) and a >= 0 for a in alphas):
+            raise ValueError(
+                f"MotionModelParams.alphas must be four non-negative numbers (a1..a4), "
+                f"got {self.alphas!r}"
+            )
+        object.__setattr__(self, "alphas", alphas)
 
     def with_scheme(self, scheme: str) -> MotionModelParams:
         """The same noise variance under another scheme (uniform c <-> Gaussian sigma = c/sqrt(3)).
@@ -145,15 +164,35 @@ class MotionModel:
 
     def __init__(self, params: MotionModelParams | None = None) -> None:
         self.params = params if params is not None else MotionModelParams()
-        self._coefficients_of: tuple[MotionModelParams | None, np.ndarray] = (None, np.zeros(3))
+        self._coefficients_of: tuple[MotionModelParams | None, np.ndarray, np.ndarray] = (
+            None, np.zeros(3), np.zeros(4)
+        )  # fmt: skip
 
-    def _coefficients(self) -> np.ndarray:
-        """``params.coefficients`` as a (3,) array, made once per ``params`` object."""
-        params, coefficients = self._coefficients_of
+    def _arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """``params.coefficients`` (3,) and ``params.alphas`` (4,) as arrays, made once per
+        ``params`` object."""
+        params, coefficients, alphas = self._coefficients_of
         if params is not self.params:
             coefficients = np.asarray(self.params.coefficients, dtype=np.float64).reshape(3)
-            self._coefficients_of = (self.params, coefficients)
-        return coefficients
+            alphas = np.asarray(self.params.alphas, dtype=np.float64).reshape(4)
+            self._coefficients_of = (self.params, coefficients, alphas)
+        return coefficients, alphas
+
+    def _coefficients(self) -> np.ndarray:
+        return self._arrays()[0]
+
+    def noisy_odometry(
+        self, n: int, odometry: np.ndarray, rng: np.random.Generator
+    ) -> np.ndarray:
+        """(n, 3) noisy car-frame displacements (metres, metres, radians) of ``odometry`` (3,), one
+        per particle, as :meth:`evaluate` composes them (every scheme; one raw draw of ``rng``)."""
+        odo = np.asarray(odometry, dtype=np.float64).reshape(3)
+        if self.params.scheme != "alpha":
+            return odo + self.sample_noise(n, rng)
+        out = np.empty((n, 3))
+        floor, alphas = self._arrays()
+        alpha_odometry_into(odo, alphas, floor, seed_from(rng), out)
+        return out
 
     def sample_noise(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """(n, 3) car-frame odometry perturbations (metres, metres, radians) for ``n`` particles.
@@ -162,6 +201,10 @@ class MotionModel:
         ``rng`` (three times faster than ``rng.standard_normal`` at 4000 particles): the same
         ``rng`` state gives the same noise, and :meth:`evaluate` adds exactly these draws.
         """
+        if self.params.scheme == "alpha":
+            raise ValueError(
+                "the alpha scheme's noise depends on the odometry: use noisy_odometry(n, odometry, rng)"
+            )
         out = np.zeros((n, 3))
         if self.params.scheme != "none":
             noise_into(self._coefficients(), self.params.scheme == "gaussian", seed_from(rng), out)
@@ -191,6 +234,10 @@ class MotionModel:
             raise ValueError(f"odometry must be three finite numbers [dx, dy, dtheta], got {odo}")
         if self.params.scheme == "none":
             return compose(particles, odo)
+        if self.params.scheme == "alpha":
+            out = np.empty(particles.shape)
+            compose_into(particles, self.noisy_odometry(len(particles), odo, rng), out)
+            return out
         return move_noisy(
             np.ascontiguousarray(particles), odo, self._coefficients(),
             self.params.scheme == "gaussian", seed_from(rng),
