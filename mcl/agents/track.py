@@ -14,7 +14,7 @@ from functools import lru_cache
 
 import numpy as np
 
-__all__ = ["Track", "track_for_map"]
+__all__ = ["Track", "loop_maps", "track_for_map"]
 
 _LOOP_START: dict[str, tuple[float, float, float]] = {
     "basement_loop": (9.0, 2.5, 0.0),  # south hallway, driving east (island on the left)
@@ -92,6 +92,11 @@ class Track:
         """Signed metres from ``s_from`` to ``s_to`` the short way round (across the seam too)."""
         d = (s_to - s_from) % self.length
         return d - self.length if d > self.length / 2 else d
+
+
+def loop_maps() -> list[str]:
+    """The bundled maps whose loop start is known (:func:`track_for_map` needs no ``start``)."""
+    return sorted(_LOOP_START)
 
 
 @lru_cache(maxsize=4)

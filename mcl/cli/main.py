@@ -24,6 +24,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("mcl.cli.bench", "benchmarks (racecar-sim bench lists them)"),
     "make-maps": ("mcl.cli.make_maps", "draw the bundled maps"),
     "train-agent": ("mcl.cli.train_agent", "PPO laps on the scan and a pose (extra [rl])"),
+    "fast-laps": ("mcl.cli.fast_laps", "localization on fast laps: lab motion noise vs the alpha model"),
     "calibrate-noise": (
         "mcl.cli.calibrate_noise",
         "fit a simulator noise profile from real ROS bags (lidar and odometry)",

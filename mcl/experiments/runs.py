@@ -77,6 +77,8 @@ class RunSpec:
         scenario_settings: keyword arguments of the scenario as (name, value) pairs.
         filter_map: bundled name or YAML path of the map the filter holds, when it differs from
             the world ``map`` (same world frame; size and resolution may differ); None = ``map``.
+        driver_settings: keyword arguments of the driver as (name, value) pairs (``"racing"``:
+            ``speed`` m/s, ``lookahead`` m).
     """
 
     map: str = DEFAULT_MAP
@@ -93,6 +95,7 @@ class RunSpec:
     config: LocalizationConfig | None = None
     scenario_settings: tuple[tuple[str, Any], ...] = ()
     filter_map: str | None = None
+    driver_settings: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         if self.driver not in DRIVERS:
@@ -111,6 +114,8 @@ class RunSpec:
         object.__setattr__(self, "env", tuple((str(k), v) for k, v in dict(self.env).items()))
         settings = tuple((str(k), v) for k, v in dict(self.scenario_settings).items())
         object.__setattr__(self, "scenario_settings", settings)
+        drive = tuple((str(k), v) for k, v in dict(self.driver_settings).items())
+        object.__setattr__(self, "driver_settings", drive)
         if self.config is not None and not isinstance(self.config, LocalizationConfig):
             raise ValueError(f"RunSpec.config = {self.config!r} must be a LocalizationConfig")
 
@@ -177,27 +182,52 @@ def _pursuit_driver(env: RacecarEnv, seed: int, drive_on: str) -> StepDriver:
             f"pure pursuit needs a loop of waypoints, recorded by following the wall from the "
             f"start of seed {seed}: {exc}"
         ) from exc
-    pursuit = PurePursuit(waypoints, loop=True, car=env.car_params)
+    return _pursue(PurePursuit(waypoints, loop=True, car=env.car_params), drive_on)
+
+
+def _pursue(pursuit: PurePursuit, drive_on: str) -> StepDriver:
     if drive_on == "truth":
         return lambda obs, info: pursuit(obs, info["pose"])
     return lambda obs, info: pursuit(obs, obs["pose_estimate"])
 
 
-DRIVERS: dict[str, Callable[[RacecarEnv, int, str], StepDriver]] = {
+def _racing_driver(
+    env: RacecarEnv, seed: int, drive_on: str, speed: float = 6.0, lookahead: float | None = None
+) -> StepDriver:
+    """Pure pursuit round the map's loop (:func:`mcl.agents.track.track_for_map`) at ``speed``
+    m/s everywhere, corners included; look-ahead 0.3 s of travel (at least 1 m) unless given."""
+    from mcl.agents.track import track_for_map
+
+    ahead = max(1.0, 0.3 * speed) if lookahead is None else lookahead
+    points = track_for_map(env.map.name).points
+    return _pursue(PurePursuit(points, lookahead=ahead, speed=speed, car=env.car_params), drive_on)
+
+
+DRIVERS: dict[str, Callable[..., StepDriver]] = {
     "wall": _wall_driver,
     "pursuit": _pursuit_driver,
+    "racing": _racing_driver,
 }
-"""Driver factories ``factory(env, seed, drive_on) -> driver(obs, info)`` by name. They may drive
-the bare env before the run (pure pursuit records its waypoints so)."""
+"""Driver factories ``factory(env, seed, drive_on, **settings) -> driver(obs, info)`` by name. They
+may drive the bare env before the run (pure pursuit records its waypoints so)."""
 
 
-def make_driver(name: str, env: RacecarEnv, seed: int, drive_on: str = "truth") -> StepDriver:
-    """The driver ``name`` for the bare env ``env`` (see :data:`DRIVERS`)."""
+def make_driver(
+    name: str,
+    env: RacecarEnv,
+    seed: int,
+    drive_on: str = "truth",
+    settings: Mapping[str, Any] | None = None,
+) -> StepDriver:
+    """The driver ``name`` for the bare env ``env`` (see :data:`DRIVERS`), with its ``settings``."""
     try:
         factory = DRIVERS[name]
     except KeyError:
         raise ValueError(f"unknown driver {name!r}; choose one of {sorted(DRIVERS)}") from None
-    return factory(env, seed, drive_on)
+    try:
+        return factory(env, seed, drive_on, **dict(settings or {}))
+    except TypeError as exc:
+        raise ValueError(f"driver {name!r}: bad driver settings {dict(settings or {})}: {exc}") from None
 
 
 # ---------------------------------------------------------------------- per-process caches
@@ -264,7 +294,7 @@ def run_one(
     config = replace(base.with_particles(spec.n_particles), motion=spec.motion)
     render_mode = "rgb_array" if on_frame is not None else None
     env = RacecarEnv(grid, render_mode=render_mode, **spec.env_settings)
-    driver = make_driver(spec.driver, env, spec.seed, spec.drive_on)
+    driver = make_driver(spec.driver, env, spec.seed, spec.drive_on, dict(spec.driver_settings))
     scenario = make_scenario(spec.scenario, **dict(spec.scenario_settings))
     after_step = getattr(scenario, "after_step", None)
     scenario_rng = np.random.default_rng(

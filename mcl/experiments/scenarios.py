@@ -60,10 +60,12 @@ class TrackingScenario:
     Attributes:
         init_spread: standard deviations (x m, y m, theta rad) of the initial particle cloud
             around the true start pose.
+        start: the car's start pose (world x m, y m, theta rad); None = the env's random start.
     """
 
     init_spread: tuple[float, float, float] = (0.25, 0.25, 0.1)
     name: str = "tracking"
+    start: tuple[float, float, float] | None = None
 
     def __post_init__(self) -> None:
         spread = tuple(float(v) for v in self.init_spread)
@@ -73,10 +75,20 @@ class TrackingScenario:
                 f"{self.init_spread!r}"
             )
         object.__setattr__(self, "init_spread", spread)
+        if self.start is not None:
+            start = tuple(float(v) for v in self.start)
+            if len(start) != 3 or not all(math.isfinite(v) for v in start):
+                raise ValueError(
+                    f"TrackingScenario.start must be None or [x, y, theta], got {self.start!r}"
+                )
+            object.__setattr__(self, "start", start)
 
     def reset_options(self) -> dict[str, Any]:
-        """Start around the truth with ``init_spread``."""
-        return {"init": "pose", "init_spread": self.init_spread}
+        """Start around the truth with ``init_spread`` (at ``start`` when given)."""
+        options: dict[str, Any] = {"init": "pose", "init_spread": self.init_spread}
+        if self.start is not None:
+            options["pose"] = list(self.start)
+        return options
 
     def before_step(self, env: Any, step: int, time: float, rng: np.random.Generator) -> None:
         """Nothing happens."""

@@ -1,0 +1,54 @@
+"""``racecar-sim fast-laps``: localization on fast laps, the lab's motion noise against the alpha
+model (:mod:`mcl.experiments.fast_laps`; results in docs/odometry.md)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from mcl.cli.common import (
+    ENV_HELP,
+    Parser,
+    check_env,
+    check_map,
+    check_out,
+    compile_notice,
+    positive_float,
+    positive_int,
+)
+
+EXAMPLE = """example:
+  racecar-sim fast-laps --env car_model=single_track --seeds 5 --duration 60 --out runs/fast_laps
+"""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the fast-lap experiment; prints its table and writes OUT/summary.md."""
+    parser = Parser("racecar-sim fast-laps", __doc__.splitlines()[0], EXAMPLE)
+    add = parser.add_argument
+    add("--out", type=Path, required=True, help="output folder (config.json, logs/, summary.md)")
+    add("--map", default="basement_loop", help="bundled map with a known loop")
+    add("--speed", type=positive_float, default=6.0, help="m/s the car holds, corners included")
+    add("--seeds", type=positive_int, default=5, help="runs per motion model (starts round the loop)")
+    add("--duration", type=positive_float, default=60.0, help="simulated seconds per run")
+    add("--particles", type=positive_int, default=1500, help="particles per filter")
+    add("--workers", type=positive_int, default=None, help="processes (default: the CPU count)")
+    add("--env", action="append", default=[], metavar="NAME=VALUE", help=ENV_HELP)
+    args = parser.parse_args(argv)
+    grid = check_map(parser, args.map)
+    env = check_env(parser, args.env)
+    out = check_out(parser, args.out)
+    from mcl.agents.track import loop_maps
+    from mcl.experiments.fast_laps import FastLapConfig, markdown_table, run_fast_laps
+
+    if grid not in loop_maps():
+        parser.fail("--map", f"no loop known for {grid!r}; maps with a loop: {loop_maps()}")
+    cfg = FastLapConfig(
+        map=grid, speed=args.speed, seeds=args.seeds, duration=args.duration,
+        n_particles=args.particles, env=dict(env),
+    )  # fmt: skip
+    compile_notice()
+    rows, _ = run_fast_laps(cfg, out, workers=args.workers, progress=True)
+    print(markdown_table(rows, cfg.diverged_m))
+    print(f"wrote {out / 'summary.md'}")
+    return 0
