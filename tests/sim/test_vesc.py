@@ -173,3 +173,75 @@ def test_car_params_wheelbase_sets_the_yaw_rate() -> None:
     for _ in range(40):
         obs, *_ = env.step(np.array([0.2, 2.0]))
     assert obs["odom"][2] == pytest.approx(2.0 * math.tan(0.2) / 0.5, rel=1e-6)
+
+
+# ---------------------------------------------------------------------- odometry under slip
+GRAVITY = 9.81
+
+
+def _single_track_env(**kwargs) -> RacecarEnv:
+    try:
+        return make(car_model="single_track", **kwargs)
+    except (TypeError, ValueError) as exc:  # a build without the single-track model
+        if "car_model" in str(exc):
+            pytest.skip(f"car_model='single_track' is not in this build: {exc}")
+        raise
+
+
+def _steady(env: RacecarEnv, steer: float, speed: float, seconds: float = 4.0):
+    """Drive a constant command from rest; the last 20 steps' (odometry, twist, wheel speed,
+    slip angle, steering angle) as arrays."""
+    env.reset(seed=0, options={"pose": [0.0, 0.0, 0.0]})
+    rows = []
+    for _ in range(int(seconds / env.dt)):
+        obs, _, terminated, _, info = env.step(np.array([steer, speed]))
+        assert not terminated
+        p = env.physics
+        rows.append((*obs["odom"], *info["twist"], p.wheel_speed, p.slip_angle, p.steer))
+    return np.array(rows[-20:])
+
+
+def test_odometry_yaw_rate_differs_from_the_truth_as_the_slip_angles_say() -> None:
+    """A steady circle of the single-track car with the tires in their linear range: the VESC's
+    yaw rate (wheel speed and steering angle) exceeds the true one by the tires' slip angles,
+    and those grow with the lateral acceleration as the cornering stiffnesses say (understeer
+    gradient K = (1 / C_Sf - 1 / C_Sr) / (mu g) radians per m/s²)."""
+    env = _single_track_env()
+    car = env.car_params
+    steer, speed = 0.1, 4.0
+    rows = _steady(env, steer, speed)
+    odo_om, tw_vx, tw_vy, tw_om = rows[:, 2], rows[:, 3], rows[:, 4], rows[:, 5]
+    wheel, beta = rows[:, 6], rows[:, 7]
+    assert np.ptp(tw_om) < 1e-3 * tw_om.mean()  # steady
+    L = car.wheelbase
+    # The reading is the VESC's formula of the wheels, not the twist.
+    np.testing.assert_allclose(odo_om, wheel * math.tan(steer) / L, rtol=1e-6)
+    # The slip angles from the motion: rear from the rear axle's velocity (the twist's origin),
+    # front from the front axle's (L ahead); the odometry's error is what they leave out.
+    alpha_r = -np.arctan2(tw_vy, tw_vx)
+    alpha_f = steer - np.arctan2(tw_vy + L * tw_om, tw_vx)
+    np.testing.assert_allclose(
+        odo_om - tw_om,
+        wheel / L * (math.tan(steer) - np.tan(steer - alpha_f) - np.tan(alpha_r)), atol=1e-4,
+    )
+    assert (odo_om - tw_om).mean() > 0.05 * tw_om.mean()  # understeer: the odometry over-turns
+    # The model's own body slip angle (at the centre of gravity) moves the rear axle sideways.
+    lr = car.cg_to_rear
+    speed_cg = tw_vx / np.cos(beta)
+    np.testing.assert_allclose(tw_vy, speed_cg * np.sin(beta) - lr * tw_om, atol=2e-3)
+    # Linear tires: the slip angle difference is the understeer gradient times the lateral
+    # acceleration.
+    k_us = (1 / car.cornering_front - 1 / car.cornering_rear) / (car.friction * GRAVITY)
+    lateral = tw_vx * tw_om
+    assert lateral.mean() < 0.5 * car.friction * GRAVITY
+    assert (alpha_f - alpha_r).mean() == pytest.approx(k_us * lateral.mean(), rel=0.15)
+
+
+def test_beyond_the_friction_limit_the_odometry_turns_far_more_than_the_car() -> None:
+    env = _single_track_env()
+    car = env.car_params
+    rows = _steady(env, 0.35, 7.0)
+    odo_om, tw_vx, tw_om = rows[:, 2], rows[:, 3], rows[:, 5]
+    lateral = np.hypot(tw_vx, rows[:, 4]) * np.abs(tw_om)
+    assert lateral.mean() <= 1.05 * car.friction * GRAVITY  # the tires saturate
+    assert odo_om.mean() > 2.0 * tw_om.mean()  # the VESC's kinematic yaw rate does not
