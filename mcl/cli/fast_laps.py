@@ -17,16 +17,23 @@ from mcl.cli.common import (
     positive_int,
 )
 
-EXAMPLE = """example:
+EXAMPLE = """examples:
   racecar-sim fast-laps --env car_model=single_track --seeds 5 --duration 60 --out runs/fast_laps
 """
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the fast-lap experiment; prints its table and writes OUT/summary.md."""
-    parser = Parser("racecar-sim fast-laps", __doc__.splitlines()[0], EXAMPLE)
+DESCRIPTION = (
+    "Localization on fast laps: pure pursuit round the map's loop at --speed, the lab's motion "
+    "noise against the alpha model (results: docs/odometry.md)."
+)
+
+
+def build_parser() -> Parser:
+    """The command line of ``racecar-sim fast-laps``."""
+    parser = Parser("racecar-sim fast-laps", DESCRIPTION, EXAMPLE)
     add = parser.add_argument
-    add("--out", type=Path, required=True, help="output folder (config.json, logs/, summary.md)")
+    add("--out", type=Path, default=Path("runs/fast_laps"),
+        help="output folder (config.json, logs/, summary.md)")  # fmt: skip
     add("--map", default="basement_loop", help="bundled map with a known loop")
     add("--speed", type=positive_float, default=6.0, help="m/s the car holds, corners included")
     add("--seeds", type=positive_int, default=5, help="runs per motion model (starts round the loop)")
@@ -34,6 +41,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     add("--particles", type=positive_int, default=1500, help="particles per filter")
     add("--workers", type=positive_int, default=None, help="processes (default: the CPU count)")
     add("--env", action="append", default=[], metavar="NAME=VALUE", help=ENV_HELP)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the fast-lap experiment; prints its table and writes OUT/summary.md."""
+    parser = build_parser()
     args = parser.parse_args(argv)
     grid = check_map(parser, args.map)
     env = check_env(parser, args.env)

@@ -16,7 +16,7 @@ import pytest
 
 import mcl.cli.common as common
 import mcl.cli.drive
-from mcl.cli import drive, experiment, recovery_ablation
+from mcl.cli import drive, experiment, fast_laps, recovery_ablation
 from mcl.cli.bench import BENCHMARKS
 from mcl.cli.common import Parser, check_env, output_folder
 from mcl.cli.main import SUBCOMMANDS, main
@@ -27,6 +27,7 @@ PARSERS = {
     "drive": drive.build_parser,
     "experiment": experiment.build_parser,
     "ablation": recovery_ablation.build_parser,
+    "fast-laps": fast_laps.build_parser,
 }
 
 
