@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from racecar_sim.config import CarParams, EnvConfig, merge_settings
@@ -86,13 +86,14 @@ def test_while_accelerating_the_reading_leads_the_step_average_by_less_than_a_st
 @settings(max_examples=20)
 @given(commands=st.lists(st.tuples(st.floats(-0.5, 0.5), st.floats(-3.0, 8.0)), min_size=1,
                          max_size=12))  # fmt: skip
+@example(commands=[(0.5, 0.0), (-0.5, 8.0), (0.0, -3.0)])  # beyond the limits both ways
 def test_actuate_is_the_physics_own_arithmetic(commands) -> None:
     env = make()
     env.reset(seed=0, options={"pose": [0.0, 0.0, 0.0]})
     car, p = env.car_params, env.physics
+    low, high = env.action_space.low.tolist(), env.action_space.high.tolist()  # float32 bounds
     for steer_cmd, speed_cmd in commands:
-        target = (min(max(steer_cmd, -car.max_steer), car.max_steer),
-                  min(max(speed_cmd, -car.max_reverse_speed), car.max_speed))  # fmt: skip
+        target = (min(max(steer_cmd, low[0]), high[0]), min(max(speed_cmd, low[1]), high[1]))
         expected = actuate(p.steer, p.wheel_speed, *target, car, env.dt, env.config.substep)
         env.step(np.array([steer_cmd, speed_cmd]))
         assert (p.steer, p.wheel_speed) == expected  # bit for bit
