@@ -18,6 +18,7 @@ from __future__ import annotations
 import io
 import math
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -151,42 +152,76 @@ class ErrorLog:
         return np.column_stack([self.x_est, self.y_est, self.theta_est])
 
 
-def _split_rows(path: Path) -> tuple[list[list[str]], bool]:
-    """Data rows of a log as lists of fields, and whether a cut-short last line was dropped."""
+_BLOCK_ROWS = 1024
+"""Rows parsed together: the reader holds one block of text fields at a time, never the file's."""
+
+
+def _row_blocks(path: Path) -> Iterator[list[list[str]] | None]:
+    """Blocks of at most :data:`_BLOCK_ROWS` data rows of a log, as lists of fields, read as the
+    file streams by. The last item is None when a cut-short last line was dropped.
+
+    A complete row ends with ``"\\n"``, so a last line without one was cut short (killed run).
+    """
     try:
-        text = path.read_text(encoding="utf-8")
+        f = open(path, encoding="utf-8", newline="")
     except FileNotFoundError:
         raise ValueError(f"error log {path} not found") from None
-    lines = text.split("\n")
-    if not lines or lines[0].strip() != _HEADER_LINE:
-        raise ValueError(
-            f"error log {path}: first line {lines[0][:200]!r} is not the header {_HEADER_LINE!r}"
-        )
-    # A complete row ends with "\n", so the piece after the last "\n" is either empty or cut short.
-    body, tail = lines[1:-1], lines[-1]
-    truncated = tail != ""
-    rows = [line.split(",") for line in body if line]
-    for i, row in enumerate(rows):
-        if len(row) != len(HEADER):
+    with f:
+        first = f.readline()
+        if first.strip() != _HEADER_LINE:
             raise ValueError(
-                f"error log {path}: data row {i + 1} has {len(row)} fields, expected {len(HEADER)}"
+                f"error log {path}: first line {first[:200]!r} is not the header {_HEADER_LINE!r}"
             )
-    return rows, truncated
+        block: list[list[str]] = []
+        n = 0
+        for line in f:
+            if not line.endswith("\n"):
+                if block:
+                    yield block
+                yield None
+                return
+            if line == "\n":
+                continue
+            row = line[:-1].split(",")
+            n += 1
+            if len(row) != len(HEADER):
+                raise ValueError(
+                    f"error log {path}: data row {n} has {len(row)} fields, expected {len(HEADER)}"
+                )
+            block.append(row)
+            if len(block) == _BLOCK_ROWS:
+                yield block
+                block = []
+        if block:
+            yield block
 
 
 def read_error_log(path: str | os.PathLike[str]) -> ErrorLog:
     """Read a log written by :class:`ErrorLogWriter`; a last line cut short (killed run) is dropped.
+
+    The file is parsed in blocks of rows, so reading it takes about twice the memory of its columns
+    (12 float64 values, 96 bytes, per row), not the ~1.2 KB per row of its text split into fields.
 
     Raises:
         ValueError: the file is missing, its header differs from :data:`HEADER`, or a complete
             row has the wrong number of fields or a field that is not a number (named).
     """
     path = Path(path)
-    rows, truncated = _split_rows(path)
-    try:
-        data = np.array(rows, dtype=np.float64).reshape(len(rows), len(HEADER))
-    except ValueError as exc:
-        raise ValueError(f"error log {path}: a field is not a number ({exc})") from None
+    parts: list[np.ndarray] = []
+    truncated = False
+    for block in _row_blocks(path):
+        if block is None:
+            truncated = True
+            break
+        try:
+            parts.append(np.array(block, dtype=np.float64))
+        except ValueError as exc:
+            raise ValueError(f"error log {path}: a field is not a number ({exc})") from None
+    if parts:
+        data = np.concatenate(parts) if len(parts) > 1 else parts[0]
+    else:
+        data = np.empty((0, len(HEADER)))
+    del parts
     columns = {name: data[:, i] for i, name in enumerate(HEADER)}
     columns["step"] = columns["step"].astype(np.int64)
     return ErrorLog(**columns, truncated=truncated)
@@ -195,7 +230,6 @@ def read_error_log(path: str | os.PathLike[str]) -> ErrorLog:
 def count_rows(path: str | os.PathLike[str]) -> int:
     """Number of complete data rows in a log; 0 when the file is missing or not an error log."""
     try:
-        rows, _ = _split_rows(Path(path))
+        return sum(len(block) for block in _row_blocks(Path(path)) if block is not None)
     except ValueError:
         return 0
-    return len(rows)

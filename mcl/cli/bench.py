@@ -22,6 +22,7 @@ BENCHMARKS: dict[str, str] = {
     "sensor_models": "beam model vs likelihood field: localization error in the same drives",
     "executors": "the same sweep on the process pool and on a local Ray",
     "replay": "replaying the real bags: real-time factor on one core, settling time, scan_fit",
+    "soak": "a 2-hour headless drive: peak memory at 10, 60 and 120 simulated minutes",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 

@@ -1,0 +1,138 @@
+"""Soak: does a long headless drive stay in flat memory?
+
+Drives the main job (``racecar-sim drive``: the wall follower on the default bundled map, MCL with
+the default particle count, no video, no progress bar) for ``--minutes`` of simulated time in one
+run. At each mark (default 10, 60 and 120 simulated minutes) it does what ``drive`` does when a run
+of that length ends: reads the whole error log, computes its statistics and plots it. Then it
+prints the process's peak resident memory so far (``ru_maxrss``) and its current resident memory,
+so each mark's peak is the peak of a drive of that length. Flat memory means the peaks of the
+marks differ by the error log's own arrays (12 float64 columns, 96 bytes per step) and little else.
+
+    .venv/bin/python scripts/bench_soak.py [--minutes 120] [--marks 10,60,120] [--quick]
+
+The drive is the same for the same seed; wall time depends on the machine (about 5-8 ms per step
+on one busy core). It is a benchmark, not a test: the test of the reader's memory per row is in
+``tests/experiments/test_memory.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from mcl.error_log import read_error_log
+from mcl.experiments.metrics import error_stats
+from mcl.experiments.plots import plot_error_vs_time
+from mcl.experiments.runs import RunSpec, run_one
+from mcl.filter_params import DEFAULT_PARTICLES
+from racecar_sim.maps import DEFAULT_MAP
+
+_MIB = 2.0**20
+
+
+def peak_rss_mib() -> float:
+    """Peak resident memory of this process so far, MiB (``ru_maxrss``: KiB on Linux, bytes on
+    macOS)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / _MIB if sys.platform == "darwin" else peak / 1024.0
+
+
+def current_rss_mib() -> float:
+    """Current resident memory, MiB (``/proc/self/statm``; NaN where there is none)."""
+    try:
+        with open("/proc/self/statm", encoding="ascii") as f:
+            pages = int(f.read().split()[1])
+    except (OSError, IndexError, ValueError):
+        return float("nan")
+    return pages * resource.getpagesize() / _MIB
+
+
+def _marks(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(sorted(float(v) for v in text.split(",") if v.strip()))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated minutes, got {text!r}") from None
+    if not values or values[0] <= 0:
+        raise argparse.ArgumentTypeError(f"every mark must be > 0 minutes, got {text!r}")
+    return values
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--map", default=DEFAULT_MAP, help="bundled map name or map YAML")
+    parser.add_argument(
+        "--minutes", type=float, default=120.0, help="simulated minutes of the drive"
+    )
+    parser.add_argument(
+        "--marks",
+        type=_marks,
+        default=(10.0, 60.0, 120.0),
+        help="simulated minutes at which the peak memory is printed, comma-separated",
+    )
+    parser.add_argument("--particles", type=int, default=DEFAULT_PARTICLES)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--quick", action="store_true", help="a 3-minute drive with marks at 1, 2 and 3 minutes"
+    )
+    args = parser.parse_args(argv)
+    if args.quick:
+        args.minutes, args.marks = 3.0, (1.0, 2.0, 3.0)
+    if args.minutes <= 0 or args.particles < 1:
+        parser.error("--minutes must be > 0 and --particles >= 1")
+    marks = [m for m in args.marks if m <= args.minutes]
+    if not marks:
+        parser.error(f"--marks: none is within the drive's {args.minutes:g} minutes")
+    spec = RunSpec(
+        map=str(args.map),
+        seed=args.seed,
+        duration=60.0 * args.minutes,
+        n_particles=args.particles,
+        series="soak",
+    )
+    mark_steps = {round(60.0 * m / spec.dt): m for m in marks}
+    print(
+        f"soak: {args.minutes:g} simulated minutes ({spec.n_steps} steps of {spec.dt:g} s) on "
+        f"{Path(spec.map).stem}, wall follower, {spec.n_particles} particles, no video; "
+        f"marks at {', '.join(f'{m:g}' for m in marks)} min",
+        flush=True,
+    )
+    rows: list[tuple[float, int, float, float, float]] = []
+    with tempfile.TemporaryDirectory(prefix="racecar-soak-") as tmp:
+        log_path = Path(tmp) / "error_log.csv"
+        t0 = time.perf_counter()
+        count = [0]
+
+        def on_step(wrapped: object, obs: object, info: object) -> None:
+            count[0] += 1
+            minutes = mark_steps.get(count[0])
+            if minutes is None:
+                return
+            # what `drive` does when its run ends: the log read back, its statistics, its plot
+            log = read_error_log(log_path)
+            error_stats(log)
+            plot_error_vs_time(log, Path(tmp) / "error.png")
+            del log
+            row = (minutes, count[0], peak_rss_mib(), current_rss_mib(), time.perf_counter() - t0)
+            rows.append(row)
+            print(
+                f"  {minutes:6g} min ({count[0]:7d} steps): peak RSS {row[2]:7.1f} MiB, "
+                f"current {row[3]:7.1f} MiB, wall {row[4]:7.0f} s",
+                flush=True,
+            )
+
+        run_one(spec, log_path, on_step=on_step)
+    if len(rows) >= 2:
+        (_, s0, p0, *_), (_, s1, p1, *_) = rows[0], rows[-1]
+        print(
+            f"peak growth from {rows[0][0]:g} to {rows[-1][0]:g} min: {p1 - p0:+.1f} MiB over "
+            f"{s1 - s0} steps ({1024.0**2 * (p1 - p0) / (s1 - s0):.0f} bytes per step)"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
