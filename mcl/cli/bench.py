@@ -11,7 +11,7 @@ from collections.abc import Iterator, Sequence
 from types import ModuleType
 from typing import Any, NoReturn
 
-from mcl.cli.common import HelpFormatter
+from mcl.cli.common import HelpFormatter, accept_negative_numbers
 
 BENCHMARKS: dict[str, str] = {
     "raycast": "ray casting rates and errors per method",
@@ -36,6 +36,7 @@ class _CommandParser(argparse.ArgumentParser):
         kwargs["prog"] = self.command
         kwargs["formatter_class"] = HelpFormatter
         super().__init__(*args, **kwargs)
+        accept_negative_numbers(self)
 
     def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
         default = kwargs.get("default")

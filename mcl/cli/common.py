@@ -29,8 +29,10 @@ import yaml
 __all__ = [
     "ENV_HELP",
     "MAP_HELP",
+    "NEGATIVE_NUMBERS",
     "HelpFormatter",
     "Parser",
+    "accept_negative_numbers",
     "check_env",
     "check_map",
     "check_out",
@@ -75,13 +77,33 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
         return f"{text} (default: {shown.replace('%', '%%')})"
 
 
+_NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+NEGATIVE_NUMBERS = re.compile(rf"^-{_NUMBER}(?:\s*,\s*[-+]?{_NUMBER})*$")
+"""A negative number or a comma-separated list of numbers that starts with one (``-20.9,-0.3,1.26``):
+an option's value, not an option (argparse alone takes only ``-3`` and ``-0.5`` so)."""
+
+
+def accept_negative_numbers(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Let ``parser`` read ``--init -20.9,-0.3,1.26`` as it reads ``--init=-20.9,-0.3,1.26``.
+
+    argparse decides whether a word starting with ``-`` is an option by its private
+    ``_negative_number_matcher`` (``-3`` and ``-0.5`` only, so a pose with a negative x was taken
+    for an unknown option: ``expected one argument``). It is widened to :data:`NEGATIVE_NUMBERS`,
+    for every flag of the parser; none of our flags looks like a number, so nothing is lost.
+    """
+    parser._negative_number_matcher = NEGATIVE_NUMBERS  # type: ignore[attr-defined]
+    return parser
+
+
 class Parser(argparse.ArgumentParser):
-    """An ArgumentParser whose errors are one line (``PROG: error: PROBLEM``) and exit code 2."""
+    """An ArgumentParser whose errors are one line (``PROG: error: PROBLEM``) and exit code 2, and
+    which takes values such as ``-20.9,-0.3,1.26`` after a flag (:func:`accept_negative_numbers`)."""
 
     def __init__(self, prog: str, description: str | None, epilog: str | None = None) -> None:
         super().__init__(
             prog=prog, description=description, epilog=epilog, formatter_class=HelpFormatter
         )
+        accept_negative_numbers(self)
 
     def error(self, message: str) -> NoReturn:
         one_line = " ".join(message.split())
