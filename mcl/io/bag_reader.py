@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mcl.io.salvage import salvage_bag
+from mcl.io.bag_order import TimeOrder, copies_warning
+from mcl.io.salvage import Copies, salvage_bag
 from mcl.io.tf_mount import BASE_FRAME, static_mount, yaw_of
 
 __all__ = [
@@ -188,21 +189,28 @@ def read_bag(
         raise FileNotFoundError(f"no such bag: {path}")
     warnings: list[str] = []
     reader = None
+    copies = Copies()
     try:
         reader = AnyReader(_open_paths(path), default_typestore=_typestore_for(path))
         reader.open()
         topics = {c.topic: c.msgtype for c in reader.connections}
     except Exception as exc:  # rosbags raises several types for unreadable files
         salvaged = salvage_bag(path)
-        if not salvaged or not salvaged[0]:
+        if not salvaged or not salvaged.messages:
+            if salvaged is not None and salvaged.state.cut_at is not None:
+                raise BagError(
+                    f"{path}: {salvaged.describe()}, before its first complete message"
+                ) from None
             raise BagError(f"{path}: not a readable ROS 1 or ROS 2 bag ({exc})") from None
-        messages, topics = salvaged
+        messages, topics = salvaged.messages, salvaged.topics
         reader = None
         last = (messages[-1][2] - messages[0][2]) * 1e-9
+        why = "" if salvaged.state.cut_at is not None else f" ({exc})"
         warnings.append(
-            f"the bag is truncated or corrupt ({exc}); read {len(messages)} messages "
-            f"({last:.3f} s) from its start"
+            f"{salvaged.describe()}{why}; read {len(messages)} messages ({last:.3f} s) from its "
+            "start"
         )
+        copies = salvaged.state.copies
     try:
 
         def missing(what: str, wanted: str) -> BagError:
@@ -230,7 +238,8 @@ def read_bag(
 
             def source():
                 for con, t, raw in reader.messages(connections=cons):
-                    yield con.topic, con.msgtype, t, reader.deserialize(raw, con.msgtype)
+                    if not copies.is_copy(con.topic, t, raw):
+                        yield con.topic, con.msgtype, t, reader.deserialize(raw, con.msgtype)
 
             stream = source()
         else:
@@ -238,9 +247,11 @@ def read_bag(
             stream = iter([m for m in messages if m[0] in wanted])
         col = _Collected()
         last_t = t0
+        order = TimeOrder(t0)
         try:
             for topic, _kind, t, msg in stream:
-                last_t = t
+                order.add(t)
+                last_t = max(last_t, t)
                 col.add(path, topic, (t - t0) * 1e-9, t0, msg, scan_topic, odom_topic)
         except BagError:
             raise
@@ -250,6 +261,11 @@ def read_bag(
                 f"({type(exc).__name__}: {exc}); kept the {len(col.scans)} scans and "
                 f"{len(col.odom_t)} odometry messages read before"
             )
+        if copies.n:
+            warnings.append(copies_warning(copies.n))
+        if order.n_back:
+            warnings.append(order.warning())
+            col.sort_by_time()
         if not col.scans:
             raise BagError(f"{path.name}: no scan could be read on {scan_topic}")
         if not col.odom_t:
@@ -314,6 +330,19 @@ def read_bag(
 
 class _Collected:
     """Messages gathered by topic while reading."""
+
+    def sort_by_time(self) -> None:
+        """Each topic's messages in the order of their log times (stable)."""
+        for times, *lists in (
+            ("scan_t", "scan_stamp", "scans"),
+            ("odom_t", "odom_stamp", "odom_tw", "odom_p"),
+            ("truth_t", "truth_p"),
+        ):
+            keys = getattr(self, times)
+            order = sorted(range(len(keys)), key=keys.__getitem__)
+            for name in (times, *lists):
+                values = getattr(self, name)
+                setattr(self, name, [values[i] for i in order])
 
     def __init__(self) -> None:
         self.first = None

@@ -62,9 +62,12 @@ def test_missing_topic_names_the_topics_there(recorded):
 
 
 def test_not_a_bag(tmp_path):
-    for name, content in (("notes.bag", b"hello"), ("x.mcap", b"\x89MCAP0\r\n")):
+    for name, content, message in (
+        ("notes.bag", b"hello", "not a readable ROS 1 or ROS 2 bag"),
+        ("x.mcap", b"\x89MCAP0\r\n", "MCAP bag is truncated: it ends after 8 bytes, before its"),
+    ):
         (tmp_path / name).write_bytes(content)
-        with pytest.raises(BagError, match="not a readable ROS 1 or ROS 2 bag"):
+        with pytest.raises(BagError, match=message):
             read_bag(tmp_path / name)
     with pytest.raises(FileNotFoundError):
         read_bag(tmp_path / "absent.bag")
@@ -85,7 +88,7 @@ def test_truncated_mcap_keeps_what_was_read(tmp_path, room):
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(blob[: int(len(blob) * 0.8)])
     data = read_bag(cut)
-    assert data.warnings and "truncated or corrupt" in data.warnings[0]
+    assert data.warnings and "MCAP bag is truncated" in data.warnings[0]
     assert 0 < data.n_scans < full.n_scans
     np.testing.assert_array_equal(data.scans, full.scans[: data.n_scans])
 
@@ -96,7 +99,7 @@ def test_truncated_ros1_keeps_what_was_read(tmp_path):
     cut.write_bytes(blob[: len(blob) // 2])
     data = read_bag(cut)
     full = read_bag(BAG1)
-    assert data.warnings and "truncated or corrupt" in data.warnings[0]
+    assert data.warnings and "ROS 1 bag is truncated" in data.warnings[0]
     assert 0 < data.n_scans < full.n_scans
     np.testing.assert_array_equal(data.scans, full.scans[: data.n_scans])
     np.testing.assert_allclose(data.scan_times, full.scan_times[: data.n_scans])
