@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mcl.bench import STATA
+from mcl.bench import missing_map, stata_map
 from mcl.motion_model import MotionModel, twist_to_odometry
 from mcl.particle_filter import ParticleFilter, ParticleFilterParams
 from mcl.sensor_model import SensorModel, SensorModelParams, beam_table
@@ -37,7 +37,6 @@ from racecar_sim.config import LidarParams
 from racecar_sim.maps import OccupancyMap, load_map
 from racecar_sim.sensors import Lidar
 
-DEFAULT_MAP = STATA
 STAGES = ("predict", "cast", "weigh", "resample", "estimate")
 TWIST = np.array([2.0, 0.0, 0.5])  # m/s, m/s, rad/s
 DT = 0.025  # seconds (40 Hz)
@@ -156,7 +155,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawTextHelpFormatter
     )
-    parser.add_argument("--map", type=Path, default=DEFAULT_MAP, help="map YAML")
+    parser.add_argument(
+        "--map", type=Path, default=stata_map(), help="map YAML (default: ../shared's Stata map)"
+    )
     parser.add_argument("--particles", type=int, nargs="+", default=[1000, 4000, 10000])
     parser.add_argument("--beams", type=int, default=100, help="beams per particle")
     parser.add_argument("--updates", type=int, default=20, help="timed updates (median)")
@@ -172,8 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     if not args.map.is_file():
-        print(f"map {args.map} not found (the Stata map lives in ../shared/maps)", file=sys.stderr)
-        return 2
+        parser.error(missing_map("--map", args.map))
 
     grid = load_map(args.map)
     rng = np.random.default_rng(args.seed)

@@ -27,12 +27,14 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from mcl.bench import STATA
+from mcl.bench import missing_map, stata_map
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The range_libc part's options."""
-    parser.add_argument("--map", type=Path, default=STATA, help="map YAML (default: Stata)")
+    parser.add_argument(
+        "--map", type=Path, default=stata_map(), help="map YAML (default: ../shared's Stata map)"
+    )
     parser.add_argument("--particles", type=int, default=4000, help="particles (MCL part)")
     parser.add_argument("--beams", type=int, default=100, help="beams per particle (MCL part)")
     parser.add_argument("--updates", type=int, default=20, help="timed updates (median)")
@@ -58,9 +60,6 @@ def rangelibc_part(args: argparse.Namespace) -> int:
     if not peer_rangelibc.available():
         print(f"skipped: {peer_rangelibc.INSTALL_HINT}")
         return 0
-    if not args.map.is_file():
-        print(f"skipped: map {args.map} not found (the Stata map lives in ../shared/maps)")
-        return 0
     from racecar_sim.maps import load_map
 
     peer_rangelibc.compare(
@@ -81,9 +80,6 @@ def f1tenth_part(args: argparse.Namespace) -> int:
     from racecar_sim.maps import load_map
 
     print("== simulator vs f1tenth_gym (its workload), one run ==")
-    if not args.map.is_file():
-        print(f"skipped: map {args.map} not found (the Stata map lives in ../shared/maps)")
-        return 0
     if bool(args.f1tenth_python) != bool(args.f1tenth_path):
         print("racecar-sim bench peers: error: give both --f1tenth-python and --f1tenth-path",
               file=sys.stderr)  # fmt: skip
@@ -124,6 +120,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("sim_steps", "sim_runs", "num_envs", "vector_steps"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be at least 1")
+    if not args.map.is_file():
+        parser.error(missing_map("--map", args.map))
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"{os.cpu_count()} CPUs, load average {load:.1f} before the run")
     status = 0

@@ -22,13 +22,10 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from mcl.bench import missing_map, shared_dir, stata_map
 from mcl.experiments.replay import ReplayConfig, replay
 from mcl.io import read_bag
 from racecar_sim.maps import resolve_map
-
-SHARED = Path(__file__).resolve().parents[2].parent / "shared"
-DEFAULT_BAGS = sorted((SHARED / "bags").glob("*.bag"))
-DEFAULT_MAP = SHARED / "maps" / "stata_basement.yaml"
 
 
 def settled_time(result) -> float:
@@ -58,12 +55,20 @@ def main(argv: list[str] | None = None) -> None:
         default=None,
         help="a bag (repeat for more; default: ../shared/bags/*.bag)",
     )
-    parser.add_argument("--map", default=str(DEFAULT_MAP), help="map YAML or bundled name")
+    parser.add_argument(
+        "--map", default=str(stata_map()), help="map YAML or bundled name (default: ../shared's)"
+    )
     parser.add_argument("--seeds", type=int, default=3)
     args = parser.parse_args(argv)
-    bags = args.bag or DEFAULT_BAGS
+    bags = args.bag or sorted((shared_dir() / "bags").glob("*.bag"))
     if not bags:
-        parser.error("no bag: give --bag (../shared/bags is absent)")
+        parser.error(f"--bag: none given and no bag in {shared_dir() / 'bags'}; give --bag BAG")
+    for bag in bags:
+        if not bag.exists():
+            parser.error(f"--bag: {bag} not found")
+    spec = Path(args.map)
+    if (spec.suffix in (".yaml", ".yml") or len(spec.parts) > 1) and not spec.is_file():
+        parser.error(missing_map("--map", args.map))
     numba.set_num_threads(1)
     grid = resolve_map(args.map)
     print(

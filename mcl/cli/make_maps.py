@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -11,21 +13,50 @@ import numpy as np
 from mcl.cli.common import Parser, check_out, output_folder
 from racecar_sim.maps import draw
 
+_bundled = importlib.import_module("racecar_sim.maps.bundled")  # the module (maps.bundled is a function)
+
 EXAMPLES = """\
 examples:
-  racecar-sim make-maps                     redraw the bundled maps (in a checkout: its maps/)
+  racecar-sim make-maps                     redraw the bundled maps (in a checkout: its maps/;
+                                            installed: into ./maps, never into the package)
   racecar-sim make-maps --out /tmp/maps     draw them elsewhere (e.g. to compare)
 """
 
+INSTALLED_OUT = Path("maps")
+"""Where ``make-maps`` draws by default when the package is installed (not a checkout): ``./maps``."""
+
+
+def default_out() -> tuple[Path, str | None]:
+    """The default output folder, and a notice to print when it is not the bundled maps' own
+    folder: ``$RACECAR_SIM_MAPS`` when set, else the checkout's ``maps/``
+    (:func:`racecar_sim.maps.bundled.checkout_maps_dir`), else, for an installed package, ``./maps``
+    in the current directory (the package's own files are left as they are)."""
+    if os.environ.get("RACECAR_SIM_MAPS") or _bundled.checkout_maps_dir() is not None:
+        return draw.bundled_dir(), None
+    return INSTALLED_OUT, (
+        "racecar-sim is installed, not run from a source checkout: drawing the maps into "
+        f"{INSTALLED_OUT.resolve()} (the installed package's maps stay as they are; --out DIR "
+        "draws elsewhere)"
+    )
+
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Draw every bundled map into ``--out`` (default: the bundled maps' folder, ``maps/`` in a checkout)."""
+    """Draw every bundled map into ``--out`` (default: :func:`default_out`)."""
     parser = Parser("racecar-sim make-maps", (draw.__doc__ or "").split("\n\n")[0], EXAMPLES)
     parser.add_argument(
-        "--out", type=Path, default=draw.bundled_dir(), metavar="DIR", help="output folder"
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="output folder (default: the checkout's maps/; installed: ./maps)",
     )
     args = parser.parse_args(argv)
+    notice = None
+    if args.out is None:
+        args.out, notice = default_out()
     out = check_out(parser, args.out)
+    if notice is not None:
+        print(notice)
     with output_folder(parser, out):
         for path in draw.draw_maps(out):
             img = cv2.imread(str(path.with_suffix(".png")), cv2.IMREAD_UNCHANGED)
