@@ -32,6 +32,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from mcl.beam_skip import BeamSkip, beam_skip_mask, cloud_converged
 from mcl.likelihood_field import likelihood_table, score_endpoints
 from mcl.sensor_params import MODELS, SensorModelParams
 from racecar_sim.maps import OccupancyMap
@@ -119,6 +120,8 @@ class SensorModel:
 
     Attributes:
         table: the (W, W) beam-model table (see :func:`beam_table`), read-only.
+        last_beam_skip: what beam skipping decided on the last scored scan
+            (:class:`mcl.beam_skip.BeamSkip`; at its defaults while beam skipping is off).
         caster: the :class:`~racecar_sim.raycast.RayCaster` for the expected ranges (None for
             the likelihood field, which casts nothing).
         max_range: metres, z_max pixels x resolution x lidar_scale_to_map_scale for the beam
@@ -170,6 +173,7 @@ class SensorModel:
                 occupancy_map, self.max_range, method=p.raycast_method, parallel=p.parallel
             )
         self._subsample_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self.last_beam_skip = BeamSkip()
 
     # ------------------------------------------------------------------ stages
     def _subsample(self, n_ranges: int) -> tuple[np.ndarray, np.ndarray]:
@@ -261,15 +265,52 @@ class SensorModel:
             return out
         if z_px.min() < 0 or z_px.max() > self.z_max:
             raise ValueError(f"measured pixels must lie in [0, {self.z_max}]")
+        return self._score_into(expected, z_px, self._log_table, out)
+
+    def _score_into(
+        self, expected: np.ndarray, rows: np.ndarray, table: np.ndarray, out: np.ndarray
+    ) -> np.ndarray:
+        """out[i] = sum_b table[rows[b], expected_ib in pixels] (the scoring kernels)."""
         parallel = self.params.parallel
         if parallel is None:
             parallel = expected.size >= PARALLEL_MIN_LOOKUPS
-        args = (expected, z_px, self._log_table, 1.0 / self.m_per_px, float(self.z_max), out)
+        args = (expected, rows, table, 1.0 / self.m_per_px, float(self.z_max), out)
         if parallel:
             run_shared(_score_shared, args, nb.get_num_threads())
         else:
             _score_serial(*args)
         return out
+
+    def _score_skipping(self, particles: np.ndarray, angles: np.ndarray, z_px: np.ndarray):
+        """The log-likelihoods with beam skipping (:mod:`mcl.beam_skip`), or None when the
+        cloud has not converged (then the plain model scores every beam)."""
+        p = self.params
+        skip = BeamSkip()
+        skip.n_beams = int(z_px.size)
+        self.last_beam_skip = skip
+        skip.converged = bool(cloud_converged(particles, float(p.beam_skip_converged_distance)))
+        if not skip.converged:
+            return None
+        expected = np.ascontiguousarray(self.expected_ranges(particles, angles), dtype=np.float64)
+        keep = np.empty(z_px.size, dtype=np.bool_)
+        unexplained = int(
+            beam_skip_mask(
+                expected,
+                z_px,
+                1.0 / self.m_per_px,
+                float(self.z_max),
+                float(p.beam_skip_distance) / self.m_per_px,
+                float(p.beam_skip_threshold),
+                float(p.beam_skip_error_threshold),
+                keep,
+            )
+        )
+        skip.forced = bool(keep.all()) and unexplained > 0
+        skip.skipped = 0 if skip.forced else unexplained
+        table = self._log_table[z_px]  # a copy: one row per beam
+        table[~keep] = 0.0
+        rows = np.arange(z_px.size, dtype=np.int64)
+        return self._score_into(expected, rows, table, np.empty(expected.shape[0]))
 
     # ------------------------------------------------------------------ API
     def log_evaluate(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
@@ -279,6 +320,13 @@ class SensorModel:
         angles, z_px = self.observe(scan)
         if z_px.size == 0:
             return np.zeros(np.asarray(particles).shape[0])
+        if self.params.beam_skip:
+            particles = np.ascontiguousarray(particles, dtype=np.float64)
+            if particles.ndim != 2 or particles.shape[1] != 3:
+                raise ValueError(f"particles must have shape (N, 3), got {particles.shape}")
+            skipping = self._score_skipping(particles, angles, z_px)
+            if skipping is not None:
+                return skipping
         if self.caster.method == "lut":
             # Cast and score in one pass from the lidars (same numbers as
             # score(expected_ranges(...)) but for rounding of the lidar positions).

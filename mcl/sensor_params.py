@@ -57,6 +57,17 @@ class SensorModelParams:
         likelihood_z_rand: weight of random returns (density ``z_rand / likelihood_max_range``).
         likelihood_max_distance: metres; distances to a wall are clipped to it.
         likelihood_max_range: metres; beams at or beyond it (no return) are skipped.
+        beam_skip: leave out, once the cloud has converged, the beams most particles cannot
+            explain (ROS amcl's ``do_beamskip``, here in the beam model; :mod:`mcl.beam_skip`).
+            Off by default; the beam model only.
+        beam_skip_distance: metres; a particle explains a beam whose expected range lies this
+            close to the measured one (amcl's default 0.5).
+        beam_skip_threshold: fraction of the particles that must explain a beam for it to be
+            used (amcl's default 0.3).
+        beam_skip_error_threshold: fraction of the beams at or beyond which, when that many
+            would be skipped, every beam is used instead (amcl's default 0.9).
+        beam_skip_converged_distance: metres; the cloud counts as converged when every particle
+            lies this close to the particles' mean in x and in y (amcl's 0.5).
     """
 
     alpha_hit: float = 0.74
@@ -79,6 +90,11 @@ class SensorModelParams:
     likelihood_z_rand: float = 0.05
     likelihood_max_distance: float = 2.0
     likelihood_max_range: float = _LIDAR.max_range
+    beam_skip: bool = False
+    beam_skip_distance: float = 0.5
+    beam_skip_threshold: float = 0.3
+    beam_skip_error_threshold: float = 0.9
+    beam_skip_converged_distance: float = 0.5
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -97,6 +113,10 @@ class SensorModelParams:
             "likelihood_z_rand",
             "likelihood_max_distance",
             "likelihood_max_range",
+            "beam_skip_distance",
+            "beam_skip_threshold",
+            "beam_skip_error_threshold",
+            "beam_skip_converged_distance",
         ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float):
@@ -140,6 +160,16 @@ class SensorModelParams:
             raise bad("raycast_method", "must be a method name")
         if self.parallel is not None and not isinstance(self.parallel, bool):
             raise bad("parallel", "must be true, false or null")
+        if not isinstance(self.beam_skip, bool):
+            raise bad("beam_skip", "must be true or false")
+        if self.beam_skip and self.model != "beam":
+            raise bad("beam_skip", f"is implemented for the beam model only, not {self.model!r}")
+        for name in ("beam_skip_distance", "beam_skip_converged_distance"):
+            if getattr(self, name) <= 0:
+                raise bad(name, "must be > 0 metres")
+        for name in ("beam_skip_threshold", "beam_skip_error_threshold"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise bad(name, "must be a fraction in [0, 1]")
 
     @property
     def z_max(self) -> int:

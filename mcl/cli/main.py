@@ -1,7 +1,7 @@
 """``racecar-sim``: the console command, dispatching to one subcommand module each.
 
 Subcommands: ``drive`` (a headless localized drive), ``experiment`` (noise sweep, global
-localization, kidnapping), ``ablation`` (the recovery ablation), ``bench`` (benchmarks),
+localization, kidnapping), ``ablation`` (the recovery ablation), ``opponents`` (MCL among opponents), ``bench`` (benchmarks),
 ``replay`` (a ROS bag through the filter), ``make-maps`` (draw the bundled maps), ``train-agent`` (PPO on the localized pose),
 ``calibrate-noise`` (a noise profile from real bags).
 """
@@ -20,6 +20,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     ),
     "experiment": ("mcl.cli.experiment", "the noise sweep, or global localization / kidnapping"),
     "ablation": ("mcl.cli.recovery_ablation", "the recovery experiment with one part switched off"),
+    "opponents": ("mcl.cli.opponents", "MCL error alone and among opponents, plain and beam skipping"),
     "replay": ("mcl.cli.replay", "replay a ROS 1 / ROS 2 bag through the filter on a map"),
     "bench": ("mcl.cli.bench", "benchmarks (racecar-sim bench lists them)"),
     "make-maps": ("mcl.cli.make_maps", "draw the bundled maps"),

@@ -12,7 +12,8 @@ which the run hands back in :attr:`mcl.experiments.runs.RunResult.outcome`.
 
 Scenarios: ``tracking`` (start around the truth), ``global`` (start uniform over free space: the
 filter must find the car) and ``kidnap`` (start around the truth, then the car is teleported to a
-random free pose without telling the filter). The last two record, per step, the particle count and
+random free pose without telling the filter), ``opponents`` (tracking with car-sized boxes
+driving close ahead, :mod:`mcl.experiments.opponents`). ``global`` and ``kidnap`` record, per step, the particle count and
 the ambiguity flag of ``info["localization"]``.
 """
 
@@ -217,10 +218,18 @@ class KidnapScenario(_Recorder):
         }
 
 
+def _opponents(**settings: Any) -> Scenario:
+    """:class:`mcl.experiments.opponents.OpponentsScenario` (imported when first asked for)."""
+    from mcl.experiments.opponents import OpponentsScenario
+
+    return OpponentsScenario(**settings)
+
+
 SCENARIOS: dict[str, Callable[..., Scenario]] = {
     "tracking": TrackingScenario,
     "global": GlobalScenario,
     "kidnap": KidnapScenario,
+    "opponents": _opponents,
 }
 """Scenario factories by name (keyword arguments are the scenario's settings)."""
 

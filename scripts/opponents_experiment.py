@@ -1,0 +1,8 @@
+"""Thin wrapper: `racecar-sim opponents` (see :mod:`mcl.cli.opponents`)."""
+
+import sys
+
+from mcl.cli.opponents import main
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
