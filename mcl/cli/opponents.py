@@ -2,8 +2,8 @@
 skipping, against the truth (:mod:`mcl.experiments.opponents_run`).
 
 Every (opponents, method, seed) run drives the map's loop by pure pursuit on the true pose; the
-opponents are car-sized boxes held a few metres ahead on the same line (``--backend boxes``) or
-``RacecarRace-v0``'s scripted cars (``--backend race``). Writes ``<out>/runs.csv`` (one row per
+opponents are car-sized boxes held a few metres ahead on the same line (``--backend boxes``).
+Writes ``<out>/runs.csv`` (one row per
 run), ``<out>/summary.csv`` and ``<out>/summary.md`` (the table: each cell's steps pooled over the
 seeds), and the error logs in ``<out>/logs``; prints the table.
 """
