@@ -22,7 +22,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -47,6 +47,10 @@ from mcl.particle_filter import ParticleFilter
 from mcl.sensor_model import SensorModel
 from racecar_sim.maps import OccupancyMap, resolve_map
 
+if TYPE_CHECKING:
+    from mcl.io.bag_writer import DriveRecorder
+    from mcl.io.live import LiveServer
+
 __all__ = ["LocalizationWrapper"]
 
 
@@ -69,6 +73,10 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             differs from the world the env simulates (e.g. the world edited since the map was
             drawn); None = the env's map. Both must share the world frame; size and resolution
             may differ.
+        live: ``"[HOST:]PORT"`` (or a port number): stream the drive to Foxglove as it runs, on
+            a WebSocket server bound to 127.0.0.1 unless a host is given, with the topics of
+            ``drive --bag`` (:mod:`mcl.io.live`; extra ``[live]``); or a server from
+            :func:`mcl.io.start_live`. ``close()`` stops a server the wrapper started.
 
     Observation: the env's dict plus ``pose_estimate``, ``Box(-inf, inf, (3,), float64)``, the
     estimate [x, y, theta] (world, metres, radians in [-pi, pi)).
@@ -98,10 +106,11 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         sensor_model: SensorModel | None = None,
         clock: Callable[[], float] = time.perf_counter,
         filter_map: str | os.PathLike[str] | OccupancyMap | None = None,
+        live: str | int | LiveServer | None = None,
     ) -> None:
         gym.utils.RecordConstructorArgs.__init__(
             self, config=config, log_path=log_path, filter_factory=filter_factory, clock=clock,
-            filter_map=filter_map,
+            filter_map=filter_map, live=live,
         )  # fmt: skip
         gym.Wrapper.__init__(self, env)
         inner = env.unwrapped
@@ -151,6 +160,8 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.log: ErrorLogWriter | None = ErrorLogWriter(log_path) if log_path is not None else None
         self._step = 0
         self.last_localization: dict[str, Any] | None = None
+        self.live, self._live = _live_recorder(self, live)
+        """The Foxglove live server, or None (see ``live``)."""
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -183,7 +194,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         estimate = self.filter.estimate()
         self._step = 0
         loc = self._localization(estimate, truth, n_eff, self._clock() - t0, True)
-        return self._observe(obs, estimate), {**info, "localization": loc}
+        return self._streamed(self._observe(obs, estimate), {**info, "localization": loc})
 
     def step(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
         """Step the env, then predict with its odometry and correct with a fresh scan."""
@@ -211,8 +222,8 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 n_eff,
                 update_s,
             )
-        obs = self._observe(obs, estimate)
-        return obs, reward, terminated, truncated, {**info, "localization": loc}
+        obs, info = self._streamed(self._observe(obs, estimate), {**info, "localization": loc})
+        return obs, reward, terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
         """The env's frame with the particles (green dots) and the estimate (orange arrow)."""
@@ -228,12 +239,20 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return img
 
     def close(self) -> None:
-        """Close the error log and the env."""
+        """Close the error log, the live view (a server the wrapper started) and the env."""
         if self.log is not None:
             self.log.close()
+        if self._live is not None and self._owns_live:
+            self.live.close()
+        self._live = None
         super().close()
 
     # ------------------------------------------------------------------ internals
+    def _streamed(self, obs: dict[str, Any], info: dict[str, Any]) -> tuple[dict, dict]:
+        if self._live is not None:
+            self._live(self, obs, info)
+        return obs, info
+
     def _correct(self, scan: np.ndarray) -> float:
         """Weigh by ``scan`` and resample when needed (:func:`correct_with_scan`)."""
         assert self.filter is not None
@@ -250,3 +269,17 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     @staticmethod
     def _observe(obs: dict[str, Any], estimate: np.ndarray) -> dict[str, Any]:
         return {**obs, "pose_estimate": np.asarray(estimate, dtype=np.float64).copy()}
+
+
+def _live_recorder(
+    wrapper: LocalizationWrapper, live: str | int | LiveServer | None
+) -> tuple[LiveServer | None, DriveRecorder | None]:
+    """The live server and the recorder that streams to it (None, None without ``live``)."""
+    wrapper._owns_live = False
+    if live is None:
+        return None, None
+    from mcl.io.bag_writer import DriveRecorder, start_live
+
+    server = live if hasattr(live, "publish") else start_live(live)
+    wrapper._owns_live = server is not live
+    return server, DriveRecorder(None, wrapper, live=server)

@@ -23,6 +23,7 @@ BENCHMARKS: dict[str, str] = {
     "executors": "the same sweep on the process pool and on a local Ray",
     "replay": "replaying the real bags: real-time factor on one core, settling time, scan_fit",
     "soak": "a 2-hour headless drive: peak memory at 10, 60 and 120 simulated minutes",
+    "live": "a localized drive with and without the Foxglove live view (steps/s)",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 

@@ -12,6 +12,10 @@ and writes into ``--out``:
 With ``--bag DIR`` the drive is also recorded as a ROS 2 bag with MCAP storage (scans, odometry,
 tf, ground truth, the filter's pose and particles, the map; :class:`mcl.io.DriveRecorder`), which
 ``racecar-sim replay DIR --map MAP`` reads back and scores against the ground truth.
+
+With ``--live [HOST:]PORT`` the same messages stream to Foxglove as the drive runs (a WebSocket
+server on 127.0.0.1 unless a host is given; :mod:`mcl.io.live`), paced at ``--live-speed`` times
+real time (0: as fast as it runs).
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from mcl.cli.common import (
     positive_float,
     positive_int,
 )
+from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
 from mcl.error_log import read_error_log
 from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.plots import plot_error_vs_time
@@ -46,6 +51,7 @@ from mcl.experiments.runs import DRIVERS, RunSpec, run_one
 from mcl.experiments.video import FrameWriter
 from mcl.filter_params import DEFAULT_PARTICLES
 from mcl.io import DriveRecorder
+from mcl.io.live import LiveServer
 from mcl.motion_model import MotionModelParams
 from racecar_sim.maps import DEFAULT_MAP
 
@@ -127,6 +133,7 @@ def build_parser() -> Parser:
         help="also record the drive as a ROS 2 / MCAP bag in this folder, replaced if it exists "
         "(default: no bag)",
     )
+    add_live_arguments(parser, "drive")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     return parser
 
@@ -146,6 +153,7 @@ def main(argv: list[str] | None = None) -> int:
         check_out(parser, args.bag, "--bag")
         if args.bag.resolve() == out.resolve():
             parser.fail("--bag", "must differ from --out")
+    live = check_live(parser, args.live, args.live_speed)
     try:
         spec = RunSpec(
             map=str(args.map),
@@ -161,12 +169,25 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         parser.error(str(exc))
     compile_notice()
-    with output_folder(parser, out):
-        return _drive(spec, out, args.video_fps, progress=not args.quiet, bag=args.bag)
+    server = start_live_view(parser, live)
+    try:
+        with output_folder(parser, out):
+            return _drive(
+                spec, out, args.video_fps, not args.quiet, args.bag, server, args.live_speed
+            )
+    finally:
+        if server is not None:
+            server.close()
 
 
 def _drive(
-    spec: RunSpec, out: Path, video_fps: float, progress: bool, bag: Path | None = None
+    spec: RunSpec,
+    out: Path,
+    video_fps: float,
+    progress: bool,
+    bag: Path | None = None,
+    live: LiveServer | None = None,
+    live_speed: float = 0.0,
 ) -> int:
     """The drive into the existing folder ``out``, then the summary."""
     log_path = out / "error_log.csv"
@@ -181,12 +202,13 @@ def _drive(
             video.write(_caption(frame, info))
 
     recorder: list[DriveRecorder] = []
+    pace = Pacer(live_speed if live is not None else 0.0)
 
     def on_step(wrapped: Any, obs: dict[str, Any], info: dict[str, Any]) -> None:
         if not recorder:
-            assert bag is not None
-            recorder.append(DriveRecorder(bag, wrapped))
+            recorder.append(DriveRecorder(bag, wrapped, live=live))
         recorder[0](wrapped, obs, info)
+        pace(float(info["time"]))
 
     t0 = time.perf_counter()
     try:
@@ -196,7 +218,7 @@ def _drive(
             on_frame=on_frame,
             frame_every=frame_every,
             progress=progress,
-            on_step=on_step if bag is not None else None,
+            on_step=on_step if bag is not None or live is not None else None,
         )
     finally:
         if video is not None:

@@ -27,6 +27,7 @@ from mcl.cli.common import (
     output_folder,
     positive_int,
 )
+from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
 
 EXAMPLES = """\
 examples:
@@ -95,6 +96,7 @@ def build_parser() -> Parser:
         metavar="FPS",
         help="video frames per second of recording (0: no video)",
     )
+    add_live_arguments(parser, "replay")
     return parser
 
 
@@ -130,6 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     ):
         parser.fail("--mount-offset", f"{args.mount_offset}: metres in [0, 5)")
     out: Path = check_out(parser, args.out)
+    live = check_live(parser, args.live, args.live_speed)
     if not args.bag.exists():
         parser.fail("bag", f"{args.bag} does not exist")
     try:
@@ -142,11 +145,26 @@ def main(argv: list[str] | None = None) -> int:
     occupancy_map = resolve_map(args.map)
     config = ReplayConfig(init=init, seed=args.seed, no_return=args.no_return)
     compile_notice()
-    with output_folder(parser, out):
-        result = replay(data, occupancy_map, config)
-        paths = write_outputs(result, occupancy_map, out, args.scan_every, args.video_fps)
-        print(result.summary())
-        print(f"wrote {', '.join(p.name for p in paths)}\noutput folder: {out.resolve()}")
+    server = start_live_view(parser, live)
+    try:
+        with output_folder(parser, out):
+            on_scan = None
+            if server is not None:
+                from mcl.io.replay_stream import ReplayStream
+
+                stream, pace = ReplayStream(data, occupancy_map, server), Pacer(args.live_speed)
+
+                def on_scan(i: int, t: float, moved, pf) -> None:
+                    stream(i, t, moved, pf)
+                    pace(t)
+
+            result = replay(data, occupancy_map, config, on_scan=on_scan)
+            paths = write_outputs(result, occupancy_map, out, args.scan_every, args.video_fps)
+            print(result.summary())
+            print(f"wrote {', '.join(p.name for p in paths)}\noutput folder: {out.resolve()}")
+    finally:
+        if server is not None:
+            server.close()
     return 0
 
 

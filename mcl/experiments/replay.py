@@ -237,8 +237,12 @@ def replay(
     occupancy_map: OccupancyMap,
     config: ReplayConfig | None = None,
     progress: Callable[[int, int], None] | None = None,
+    on_scan: Callable[[int, float, np.ndarray, ParticleFilter], None] | None = None,
 ) -> ReplayResult:
-    """Run the filter over the bag (module docstring); ``progress(i, n)`` after each scan."""
+    """Run the filter over the bag (module docstring); ``progress(i, n)`` after each scan, and
+    ``on_scan(i, t, moved, pf)`` after its correction: ``t`` its time (s), ``moved`` the odometry's
+    motion since the scan before (car frame, m, m, rad), ``pf`` the filter (e.g.
+    :class:`mcl.io.replay_stream.ReplayStream`, the live view)."""
     config = config if config is not None else ReplayConfig()
     caster = RayCaster(occupancy_map, max(float(data.range_max), 1.0), method="exact")
     start = time.perf_counter()
@@ -263,7 +267,7 @@ def replay(
             moved = compose(moved[None], twist_to_odometry(twist, t_scan - t_last))[0]
             t_last = t_scan
         pf.move(moved)
-        moved = np.zeros(3)
+        step, moved = moved, np.zeros(3)
         scan = data.scans[i]
         if config.no_return == "max":
             scan = np.where(np.isnan(scan), no_return_range, scan)
@@ -286,6 +290,8 @@ def replay(
         )
         p = pf.particles
         particles.append(p[:: max(1, math.ceil(len(p) / 300))].copy())
+        if on_scan is not None:
+            on_scan(i, t_scan, step, pf)
         if progress is not None:
             progress(i + 1, n)
     wall = time.perf_counter() - start

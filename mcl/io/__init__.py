@@ -1,5 +1,5 @@
 """Real data in and out: read ROS 1 / ROS 2 bags (:func:`read_bag`), record drives as ROS 2 / MCAP
-bags (:class:`BagRecorder`). Needs ``rosbags`` (a core dependency)."""
+bags (:class:`BagRecorder`), stream them live to Foxglove (:func:`start_live`). Needs ``rosbags`` (a core dependency)."""
 
 from mcl.io.bag_reader import (
     DEFAULT_MOUNT_OFFSET,
@@ -9,7 +9,7 @@ from mcl.io.bag_reader import (
     BagError,
     read_bag,
 )
-from mcl.io.bag_writer import BagRecorder, DriveRecorder
+from mcl.io.bag_writer import BagRecorder, DriveRecorder, start_live
 
 __all__ = [
     "DEFAULT_MOUNT_OFFSET",
@@ -20,4 +20,5 @@ __all__ = [
     "BagRecorder",
     "DriveRecorder",
     "read_bag",
+    "start_live",
 ]

@@ -23,13 +23,17 @@ import math
 import os
 import shutil
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import gymnasium as gym
 import numpy as np
 
 from racecar_sim.maps import OccupancyMap
 
-__all__ = ["EPOCH_NS", "BagRecorder"]
+if TYPE_CHECKING:
+    from mcl.io.live import LiveServer
+
+__all__ = ["EPOCH_NS", "BagRecorder", "DriveRecorder", "start_live"]
 
 EPOCH_NS = 946_684_800 * 10**9
 """Nanoseconds of the bag's time 0 (2000-01-01 00:00:00 UTC)."""
@@ -47,10 +51,11 @@ _TYPES = {
 
 
 class BagRecorder:
-    """Writes a ROS 2 / MCAP bag folder (module docstring); use as a context manager.
+    """Writes a ROS 2 / MCAP bag folder (module docstring), and / or streams the same messages
+    live to Foxglove (:class:`mcl.io.live.LiveServer`); use as a context manager.
 
     Args:
-        path: the bag folder to create (replaced when ``overwrite``).
+        path: the bag folder to create (replaced when ``overwrite``); None writes no bag.
         occupancy_map: written once to ``/map``.
         angles: (B,) car-frame beam angles of the scans, radians, evenly spaced.
         range_max: metres; the lidar's range (range_min is 0.02 m).
@@ -58,11 +63,12 @@ class BagRecorder:
         scan_period: seconds between scans (LaserScan.scan_time).
         max_particles: particles per ``/pf/particles`` message (an even stride through them).
         overwrite: replace an existing folder at ``path``.
+        live: a Foxglove server that gets every message too (see :mod:`mcl.io.live`).
     """
 
     def __init__(
         self,
-        path: str | os.PathLike[str],
+        path: str | os.PathLike[str] | None,
         occupancy_map: OccupancyMap,
         angles: np.ndarray,
         range_max: float,
@@ -70,16 +76,20 @@ class BagRecorder:
         scan_period: float = 0.025,
         max_particles: int = 500,
         overwrite: bool = True,
+        live: LiveServer | None = None,
     ) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
 
-        self.path = Path(path)
-        if self.path.exists():
+        if path is None and live is None:
+            raise ValueError("BagRecorder needs a bag folder, a live server or both")
+        self.path = Path(path) if path is not None else None
+        if self.path is not None and self.path.exists():
             if not overwrite:
                 raise FileExistsError(f"{self.path} exists")
             shutil.rmtree(self.path)
         self.ts = get_typestore(Stores.ROS2_HUMBLE)
+        self.live = live
         self._t = self.ts.types
         self.map = occupancy_map
         self.angles = np.asarray(angles, dtype=np.float64)
@@ -87,20 +97,33 @@ class BagRecorder:
         self.mount_offset = float(mount_offset)
         self.scan_period = float(scan_period)
         self.max_particles = int(max_particles)
-        self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
-        self._writer.open()
-        self._cons = {
-            topic: self._writer.add_connection(topic, kind, typestore=self.ts)
-            for topic, kind in _TYPES.items()
-        }
+        self._writer = None
+        self._cons = {}
+        if self.path is not None:
+            self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+            self._writer.open()
+            self._cons = {
+                topic: self._writer.add_connection(topic, kind, typestore=self.ts)
+                for topic, kind in _TYPES.items()
+            }
         self._last_odom: np.ndarray | None = None
         self._map_written = False
         self.n_messages = 0
 
     # ------------------------------------------------------------------ helpers
+    def wants(self, topic: str) -> bool:
+        """Whether a message on ``topic`` goes anywhere (the bag, or a live subscriber)."""
+        return self._writer is not None or (self.live is not None and self.live.wants(topic))
+
     def _write(self, topic: str, t: float, msg) -> None:
+        if not self.wants(topic):
+            return
         data = self.ts.serialize_cdr(msg, _TYPES[topic])
-        self._writer.write(self._cons[topic], self._stamp_ns(t), data)
+        ns = self._stamp_ns(t)
+        if self._writer is not None:
+            self._writer.write(self._cons[topic], ns, data)
+        if self.live is not None:
+            self.live.publish(topic, ns, bytes(data))
         self.n_messages += 1
 
     @staticmethod
@@ -162,6 +185,8 @@ class BagRecorder:
 
     def write_scan(self, t: float, ranges: np.ndarray) -> None:
         """``/scan``: ranges in metres; NaN, inf and values beyond range_max become +inf."""
+        if not self.wants("/scan"):
+            return
         r = np.asarray(ranges, dtype=np.float32).copy()
         r[~np.isfinite(r) | (r > self.range_max)] = np.inf
         a = self.angles
@@ -187,6 +212,9 @@ class BagRecorder:
             twist: [vx, vy, omega] in base_link (m/s, rad/s).
         """
         T = self._t
+        self._last_odom = np.array([float(v) for v in pose])
+        if not (self.wants("/odom") or self.wants("/tf")):
+            return
         x, y, th = (float(v) for v in pose)
         vx, vy, om = (float(v) for v in twist)
         zero6 = np.zeros(36, dtype=np.float64)
@@ -207,10 +235,11 @@ class BagRecorder:
         self._write("/odom", t, msg)
         tf = self._transform(t, "odom", "base_link", x, y, th)
         self._write("/tf", t, T["tf2_msgs/msg/TFMessage"](transforms=[tf]))
-        self._last_odom = np.array([x, y, th])
 
     def write_truth(self, t: float, pose: np.ndarray) -> None:
         """``/ground_truth``: the true base_link pose [x, y, theta] in the map frame."""
+        if not self.wants("/ground_truth"):
+            return
         msg = self._t["geometry_msgs/msg/PoseStamped"](
             header=self._header(t, "map"), pose=self._pose(*pose)
         )
@@ -231,6 +260,8 @@ class BagRecorder:
             particles: (N, 3) map-frame poses; at most ``max_particles`` are written.
         """
         T = self._t
+        if not (self.wants("/pf/pose") or self.wants("/tf") or self.wants("/pf/particles")):
+            return
         cov6 = np.zeros((6, 6))
         c = np.asarray(covariance, dtype=np.float64)
         idx = [0, 1, 5]
@@ -251,7 +282,7 @@ class BagRecorder:
             tx, ty = ex - (c_ * ox - s_ * oy), ey - (s_ * ox + c_ * oy)
             tf = self._transform(t, "map", "odom", tx, ty, yaw)
             self._write("/tf", t, T["tf2_msgs/msg/TFMessage"](transforms=[tf]))
-        if particles is not None and len(particles):
+        if particles is not None and len(particles) and self.wants("/pf/particles"):
             p = np.asarray(particles)
             step = max(1, math.ceil(len(p) / self.max_particles))
             poses = [self._pose(*q) for q in p[::step]]
@@ -263,7 +294,7 @@ class BagRecorder:
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:
-        """Finish the MCAP file and its metadata.yaml."""
+        """Finish the MCAP file and its metadata.yaml (the live server is the caller's to stop)."""
         if self._writer is not None:
             self._writer.close()
             self._writer = None
@@ -273,6 +304,16 @@ class BagRecorder:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def start_live(address: str | int) -> LiveServer:
+    """A Foxglove WebSocket server for the recording's topics at ``"[HOST:]PORT"`` (bound to
+    127.0.0.1 unless a host is given); see :mod:`mcl.io.live`."""
+    from rosbags.typesys import Stores, get_typestore
+
+    from mcl.io.live import LiveServer
+
+    return LiveServer(address, _TYPES, get_typestore(Stores.ROS2_HUMBLE))
 
 
 class DriveRecorder:
@@ -286,17 +327,26 @@ class DriveRecorder:
     truth are stamped ``t_k``; the sim's no-returns (``max_range``) are written as +inf.
 
     Args:
-        path: the bag folder to create.
+        path: the bag folder to create; None writes no bag (``live`` only).
         wrapped: the wrapper around a ``RacecarSim-v0`` env (its lidar and map are recorded).
+        live: a Foxglove server (:func:`start_live`) that streams the same messages as they come.
     """
 
-    def __init__(self, path: str | os.PathLike[str], wrapped: gym.Env) -> None:
+    def __init__(
+        self, path: str | os.PathLike[str] | None, wrapped: gym.Env, live: LiveServer | None = None
+    ) -> None:
         env = wrapped.unwrapped
         lidar = env.lidar
         self.max_range = float(lidar.params.max_range)
         self.dt = float(env.dt)
         self.recorder = BagRecorder(
-            path, env.map, lidar.angles, self.max_range, lidar.params.mount_offset, lidar.period
+            path,
+            env.map,
+            lidar.angles,
+            self.max_range,
+            lidar.params.mount_offset,
+            lidar.period,
+            live=live,
         )
         self.recorder.write_static(0.0)
         self._odom = np.zeros(3)
@@ -307,17 +357,22 @@ class DriveRecorder:
 
         t = float(info["time"])
         rec = self.recorder
+        if t == 0.0 and not self._first:  # a new episode: odometry starts again
+            self._odom = np.zeros(3)
+            self._first = True
         if not self._first:
             twist = np.asarray(obs["odom"], dtype=np.float64)
             rec.write_odom(t - self.dt, self._odom, twist)
             self._odom = compose(self._odom[None], twist_to_odometry(twist, self.dt))[0]
         rec.write_truth(t, np.asarray(info["pose"], dtype=np.float64))
         if self._first or info.get("new_scan", False):
-            scan = np.asarray(obs["scan"], dtype=np.float64).copy()
-            scan[scan >= self.max_range] = np.inf
-            rec.write_scan(t, scan)
-            pf = wrapped.filter
-            rec.write_estimate(t, obs["pose_estimate"], pf.covariance(), pf.particles)
+            if rec.wants("/scan"):
+                scan = np.asarray(obs["scan"], dtype=np.float64).copy()
+                scan[scan >= self.max_range] = np.inf
+                rec.write_scan(t, scan)
+            if any(rec.wants(topic) for topic in ("/pf/pose", "/tf", "/pf/particles")):
+                pf = wrapped.filter
+                rec.write_estimate(t, obs["pose_estimate"], pf.covariance(), pf.particles)
         self._first = False
 
     def close(self) -> None:

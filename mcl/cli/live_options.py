@@ -1,0 +1,81 @@
+"""The ``--live [HOST:]PORT`` and ``--live-speed`` options of ``drive`` and ``replay``: checked
+before anything runs (one line naming the flag, exit 2), the Foxglove server started, the stream
+paced against the wall clock."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from mcl.cli.common import Parser, non_negative_float
+from mcl.io.live import LiveServer, parse_live_address
+
+__all__ = ["Pacer", "add_live_arguments", "check_live", "start_live_view"]
+
+
+def add_live_arguments(parser: Parser, what: str) -> None:
+    """Add ``--live`` and ``--live-speed`` to ``parser`` (``what``: "drive" or "replay")."""
+    parser.add_argument(
+        "--live",
+        default=None,
+        metavar="[HOST:]PORT",
+        help=f"stream the {what} to Foxglove as it runs: a WebSocket server on PORT, bound to "
+        "127.0.0.1 unless HOST is given (e.g. 8765 or 0.0.0.0:8765); in Foxglove, "
+        "Open connection, ws://localhost:PORT (extra [live])",
+    )
+    parser.add_argument(
+        "--live-speed",
+        type=non_negative_float,
+        default=1.0,
+        metavar="X",
+        help="with --live: X times real time (default 1; 0: as fast as it runs)",
+    )
+
+
+def check_live(parser: Parser, text: str | None, speed: float) -> tuple[str, int] | None:
+    """``--live`` as (host, port), or None when absent; a bad value stops naming the flag."""
+    if text is None:
+        return None
+    try:
+        address = parse_live_address(text)
+    except ValueError as exc:
+        parser.fail("--live", str(exc))
+    try:
+        import foxglove  # noqa: F401
+    except ImportError:
+        parser.fail("--live", "needs foxglove-sdk: pip install 'racecar-sim[live]'")
+    return address
+
+
+def start_live_view(parser: Parser, address: tuple[str, int] | None) -> LiveServer | None:
+    """Start the server at ``address`` (from :func:`check_live`) and say where to connect."""
+    if address is None:
+        return None
+    from mcl.io.bag_writer import start_live
+
+    host, port = address
+    try:
+        server = start_live(f"[{host}]:{port}" if ":" in host else f"{host}:{port}")
+    except RuntimeError as exc:
+        parser.fail("--live", str(exc))
+    print(f"live view: in Foxglove, Open connection, {server.url}", file=sys.stderr, flush=True)
+    return server
+
+
+class Pacer:
+    """Call with the simulated time (s) after each step: sleeps so that the stream runs at
+    ``speed`` times real time (0: never sleeps)."""
+
+    def __init__(self, speed: float) -> None:
+        self.speed = float(speed)
+        self._start: float | None = None
+
+    def __call__(self, sim_time: float) -> None:
+        if self.speed <= 0:
+            return
+        now = time.perf_counter()
+        if self._start is None or sim_time == 0.0:
+            self._start = now - sim_time / self.speed
+        wait = self._start + sim_time / self.speed - now
+        if wait > 0:
+            time.sleep(wait)

@@ -1,0 +1,219 @@
+"""The live view: a Foxglove WebSocket client on localhost receives and decodes the drive's
+messages while it runs (``LocalizationWrapper(live=...)`` and ``racecar-sim drive --live``), and the
+drive is the same with and without it.
+
+The client is a plain ``websockets`` client speaking the Foxglove WebSocket protocol as served by
+foxglove-sdk (subprotocol ``foxglove.sdk.v1``): it reads the server's ``advertise``, sends
+``subscribe`` for the channels it wants, and decodes the binary ``messageData`` frames (opcode 1,
+subscription id u32, log time u64, then the CDR payload)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import os
+import re
+import struct
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import racecar_sim  # noqa: F401
+from mcl.io.live import DEFAULT_HOST, parse_live_address
+
+pytest.importorskip("foxglove", reason="the live view needs foxglove-sdk (extra [live])")
+websockets = pytest.importorskip("websockets", reason="the test client needs websockets ([dev])")
+from rosbags.typesys import Stores, get_typestore  # noqa: E402
+
+from mcl import LocalizationWrapper  # noqa: E402
+from mcl.io.bag_writer import EPOCH_NS  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+TYPESTORE = get_typestore(Stores.ROS2_HUMBLE)
+SUBPROTOCOL = "foxglove.sdk.v1"
+
+
+class Client(threading.Thread):
+    """Subscribes to ``topics`` on ws://127.0.0.1:port and keeps every message's payload."""
+
+    def __init__(self, port: int, topics: set[str], until, timeout: float = 120.0) -> None:
+        super().__init__(daemon=True)
+        self.port, self.topics, self.until, self.timeout = port, topics, until, timeout
+        self.messages: dict[str, list[bytes]] = {}
+        self.advertised: dict[str, dict] = {}
+        self.subscribed = threading.Event()
+        self.error: BaseException | None = None
+
+    def run(self) -> None:
+        try:
+            asyncio.run(self._run())
+        except BaseException as exc:  # reported by the test
+            self.error = exc
+
+    async def _run(self) -> None:
+        url = f"ws://127.0.0.1:{self.port}"
+        async with websockets.connect(url, subprotocols=[SUBPROTOCOL]) as ws:
+            subscriptions: dict[int, str] = {}
+            deadline = time.monotonic() + self.timeout
+            while time.monotonic() < deadline and not self.until(self.messages):
+                frame = await asyncio.wait_for(ws.recv(), deadline - time.monotonic())
+                if isinstance(frame, str):
+                    message = json.loads(frame)
+                    if message.get("op") != "advertise":
+                        continue
+                    wanted = []
+                    for channel in message["channels"]:
+                        self.advertised[channel["topic"]] = channel
+                        if channel["topic"] in self.topics:
+                            sub_id = len(subscriptions) + 1
+                            subscriptions[sub_id] = channel["topic"]
+                            wanted.append({"id": sub_id, "channelId": channel["id"]})
+                    if wanted:
+                        await ws.send(json.dumps({"op": "subscribe", "subscriptions": wanted}))
+                        self.subscribed.set()
+                elif frame[0] == 1:  # messageData
+                    sub_id, _log_time = struct.unpack_from("<IQ", frame, 1)
+                    self.messages.setdefault(subscriptions[sub_id], []).append(bytes(frame[13:]))
+
+
+def test_live_address_parsing() -> None:
+    assert parse_live_address("8765") == (DEFAULT_HOST, 8765)
+    assert parse_live_address(8765) == ("127.0.0.1", 8765)
+    assert parse_live_address("0.0.0.0:9000") == ("0.0.0.0", 9000)
+    assert parse_live_address("[::1]:9000") == ("::1", 9000)
+    for bad in ("", "abc", "host:", ":80", "70000", "-1", "host:port"):
+        with pytest.raises(ValueError, match="PORT"):
+            parse_live_address(bad)
+
+
+def _wait(condition, seconds: float = 60.0) -> None:
+    deadline = time.monotonic() + seconds
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def test_wrapper_streams_scans_the_client_decodes_and_the_map_to_a_late_subscriber() -> None:
+    env = LocalizationWrapper(
+        gym.make("RacecarSim-v0", map="office"), {"filter": {"n_particles": 200}}, live=0
+    )
+    server = env.live
+    assert server is not None and server.host == "127.0.0.1" and server.port > 0
+    obs, info = env.reset(seed=3)  # /map goes out now, before anyone listens
+    client = Client(server.port, {"/scan", "/map", "/pf/particles", "/tf"}, lambda m: len(m.get("/scan", [])) >= 5 and "/map" in m)
+    client.start()
+    assert client.subscribed.wait(60), client.error
+    _wait(lambda: server.wants("/scan"))
+    sent = []
+    for _ in range(40):
+        obs, _, _, _, info = env.step([0.0, 1.0])
+        if info["new_scan"]:
+            sent.append(obs["scan"].copy())
+    client.join(60)
+    env.close()
+    assert client.error is None, client.error
+    assert client.advertised["/scan"]["schemaName"] == "sensor_msgs/msg/LaserScan"
+    assert client.advertised["/scan"]["encoding"] == "cdr"
+    scans = [TYPESTORE.deserialize_cdr(m, "sensor_msgs/msg/LaserScan") for m in client.messages["/scan"]]
+    assert scans[0].header.frame_id == "laser" and len(scans[0].ranges) == obs["scan"].size
+    max_range = env.unwrapped.lidar.params.max_range
+    expected = np.where(sent[0] >= max_range, np.inf, sent[0]).astype(np.float32)
+    np.testing.assert_array_equal(scans[0].ranges, expected)  # the first scan sent after subscribing
+    grid = TYPESTORE.deserialize_cdr(client.messages["/map"][0], "nav_msgs/msg/OccupancyGrid")
+    assert (grid.info.width, grid.info.height) == (env.map.width, env.map.height)
+    particles = TYPESTORE.deserialize_cdr(client.messages["/pf/particles"][-1], "geometry_msgs/msg/PoseArray")
+    assert 0 < len(particles.poses) <= 200
+
+
+def _drive(tmp_path: Path, name: str, *extra: str) -> subprocess.Popen:
+    cmd = [sys.executable, "-m", "mcl.cli.main", "drive", "--map", "office", "--duration", "3",
+           "--particles", "300", "--video-fps", "0", "--quiet", "--seed", "4",
+           "--out", str(tmp_path / name), *extra]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    return subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _log_without_timing(path: Path) -> list[list[str]]:
+    lines = path.read_text(encoding="utf-8").splitlines()
+    column = lines[0].split(",").index("update_s")  # wall-clock timing differs from run to run
+    return [[v for j, v in enumerate(line.split(",")) if j != column] for line in lines]
+
+
+@pytest.mark.slow
+def test_drive_live_streams_to_a_client_and_drives_the_same(tmp_path: Path) -> None:
+    plain = _drive(tmp_path, "plain")
+    assert plain.wait(600) == 0, plain.stderr.read()
+    live = _drive(tmp_path, "live", "--live", "0", "--live-speed", "1")
+    url = None
+    for line in live.stderr:  # the server says where it listens before the drive starts
+        match = re.search(r"ws://localhost:(\d+)", line)
+        if match:
+            url = int(match.group(1))
+            break
+    assert url is not None, "no live-view address printed"
+    client = Client(url, {"/scan", "/ground_truth"}, lambda m: len(m.get("/scan", [])) >= 20, timeout=300)
+    client.start()
+    _, err = live.communicate(timeout=600)
+    client.join(30)
+    assert live.returncode == 0, err
+    assert client.error is None, client.error
+    scans = [TYPESTORE.deserialize_cdr(m, "sensor_msgs/msg/LaserScan") for m in client.messages["/scan"]]
+    assert len(scans) >= 20 and all(len(s.ranges) == 1080 for s in scans)
+    stamps = [s.header.stamp.sec + 1e-9 * s.header.stamp.nanosec for s in scans]
+    assert np.all(np.diff(stamps) > 0)  # in the order they were made
+    assert _log_without_timing(tmp_path / "live" / "error_log.csv") == _log_without_timing(
+        tmp_path / "plain" / "error_log.csv"
+    )
+
+
+@pytest.mark.slow
+def test_replay_live_streams_the_filter_on_a_recorded_drive(tmp_path: Path) -> None:
+    from mcl.io import DriveRecorder
+    from racecar_sim.drivers import WallFollower
+
+    env = LocalizationWrapper(gym.make("RacecarSim-v0", map="office"), {"filter": {"n_particles": 200}})
+    recorder = DriveRecorder(tmp_path / "bag", env)
+    obs, info = env.reset(seed=1)
+    start = info["pose"]  # the replay starts its filter here
+    recorder(env, obs, info)
+    driver = WallFollower.for_env(env)
+    for _ in range(120):  # 3 s
+        obs, _, _, _, info = env.step(driver(obs))
+        recorder(env, obs, info)
+    recorder.close()
+    cmd = [sys.executable, "-m", "mcl.cli.main", "replay", str(tmp_path / "bag"), "--map", "office",
+           "--init", ",".join(f"{v:.4f}" for v in start), "--video-fps", "0",
+           "--out", str(tmp_path / "replay"), "--live", "0", "--live-speed", "1"]  # fmt: skip
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(REPO)},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    port = None
+    for line in proc.stderr:
+        match = re.search(r"ws://localhost:(\d+)", line)
+        if match:
+            port = int(match.group(1))
+            break
+    assert port is not None, "no live-view address printed"
+    client = Client(port, {"/scan", "/pf/pose", "/map"}, lambda m: len(m.get("/pf/pose", [])) >= 30, timeout=300)
+    client.start()
+    _, err = proc.communicate(timeout=600)
+    client.join(30)
+    assert proc.returncode == 0, err
+    assert client.error is None, client.error
+    assert "/map" in client.messages
+    scans = [TYPESTORE.deserialize_cdr(m, "sensor_msgs/msg/LaserScan") for m in client.messages["/scan"]]
+    assert len(scans) >= 30 and len(scans[0].ranges) == obs["scan"].size
+    rows = np.genfromtxt(tmp_path / "replay" / "trajectory.csv", delimiter=",", names=True)
+    for payload in client.messages["/pf/pose"]:  # each streamed estimate is the replay's own
+        msg = TYPESTORE.deserialize_cdr(payload, "geometry_msgs/msg/PoseWithCovarianceStamped")
+        t = (msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec - EPOCH_NS) * 1e-9
+        row = rows[np.argmin(np.abs(rows["time"] - t))]
+        assert abs(row["time"] - t) < 1e-6
+        np.testing.assert_allclose(
+            [msg.pose.pose.position.x, msg.pose.pose.position.y], [row["x"], row["y"]], atol=1e-6
+        )
