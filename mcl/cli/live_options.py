@@ -21,14 +21,14 @@ def add_live_arguments(parser: Parser, what: str) -> None:
         metavar="[HOST:]PORT",
         help=f"stream the {what} to Foxglove as it runs: a WebSocket server on PORT, bound to "
         "127.0.0.1 unless HOST is given (e.g. 8765 or 0.0.0.0:8765); in Foxglove, "
-        "Open connection, ws://localhost:PORT (extra [live])",
+        "Open connection, ws://localhost:PORT (extra [live]; default: no live view)",
     )
     parser.add_argument(
         "--live-speed",
         type=non_negative_float,
         default=1.0,
         metavar="X",
-        help="with --live: X times real time (default 1; 0: as fast as it runs)",
+        help="with --live: X times real time, 0 as fast as it runs (default: %(default)s)",
     )
 
 
