@@ -4,8 +4,9 @@
   (time in seconds since the bag's first message; the base_link estimate in the map's world frame;
   position_sd metres, heading_sd radians; ambiguous 0/1; scan_fit a fraction), plus
   ``position_error,heading_error`` when the bag has ``/ground_truth``.
-- ``trajectory.png``: the map around the drive, the estimated path, every k-th scan's end points
-  drawn from the estimate (and the true path when known).
+- ``trajectory.png``: the map around the drive (walls dark, free space light), the estimated path
+  (the search apart), every k-th scan's end points drawn from the estimate once the filter has
+  found the car (and the true path when known).
 - ``scan_fit.png``: scan_fit and the particle count against time.
 - ``replay.mp4``: the map, the particles, the scan from the estimate, at ``fps`` frames per second
   of recording (PNG frames when OpenCV cannot write mp4).
@@ -82,44 +83,58 @@ def _view(result: ReplayResult, margin: float = 6.0) -> tuple[float, float, floa
     )
 
 
-def _occupied_points(m: OccupancyMap, view: tuple[float, float, float, float]) -> np.ndarray:
-    """World centres of the occupied cells bordering free space inside ``view``."""
-    occ = m.occupied
-    free = ~occ
-    edge = occ.copy()
-    near = np.zeros_like(occ)
-    near[1:] |= free[:-1]
-    near[:-1] |= free[1:]
-    near[:, 1:] |= free[:, :-1]
-    near[:, :-1] |= free[:, 1:]
-    w = m.grid_to_world(np.argwhere(edge & near))
+def map_image(
+    m: OccupancyMap, view: tuple[float, float, float, float]
+) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """The map inside ``view`` (x0, x1, y0, y1 in metres, world frame) as an RGB float image on a
+    world-aligned raster at the map's resolution (any origin yaw): free space light, walls (the
+    non-free cells within 0.15 m of free space) dark, the rest (unknown, solid) mid grey. Returns
+    the image and its ``imshow`` extent."""
     x0, x1, y0, y1 = view
-    return w[(w[:, 0] >= x0) & (w[:, 0] <= x1) & (w[:, 1] >= y0) & (w[:, 1] <= y1)]
+    res = float(m.resolution)
+    xs = np.arange(x0 + res / 2, x1, res)
+    ys = np.arange(y1 - res / 2, y0, -res)  # image rows top-down
+    gx, gy = np.meshgrid(xs, ys)
+    free = m.is_free(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
+    reach = max(1, round(0.15 / res))
+    near = cv2.dilate(free.astype(np.uint8), np.ones((2 * reach + 1,) * 2, np.uint8)) > 0
+    img = np.full((*free.shape, 3), 0.72)
+    img[free] = 0.97
+    img[~free & near] = 0.18
+    return img, (x0, x0 + xs.size * res, y1 - ys.size * res, y1)
 
 
 def plot_trajectory(
     result: ReplayResult, occupancy_map: OccupancyMap, path: str | os.PathLike[str], every: int = 40
 ) -> Path:
-    """trajectory.png: path and every ``every``-th scan's end points on the map."""
+    """trajectory.png: the map (walls dark, free space light), the path, and every ``every``-th
+    scan's end points drawn from the estimate once the filter has found the car (position sd
+    < 0.5 m); scans from the search, drawn from a wrong pose, are left out."""
     view = _view(result)
     fig, ax = plt.subplots(figsize=(8, 8))
-    walls = _occupied_points(occupancy_map, view)
-    ax.plot(walls[:, 0], walls[:, 1], ",", color="0.3")
-    for i in range(0, len(result.rows), every):
+    img, extent = map_image(occupancy_map, view)
+    ax.imshow(img, extent=extent, interpolation="nearest", zorder=0)
+    found = result.column("position_sd") < 0.5
+    shown = [i for i in range(0, len(result.rows), every) if found[i]]
+    for n, i in enumerate(shown):
         ep = _end_points(result, i)
-        ax.plot(ep[:, 0], ep[:, 1], ".", ms=1.5, alpha=0.6)
+        label = f"scan end points from the estimate ({len(shown)} scans)" if n == 0 else None
+        ax.plot(ep[:, 0], ep[:, 1], ".", ms=1.5, color="tab:blue", alpha=0.5, label=label)
     d = result.data
     if d.truth is not None:
-        ax.plot(d.truth[:, 0], d.truth[:, 1], "-", color="0.5", lw=2, label="ground truth")
+        ax.plot(d.truth[:, 0], d.truth[:, 1], "-", color="tab:green", lw=2, label="ground truth")
     x, y = result.column("x"), result.column("y")
-    found = result.column("position_sd") < 0.5
-    ax.plot(x, y, ":", color="0.6", lw=0.8, label="estimate while searching")
+    if not found.all():
+        ax.plot(
+            np.where(found, np.nan, x), np.where(found, np.nan, y), "--", color="tab:purple",
+            lw=0.9, label="estimate while searching (sd >= 0.5 m)",
+        )  # fmt: skip
     ax.plot(
         np.where(found, x, np.nan),
         np.where(found, y, np.nan),
         "-",
         color="tab:orange",
-        lw=1.5,
+        lw=1.8,
         label="estimate (base_link, position sd < 0.5 m)",
     )
     ax.set_xlim(view[0], view[1])
@@ -127,8 +142,8 @@ def plot_trajectory(
     ax.set_aspect("equal")
     ax.set_xlabel("x (m, map frame)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"{d.path.name}: estimate and every {every}th scan from it")
-    ax.legend(loc="best", fontsize=8)
+    ax.set_title(f"{d.path.name}: the estimate and every {every}th scan once found")
+    ax.legend(loc="best", fontsize=8, markerscale=6)
     return save_figure(fig, path)
 
 
@@ -159,17 +174,14 @@ def write_video(
     view = _view(result)
     x0, x1, y0, y1 = view
     w, h = int((x1 - x0) * px_per_m), int((y1 - y0) * px_per_m)
-    base = np.full((h, w, 3), 255, np.uint8)
-    walls = _occupied_points(occupancy_map, view)
+    img, _ = map_image(occupancy_map, view)
+    base = cv2.resize((255 * img).astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST)
 
     def px(xy: np.ndarray) -> np.ndarray:
         u = (xy[:, 0] - x0) * px_per_m
         v = (y1 - xy[:, 1]) * px_per_m
         return np.column_stack([u, v]).astype(np.int32)
 
-    for u, v in px(walls):
-        if 0 <= u < w and 0 <= v < h:
-            base[v, u] = (60, 60, 60)
     times = result.column("time")
     with FrameWriter(path, fps) as writer:
         for t in np.arange(0.0, result.duration, 1.0 / fps):
