@@ -15,12 +15,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
+from racecar_sim.imu import ImuParams
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.noise_profiles import profile_document
 from racecar_sim.obstacles import ObstacleParams
 from racecar_sim.scan_effects import OdometryBias, ScanEffects
 from racecar_sim.validation import check_number, read_yaml_mapping
-from racecar_sim.vesc import ImuParams
 
 __all__ = [
     "CarParams",

@@ -34,14 +34,9 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
 
-from racecar_sim.validation import check_number
-
-if TYPE_CHECKING:  # config imports this module (ImuParams)
-    from racecar_sim.config import CarParams
+from racecar_sim.config import CarParams
+from racecar_sim.imu import ImuParams
 
 __all__ = ["CommandDelay", "ImuParams", "actuate", "lead_steps", "wheel_twist"]
 
@@ -121,33 +116,3 @@ class CommandDelay:
                 steer, speed, target_steer, target_speed, self.car, self.dt, self.substep
             )
         return steer, speed
-
-
-@dataclass(frozen=True)
-class ImuParams:
-    """A yaw-rate gyro: reported = true yaw rate + bias + N(0, sigma²), one draw per env step.
-
-    Attributes:
-        sigma: rad/s, standard deviation of the white noise per step.
-        bias: rad/s, constant offset.
-    """
-
-    sigma: float = 0.01
-    bias: float = 0.0
-
-    def __post_init__(self) -> None:
-        check_number("ImuParams", "sigma", self.sigma, low=0)
-        check_number("ImuParams", "bias", self.bias)
-
-    @classmethod
-    def from_setting(cls, value: Any) -> ImuParams | None:
-        """None, ``True`` (the defaults), an :class:`ImuParams` or a mapping of its fields."""
-        if value is None or value is False:
-            return None
-        if value is True:
-            return cls()
-        if isinstance(value, cls):
-            return value
-        if isinstance(value, Mapping) and not set(value) - {"sigma", "bias"}:
-            return cls(**dict(value))
-        raise ValueError(f"imu must be true, false, or a mapping {{sigma, bias}}, got {value!r}")

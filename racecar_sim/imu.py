@@ -1,0 +1,46 @@
+"""The simulated gyro's settings (:class:`ImuParams`, ``RacecarEnv(imu=...)``; the gyro itself is
+described in :mod:`racecar_sim.vesc`).
+
+Below both :mod:`racecar_sim.config` (whose ``EnvConfig.imu`` holds it) and
+:mod:`racecar_sim.vesc`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from racecar_sim.validation import check_number
+
+__all__ = ["ImuParams"]
+
+
+@dataclass(frozen=True)
+class ImuParams:
+    """A yaw-rate gyro: reported = true yaw rate + bias + N(0, sigma²), one draw per env step.
+
+    Attributes:
+        sigma: rad/s, standard deviation of the white noise per step.
+        bias: rad/s, constant offset.
+    """
+
+    sigma: float = 0.01
+    bias: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_number("ImuParams", "sigma", self.sigma, low=0)
+        check_number("ImuParams", "bias", self.bias)
+
+    @classmethod
+    def from_setting(cls, value: Any) -> ImuParams | None:
+        """None, ``True`` (the defaults), an :class:`ImuParams` or a mapping of its fields."""
+        if value is None or value is False:
+            return None
+        if value is True:
+            return cls()
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, Mapping) and not set(value) - {"sigma", "bias"}:
+            return cls(**dict(value))
+        raise ValueError(f"imu must be true, false, or a mapping {{sigma, bias}}, got {value!r}")
