@@ -50,6 +50,19 @@ def _client(port: int, ready, stop) -> None:
     asyncio.run(run())
 
 
+class Timed:
+    """Wraps the wrapper's live recorder to add up the seconds spent streaming."""
+
+    def __init__(self, recorder) -> None:
+        self.recorder, self.seconds, self.calls = recorder, 0.0, 0
+
+    def __call__(self, *args) -> None:
+        t0 = time.perf_counter()
+        self.recorder(*args)
+        self.seconds += time.perf_counter() - t0
+        self.calls += 1
+
+
 def drive(env: LocalizationWrapper, steps: int, seed: int) -> float:
     """Steps per second of wall time of ``steps`` steps after a reset with ``seed``."""
     obs, _ = env.reset(seed=seed)
@@ -81,6 +94,8 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit("the benchmark's client did not subscribe within 120 s")
     for env in (plain, idle, watched):
         drive(env, 50, args.seed)  # warm-up: kernels, tables, the client's subscriptions
+    timed = {"live, no client": Timed(idle._live), "live, watched": Timed(watched._live)}
+    idle._live, watched._live = timed["live, no client"], timed["live, watched"]
     rates: dict[str, list[float]] = {"plain": [], "live, no client": [], "live, watched": []}
     for r in range(args.rounds):
         order = list(zip(rates, (plain, idle, watched), strict=True))
@@ -92,11 +107,12 @@ def main(argv: list[str] | None = None) -> int:
     for env in (plain, idle, watched):
         env.close()
     print(f"{args.steps} steps x {args.rounds} rounds, {args.particles} particles, basement_loop")
-    print("| drive | steps/s (median) | x plain (median of rounds) |")
-    print("|---|---:|---:|")
+    print("| drive | steps/s (median) | x plain (median of rounds) | streaming, ms per step |")
+    print("|---|---:|---:|---:|")
     for name, values in rates.items():
         ratio = statistics.median(v / p for v, p in zip(values, rates["plain"], strict=True))
-        print(f"| {name} | {statistics.median(values):.0f} | {ratio:.3f} |")
+        cost = f"{1e3 * timed[name].seconds / timed[name].calls:.3f}" if name in timed else "-"
+        print(f"| {name} | {statistics.median(values):.0f} | {ratio:.3f} | {cost} |")
     print(f"messages streamed to the client: {sent}")
     return 0
 
