@@ -4,7 +4,7 @@ from gymnasium.envs.registration import register, registry
 
 from racecar_sim.maps import DEFAULT_MAP, MapError, OccupancyMap, bundled, load_map
 
-__all__ = ["DEFAULT_MAP", "ENV_ID", "MapError", "OccupancyMap", "bundled", "load_map"]
+__all__ = ["DEFAULT_MAP", "ENV_ID", "RACE_ENV_ID", "MapError", "OccupancyMap", "RaceEnv", "bundled", "load_map"]
 __version__ = "0.2.0"
 
 ENV_ID = "RacecarSim-v0"
@@ -12,9 +12,25 @@ ENV_ID = "RacecarSim-v0"
 cars in one process: ``gymnasium.make_vec(ENV_ID, num_envs=N, vectorization_mode="vector_entry_point")``
 (:class:`racecar_sim.vector_env.RacecarVectorEnv`)."""
 
+RACE_ENV_ID = "RacecarRace-v0"
+"""Gymnasium id of :class:`racecar_sim.race.single.RacecarRaceEnv`: one agent (car 0) against
+``opponents`` scripted cars; the multi-agent race is :class:`racecar_sim.RaceEnv` (PettingZoo)."""
+
+if RACE_ENV_ID not in registry:
+    register(id=RACE_ENV_ID, entry_point="racecar_sim.race.single:RacecarRaceEnv")
+
 if ENV_ID not in registry:  # importing the package twice (or reloading it) must not fail
     register(
         id=ENV_ID,
         entry_point="racecar_sim.env:RacecarEnv",
         vector_entry_point="racecar_sim.vector_env:RacecarVectorEnv",
     )
+
+
+def __getattr__(name: str):
+    """``racecar_sim.RaceEnv`` (PettingZoo, the ``race`` extra) is imported on first use."""
+    if name == "RaceEnv":
+        from racecar_sim.race.env import RaceEnv
+
+        return RaceEnv
+    raise AttributeError(f"module 'racecar_sim' has no attribute {name!r}")

@@ -249,6 +249,9 @@ class EnvConfig:
             command this much later, rounded to whole steps; :mod:`racecar_sim.vesc`); 0 = none.
         imu: a yaw-rate gyro in ``obs["imu"]`` (:class:`racecar_sim.vesc.ImuParams`, a mapping
             ``{sigma, bias}`` or True for its defaults); None = no IMU.
+        track: the race track for progress, laps, lap times and rank in the info
+            (:func:`racecar_sim.race.track.resolve_track`): a centerline CSV in f1tenth's format,
+            ``"auto"`` (derived from a loop map) or a ``Track``; None = no track.
     """
 
     map: str | os.PathLike[str] | OccupancyMap | None = None
@@ -276,8 +279,12 @@ class EnvConfig:
     obstacles: Any = None
     odom_lead: float = 0.0
     imu: Any = None
+    track: Any = None
 
     def __post_init__(self) -> None:
+        track = self.track
+        if not (track is None or isinstance(track, str | os.PathLike) or type(track).__name__ == "Track"):
+            raise ValueError(f"track must be a CSV path, 'auto', a Track or None, got {track!r}")
         if self.noise_profile is not None:
             profile_document(self.noise_profile)  # an unknown name fails here, listing the profiles
         if self.scan_effects is not None:

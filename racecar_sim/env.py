@@ -89,7 +89,10 @@ class RacecarEnv(gym.Env):
     ## Info
     ``pose`` true rear-axle world pose ``[x, y, theta]`` (float64, theta in [-pi, pi)); ``twist``
     true car-frame twist averaged over the step; ``collision`` (bool); ``time`` (s since reset);
-    ``new_scan`` (bool); ``rewards`` (dict of named terms).
+    ``new_scan`` (bool); ``rewards`` (dict of named terms). With a ``track`` setting also
+    ``progress`` (m along its centerline since the start), ``lap`` (completed laps, counted when
+    crossing the start line forwards), ``lap_times`` (s) and ``rank`` (1), as in a race
+    (:mod:`racecar_sim.race.laps`).
 
     ## Arguments
     ``gymnasium.make("RacecarSim-v0", map=..., render_mode="rgb_array", **settings)`` where
@@ -172,6 +175,15 @@ class RacecarEnv(gym.Env):
         self._terminate = cfg.terminate_on_collision
         self._period = self.lidar.period
 
+        # On a track (the ``track`` setting): progress, laps, lap times and rank in the info.
+        self.track = None
+        self._laps = None
+        if cfg.track is not None:
+            from racecar_sim.race.laps import LapCounter
+            from racecar_sim.race.track import resolve_track
+
+            self.track = resolve_track(cfg.track, self.map)
+            self._laps = LapCounter(self.track, 1)
         self._start_centres: np.ndarray | None = None  # world (K, 2) centres for random starts
         self._render_hooks: list[RenderHook] = []
         self._renderer: MapRenderer | None = None
@@ -231,6 +243,8 @@ class RacecarEnv(gym.Env):
         self.command_delay.reset(self.physics.steer, self.physics.wheel_speed)
         twist = self.physics.twist
         obs = self._observation(twist)
+        if self._laps is not None:
+            self._laps.reset(pose[None, :2])
         info = self._info(pose, twist, False, True, 0.0, 0.0)
         return obs, info
 
@@ -263,6 +277,8 @@ class RacecarEnv(gym.Env):
         progress = float(twist[0]) * self.dt
         penalty = -self._penalty if collided else 0.0
         obs = self._observation(twist)
+        if self._laps is not None:
+            self._laps.update(pose[None, :2], self.time, self.dt)
         info = self._info(pose, twist, collided, fresh, progress, penalty)
         terminated = collided and self._terminate
         return obs, progress + penalty, terminated, False, info
@@ -387,7 +403,7 @@ class RacecarEnv(gym.Env):
         progress: float,
         penalty: float,
     ) -> dict[str, Any]:
-        return {
+        info = {
             "pose": pose,
             "twist": twist,
             "collision": collided,
@@ -395,6 +411,9 @@ class RacecarEnv(gym.Env):
             "new_scan": fresh,
             "rewards": {"progress": progress, "collision": penalty},
         }
+        if self._laps is not None:
+            info.update(self._laps.info(np.ones(1, dtype=np.int64), 0))
+        return info
 
     def _random_start(self) -> np.ndarray:
         """A collision-free rear-axle pose with ``start_clearance`` of room, from ``np_random``."""

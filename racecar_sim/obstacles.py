@@ -26,7 +26,7 @@ import pymunk
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.validation import check_number
 
-__all__ = ["ObstacleParams", "Obstacles", "obstacle_ranges"]
+__all__ = ["ObstacleParams", "Obstacles", "obstacle_ranges", "ray_segment"]
 
 _WALL_COLLISION_TYPE = 2  # racecar_sim.physics.WALL_COLLISION_TYPE (imported lazily there)
 _TRIES = 2000
@@ -84,6 +84,22 @@ class ObstacleParams:
         raise ValueError(f"obstacles must be a mapping of {sorted(cls.__dataclass_fields__)}")
 
 
+@nb.njit(cache=True, inline="always")
+def ray_segment(ox, oy, dx, dy, x0, y0, x1, y1, best):
+    """The nearer of ``best`` and the distance along the ray from (ox, oy) in unit direction
+    (dx, dy) to the segment (x0, y0)-(x1, y1) (world metres); ``best`` when the ray misses it."""
+    ex, ey = x1 - x0, y1 - y0
+    den = dx * ey - dy * ex
+    if abs(den) < 1e-12:
+        return best
+    wx, wy = x0 - ox, y0 - oy
+    t = (wx * ey - wy * ex) / den
+    s = (wx * dy - wy * dx) / den
+    if 0.0 < t < best and 0.0 <= s <= 1.0:
+        return t
+    return best
+
+
 @nb.njit(cache=True)
 def obstacle_ranges(ox, oy, heading, angles, circles, segments, max_range, out):
     """out[i] = min(out[i], distance along beam i to the nearest circle or segment), metres.
@@ -108,15 +124,9 @@ def obstacle_ranges(ox, oy, heading, angles, circles, segments, max_range, out):
             if 0.0 < t < best:
                 best = t
         for k in range(segments.shape[0]):
-            ex, ey = segments[k, 2] - segments[k, 0], segments[k, 3] - segments[k, 1]
-            den = dx * ey - dy * ex
-            if abs(den) < 1e-12:
-                continue
-            wx, wy = segments[k, 0] - ox, segments[k, 1] - oy
-            t = (wx * ey - wy * ex) / den
-            s = (wx * dy - wy * dx) / den
-            if 0.0 < t < best and 0.0 <= s <= 1.0:
-                best = t
+            best = ray_segment(
+                ox, oy, dx, dy, segments[k, 0], segments[k, 1], segments[k, 2], segments[k, 3], best
+            )
         out[i] = min(best, max_range)
 
 

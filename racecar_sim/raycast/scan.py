@@ -29,6 +29,7 @@ __all__ = [
     "GEOMETRY_FIELDS",
     "NOISE_FIELDS",
     "add_beam_noise",
+    "exact_one",
     "scan_geometry",
     "scan_with_noise",
     "scans_serial_nogil",
@@ -246,8 +247,9 @@ def add_beam_noise(ranges, seed, noise, out) -> int:
 
 
 @nb.njit(cache=True, inline="always")
-def _scan_one(field, x, y, th, geometry, cos_a, sin_a, seed, noise, ranges, out):
-    """Mount pose, exact cast and noise of one scan (see :func:`scan_with_noise`); a status."""
+def exact_one(field, x, y, th, geometry, cos_a, sin_a, ranges):
+    """Mount pose and exact cast of one scan from rear-axle world (x, y, th) into ``ranges``
+    (metres); 0, or 1 when the pose is not finite (``ranges`` untouched)."""
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(th)):
         return 1
     # Lidar mount (Lidar.mount_pose), then RayCaster._grid_frame: map frame / resolution + 1 cell.
@@ -266,6 +268,14 @@ def _scan_one(field, x, y, th, geometry, cos_a, sin_a, seed, noise, ranges, out)
         field, gu, gv, math.cos(heading), math.sin(heading), cos_a, sin_a, geometry[7], res,
         geometry[8], ranges,
     )  # fmt: skip
+    return 0
+
+
+@nb.njit(cache=True, inline="always")
+def _scan_one(field, x, y, th, geometry, cos_a, sin_a, seed, noise, ranges, out):
+    """Mount pose, exact cast and noise of one scan (see :func:`scan_with_noise`); a status."""
+    if exact_one(field, x, y, th, geometry, cos_a, sin_a, ranges):
+        return 1
     return add_beam_noise(ranges, seed, noise, out)
 
 

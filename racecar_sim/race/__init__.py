@@ -1,0 +1,21 @@
+"""Several cars in one world: :class:`RaceEnv` (PettingZoo, extra ``race``), tracks, laps, grid.
+
+``RaceEnv`` is imported on first use, so the tracks and the single-agent race env work without
+pettingzoo installed.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from racecar_sim.race.track import Track, centerline_for_map, resolve_track, track_for_map
+
+__all__ = ["RaceEnv", "Track", "centerline_for_map", "resolve_track", "track_for_map"]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "RaceEnv":
+        from racecar_sim.race.env import RaceEnv
+
+        return RaceEnv
+    raise AttributeError(f"module 'racecar_sim.race' has no attribute {name!r}")

@@ -1,0 +1,162 @@
+"""Cars touching cars: each car's pymunk space holds the cars near it as moving boxes.
+
+Every car keeps its own :class:`~racecar_sim.physics.RacecarPhysics` (its space, its walls, its
+free steps), so the race's car is exactly the single env's car. Before a step, the cars that could
+touch within it (bounding circles closer than their reach) see each other: car ``j`` appears in
+car ``i``'s space as a kinematic box ("ghost") at ``j``'s pose, moving with ``j``'s velocity over
+the step, and the other way round. pymunk's contact solver then stops each car at the other's
+box (no overlap beyond pymunk's slop), and a ghost that keeps moving pushes the car it hits, so two
+cars driven into each other separate. Cars near another car step through pymunk; the others keep
+their free steps. The ghost boxes go when the cars are apart again.
+
+Contacts are recorded per car and step: ``-1`` for a wall, ``j`` for car ``j``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pymunk
+
+from racecar_sim.physics import CAR_COLLISION_TYPE, WALL_COLLISION_TYPE, RacecarPhysics
+
+__all__ = ["GHOST_COLLISION_TYPE", "WALL", "CarContacts", "near_pairs"]
+
+GHOST_COLLISION_TYPE = 3
+"""pymunk collision type of another car's box in a car's space."""
+WALL = -1
+"""Contact index of a wall (or anything of the map)."""
+_MARGIN = 0.1  # metres added to the reach of two cars before they see each other
+
+
+def near_pairs(centres: np.ndarray, radius: float, travel: np.ndarray) -> np.ndarray:
+    """(P, 2) index pairs i < j of the cars that could touch within a step.
+
+    Args:
+        centres: (N, 2) world centres of the boxes, metres.
+        radius: metres from a box's centre to its corners.
+        travel: (N,) metres each box's centre can move within the step.
+    """
+    diff = centres[:, None, :] - centres[None, :, :]
+    dist = np.hypot(diff[..., 0], diff[..., 1])
+    reach = 2.0 * radius + travel[:, None] + travel[None, :] + _MARGIN
+    i, j = np.nonzero(np.triu(dist < reach, 1))
+    return np.stack([i, j], axis=1)
+
+
+class CarContacts:
+    """Which cars see which in their pymunk spaces, and what each car touched in a step.
+
+    Args:
+        physics: every car's physics (one map, one car model).
+    """
+
+    def __init__(self, physics: list[RacecarPhysics]) -> None:
+        self.physics = physics
+        n = len(physics)
+        self.touched: list[set[int]] = [set() for _ in range(n)]
+        """Per car, what it touched since :meth:`clear`: :data:`WALL` or other cars' indices."""
+        self._ghosts: dict[tuple[int, int], tuple[pymunk.Body, pymunk.Poly]] = {}
+        self._shown: set[tuple[int, int]] = set()  # (i, j): car j's ghost is in car i's space
+        self._owner: dict[int, int] = {}  # id(ghost shape) -> the car it stands for
+        corners = [tuple(p) for p in physics[0]._local_corners.tolist()]
+        self._corners = corners
+        for i, p in enumerate(physics):
+            space = p.space
+            space.on_collision(CAR_COLLISION_TYPE, WALL_COLLISION_TYPE, pre_solve=self._wall(i))
+            space.on_collision(CAR_COLLISION_TYPE, GHOST_COLLISION_TYPE, pre_solve=self._car(i))
+
+    # ------------------------------------------------------------------ pymunk callbacks
+    def _wall(self, i: int):
+        physics, touched = self.physics[i], self.touched[i]
+
+        def on_wall(arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> None:
+            physics._contact = True
+            touched.add(WALL)
+
+        return on_wall
+
+    def _car(self, i: int):
+        physics, touched, owner = self.physics[i], self.touched[i], self._owner
+
+        def on_car(arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> None:
+            physics._contact = True
+            a, b = arbiter.shapes
+            touched.add(owner[id(b if a.collision_type == CAR_COLLISION_TYPE else a)])
+
+        return on_car
+
+    # ------------------------------------------------------------------ per step
+    def clear(self) -> None:
+        """Forget the contacts of the last step."""
+        for t in self.touched:
+            t.clear()
+
+    def remove_all(self) -> None:
+        """Take every ghost out of every space (a reset)."""
+        for i, j in list(self._shown):
+            self._hide(i, j)
+        for p in self.physics:
+            p.free_steps = True
+
+    def show(self, pairs: np.ndarray, poses: np.ndarray, velocities: np.ndarray) -> None:
+        """Show each other the cars of ``pairs`` (P, 2), hide the rest.
+
+        Args:
+            pairs: index pairs from :func:`near_pairs`.
+            poses: (N, 3) rear-axle world poses at the start of the step.
+            velocities: (N, 3) world velocities [vx, vy, omega] of the rear axles (m/s, rad/s)
+                over the step; the ghosts move with them.
+        """
+        want: set[tuple[int, int]] = set()
+        for i, j in pairs.tolist():
+            want.add((i, j))
+            want.add((j, i))
+        for key in self._shown - want:
+            self._hide(*key)
+        for i, j in want:
+            body = self._ghost(i, j)
+            body.position = (float(poses[j, 0]), float(poses[j, 1]))
+            body.angle = float(poses[j, 2])
+            body.velocity = (float(velocities[j, 0]), float(velocities[j, 1]))
+            body.angular_velocity = float(velocities[j, 2])
+            if (i, j) not in self._shown:
+                self.physics[i].space.add(body, self._ghosts[(i, j)][1])
+                self._shown.add((i, j))
+        busy = {i for i, _ in want}
+        for i, p in enumerate(self.physics):
+            p.free_steps = i not in busy  # pymunk must see the other car's box
+
+    def _ghost(self, i: int, j: int) -> pymunk.Body:
+        ghost = self._ghosts.get((i, j))
+        if ghost is None:
+            body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            shape = pymunk.Poly(body, self._corners)
+            shape.collision_type = GHOST_COLLISION_TYPE
+            shape.friction = self.physics[i].shape.friction
+            shape.elasticity = 0.0
+            ghost = (body, shape)
+            self._ghosts[(i, j)] = ghost
+            self._owner[id(shape)] = j
+        return ghost[0]
+
+    def _hide(self, i: int, j: int) -> None:
+        body, shape = self._ghosts[(i, j)]
+        self.physics[i].space.remove(body, shape)
+        self._shown.discard((i, j))
+
+
+def world_velocity(physics: RacecarPhysics) -> tuple[float, float, float]:
+    """World [vx, vy, omega] of a car's rear axle as its physics will move it next substep."""
+    if physics._free_valid:
+        f = physics._free
+        return float(f[3]), float(f[4]), float(f[5])
+    vx, vy = physics.body.velocity
+    return float(vx), float(vy), float(physics.body.angular_velocity)
+
+
+def bounding_radius(local_corners: np.ndarray) -> float:
+    """Metres from the box's centre to its farthest corner."""
+    centre = local_corners.mean(axis=0)
+    return float(math.sqrt(((local_corners - centre) ** 2).sum(axis=1).max()))

@@ -1,0 +1,324 @@
+"""RaceEnv: several racecars on one track, as a PettingZoo ``ParallelEnv``.
+
+Every car is the single env's car (``RacecarSim-v0``: its observation, action, noise and seeding)
+and every ``RacecarSim-v0`` setting applies to every car. What a race adds (see
+:class:`~racecar_sim.race.world.RaceWorld`): each lidar sees the other cars' boxes exactly as it
+sees walls, cars collide with each other as pymunk bodies, and on a track the info carries
+progress, laps, lap times and race order (:mod:`racecar_sim.race.laps`). Needs the ``race`` extra
+(``pip install 'racecar-sim[race]'``: pettingzoo).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import os
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+try:  # the race extra; without it RaceEnv still works (RacecarRace-v0 needs no pettingzoo)
+    from pettingzoo import ParallelEnv
+except ImportError:  # pragma: no cover - pettingzoo is in the dev extra
+    ParallelEnv = object  # type: ignore[assignment,misc]
+
+from racecar_sim.config import EnvConfig, merge_settings
+from racecar_sim.maps import OccupancyMap, resolve_map
+from racecar_sim.race.grid import start_grid
+from racecar_sim.race.laps import LapCounter
+from racecar_sim.race.track import LOOP_STARTS, Track, resolve_track
+from racecar_sim.race.world import RaceWorld
+from racecar_sim.render import MapRenderer
+from racecar_sim.vector_env import car_seeds
+
+__all__ = ["CAR_COLOURS", "RaceEnv"]
+
+CAR_COLOURS: tuple[tuple[int, int, int], ...] = (
+    (31, 119, 180), (214, 39, 40), (44, 160, 44), (255, 127, 14), (148, 103, 189),
+    (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207),
+)  # fmt: skip
+"""RGB colour of car ``i`` is ``CAR_COLOURS[i % 10]`` (matplotlib's tab10)."""
+
+
+class RaceEnv(ParallelEnv):
+    """``n_cars`` racecars on one map: a PettingZoo ``ParallelEnv`` with agents ``car_0`` ...
+
+    ## Spaces (per agent, as ``RacecarSim-v0``)
+    Action ``Box([-max_steer, -max_reverse_speed], [max_steer, max_speed])``: steer (rad),
+    speed (m/s), clipped to the box (NaN or infinity raise ``ValueError``). Observation
+    ``Dict(scan=Box(0, max_range, (n_beams,)), odom=Box(-inf, inf, (3,)))``: the lidar's ranges
+    (metres, walls and the other cars' boxes, with the beam noise) and the noisy car-frame twist.
+
+    ## Step
+    ``step(actions: dict[agent, action]) -> obs, rewards, terminations, truncations, infos``,
+    every dict keyed by the agents alive before the step. The reward is the single env's (metres
+    driven forwards along the heading, minus ``collision_penalty`` on a step with contact).
+    ``terminated`` on any contact (wall or car) unless ``terminate_on_collision=False``;
+    ``truncated`` after ``max_episode_steps``. A finished car leaves :attr:`agents` and stays where
+    it stopped, still seen and touched by the others.
+
+    ## Info (per agent)
+    ``pose`` (rear axle, world [x, y, theta]), ``twist``, ``collision`` (what the car touched
+    this step: ``"wall"``, ``"car_3"``, ... the first of ``contacts``; ``""`` for nothing),
+    ``contacts`` (all of them), ``time`` (s), ``new_scan``, ``rewards`` (named terms); on a track
+    also ``progress`` (m along the centerline since the start), ``lap`` (completed laps),
+    ``lap_times`` (s) and ``rank`` (1 = leading).
+
+    ## Reset
+    ``reset(seed=s)`` seeds car ``i`` with ``s + i`` (or a list of seeds);
+    ``options={"poses": array (N, 3)}`` places the cars (rear-axle world poses; ``ValueError``
+    naming the car that would overlap a wall or another car). Without poses the cars stand on the
+    track's staggered start grid (:func:`~racecar_sim.race.grid.start_grid`), or at random free
+    places clear of each other when there is no track. The same seed gives the same race.
+
+    Args:
+        map: as ``RacecarSim-v0`` (a bundled name, a map YAML or an :class:`OccupancyMap`).
+        n_cars: number of cars (agents ``car_0`` ... ``car_{n_cars-1}``).
+        config: as ``RacecarSim-v0``; keyword ``settings`` override it.
+        track: a centerline CSV (f1tenth's format), ``"auto"``, a :class:`Track`, or None: the
+            derived centerline on a bundled loop map (:data:`~racecar_sim.race.track.LOOP_STARTS`),
+            else no track.
+        max_episode_steps: truncate every agent after this many steps (None: never).
+        workers: threads casting the scans (default 1).
+        render_mode: ``"rgb_array"`` or None.
+    """
+
+    metadata: dict[str, Any] = {  # noqa: RUF012
+        "name": "racecar_race_v0",
+        "render_modes": ["rgb_array"],
+        "render_fps": 40,
+        "is_parallelizable": True,
+    }
+
+    def __init__(
+        self,
+        map: str | os.PathLike[str] | OccupancyMap | None = None,
+        n_cars: int = 2,
+        *,
+        config: str | os.PathLike[str] | Mapping[str, Any] | EnvConfig | None = None,
+        track: str | os.PathLike[str] | Track | None = None,
+        max_episode_steps: int | None = None,
+        workers: int = 1,
+        render_mode: str | None = None,
+        **settings: Any,
+    ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(
+                f"render_mode {render_mode!r} is not supported; use 'rgb_array' or None"
+            )
+        if max_episode_steps is not None and (
+            not isinstance(max_episode_steps, int)
+            or isinstance(max_episode_steps, bool)
+            or max_episode_steps < 1
+        ):
+            raise ValueError(
+                f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}"
+            )
+        cfg = merge_settings(config, {"map": map, "track": track, **settings})
+        grid = resolve_map(cfg.map)
+        spec = cfg.track
+        if spec is None and grid.name in LOOP_STARTS:
+            spec = "auto"
+        self.track: Track | None = resolve_track(spec, grid)
+        """The race's track (None: no progress, laps or grid)."""
+        self.config = dataclasses.replace(cfg, map=grid, track=None)  # the cars' own settings
+        self.world = RaceWorld(n_cars, self.config, workers=workers)
+        self.render_mode = render_mode
+        self.max_episode_steps = max_episode_steps
+        first = self.world.cars[0]
+        self.map = grid
+        self.dt = self.world.dt
+        self.car_params = first.car_params
+        self.lidar_params = first.lidar_params
+        self.metadata = {**self.metadata, "render_fps": max(1, round(1.0 / self.dt))}
+        self.possible_agents: list[str] = [f"car_{i}" for i in range(n_cars)]
+        self.agents: list[str] = []
+        self._index = {a: i for i, a in enumerate(self.possible_agents)}
+        self._obs_space: spaces.Dict = first.observation_space
+        self._act_space: spaces.Box = first.action_space
+        self._low = self._act_space.low.astype(np.float64)
+        self._high = self._act_space.high.astype(np.float64)
+        self._penalty = float(self.config.collision_penalty)
+        self._terminate = bool(self.config.terminate_on_collision)
+        self.laps: LapCounter | None = (
+            LapCounter(self.track, n_cars) if self.track is not None else None
+        )
+        self._active = np.zeros(n_cars, dtype=np.bool_)
+        self._n_steps = 0
+        self._renderer: MapRenderer | None = None
+
+    # ------------------------------------------------------------------ spaces
+    @functools.cache  # noqa: B019 - the same object every call (PettingZoo)
+    def observation_space(self, agent: str) -> spaces.Space:
+        """The agent's observation space (every car's is the single env's)."""
+        self._check_agent(agent)
+        return self._obs_space
+
+    @functools.cache  # noqa: B019
+    def action_space(self, agent: str) -> spaces.Space:
+        """The agent's action space: [steer rad, speed m/s]."""
+        self._check_agent(agent)
+        return self._act_space
+
+    def _check_agent(self, agent: str) -> None:
+        if agent not in self._index:
+            raise ValueError(
+                f"unknown agent {agent!r}; agents are car_0 ... car_{len(self._index) - 1}"
+            )
+
+    # ------------------------------------------------------------------ state
+    @property
+    def poses(self) -> np.ndarray:
+        """(N, 3) true rear-axle world poses of every car (a copy)."""
+        return self.world.poses.copy()
+
+    @property
+    def cars(self) -> list:
+        """Each car's :class:`~racecar_sim.env.RacecarEnv` (its physics, lidar and generator)."""
+        return self.world.cars
+
+    # ------------------------------------------------------------------ PettingZoo API
+    def reset(
+        self, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, dict[str, Any]]]:
+        """Start a race (see the class doc); returns ``(observations, infos)`` per agent."""
+        n = self.world.n_cars
+        seeds = car_seeds(seed, n)
+        options = dict(options or {})
+        unknown = sorted(set(options) - {"poses"})
+        if unknown:
+            gym.logger.warn(f"RaceEnv.reset ignores unknown option(s) {unknown}; known: ['poses']")
+        poses = options.get("poses")
+        if poses is None and self.track is not None:
+            for car, s in zip(self.world.cars, seeds, strict=True):
+                gym.Env.reset(car, seed=s)  # the grid draws nothing; seeding first keeps it simple
+            poses = start_grid(
+                self.track, n, self.car_params, self.world.cars[0].physics.pose_is_free
+            )
+        try:
+            self.world.reset(seeds, poses)
+        except ValueError as exc:
+            raise ValueError(f"reset options['poses']: {exc}") from None
+        self.agents = self.possible_agents[:]
+        self._active[:] = True
+        self._n_steps = 0
+        if self.laps is not None:
+            self.laps.reset(self.world.poses[:, :2])
+        zero = np.zeros(n)
+        no_contact = np.zeros(n, dtype=np.bool_)
+        return self._observations(self.agents), self._infos(self.agents, no_contact, zero, zero)
+
+    def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+        """Drive every live agent by its action ``[steer rad, speed m/s]`` for ``dt`` seconds.
+
+        Raises:
+            ValueError: an action for an agent that is not alive, a missing action, or an action
+                that is not two finite numbers (the agent named).
+        """
+        n = self.world.n_cars
+        alive = self.agents
+        extra = sorted(set(actions) - set(alive))
+        if extra:
+            raise ValueError(f"actions for agents not alive: {extra}; alive: {alive}")
+        acts = np.zeros((n, 2))
+        for agent in alive:
+            if agent not in actions:
+                raise ValueError(f"no action for live agent {agent!r}")
+            try:
+                a = np.asarray(actions[agent], dtype=np.float64).reshape(2)
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"action of {agent} must be two numbers [steer, speed], got {actions[agent]!r}"
+                ) from None
+            if not np.isfinite(a).all():
+                raise ValueError(
+                    f"action of {agent} must be finite [steer, speed], got {a.tolist()}"
+                )
+            acts[self._index[agent]] = a
+        acts = np.minimum(np.maximum(acts, self._low), self._high)
+        collided = self.world.step(acts, self._active)
+        self._n_steps += 1
+        idx = np.flatnonzero(self._active)
+        if self.laps is not None:
+            self.laps.update(self.world.poses[:, :2], self.world.time, self.dt, idx)
+        progress = self.world.twists[:, 0] * self.dt
+        penalty = np.where(collided, -self._penalty, 0.0)
+        rewards = progress + penalty
+        term = collided & self._terminate
+        trunc = self.max_episode_steps is not None and self._n_steps >= self.max_episode_steps
+        obs = self._observations(alive)
+        infos = self._infos(alive, collided, progress, penalty)
+        rew = {a: float(rewards[self._index[a]]) for a in alive}
+        terminations = {a: bool(term[self._index[a]]) for a in alive}
+        truncations = dict.fromkeys(alive, bool(trunc))
+        self.agents = [a for a in alive if not (terminations[a] or truncations[a])]
+        self._active[:] = False
+        self._active[[self._index[a] for a in self.agents]] = True
+        return obs, rew, terminations, truncations, infos
+
+    def render(self) -> np.ndarray | None:
+        """RGB uint8 (H, W, 3): the map, every car's last scan hits and its box in its own colour
+        (:data:`CAR_COLOURS`), the track's centerline when there is one."""
+        if self.render_mode is None:
+            gym.logger.warn(
+                "render() called without a render_mode; make the env with render_mode='rgb_array'"
+            )
+            return None
+        if self._renderer is None:
+            self._renderer = MapRenderer(self.map)
+        renderer = self._renderer
+        img = renderer.base()
+        if self.track is not None:
+            import cv2
+
+            line = renderer.world_to_pixel(self.track.points)
+            cv2.polylines(img, [line], True, (200, 200, 200), 1)
+        world = self.world
+        lidar = world.cars[0].lidar
+        for i, car in enumerate(world.cars):
+            colour = CAR_COLOURS[i % len(CAR_COLOURS)]
+            light = tuple(int(c + (255 - c) * 0.5) for c in colour)
+            renderer.draw_scan(img, lidar.mount_pose(np.array(car._scan_car_pose)), car._scan, lidar.angles,
+                               colour=light, max_range=self.lidar_params.max_range)  # fmt: skip
+        for i, box in enumerate(world.boxes()):
+            renderer.draw_car(img, box, CAR_COLOURS[i % len(CAR_COLOURS)])
+        return img
+
+    def close(self) -> None:
+        """Release the renderer (the env stays usable)."""
+        self._renderer = None
+
+    # ------------------------------------------------------------------ internals
+    def _observations(self, agents: list[str]) -> dict[str, dict[str, np.ndarray]]:
+        scans, odom = self.world.scans, self.world.odom
+        return {
+            a: {"scan": scans[i].copy(), "odom": odom[i].copy()}
+            for a in agents
+            for i in (self._index[a],)
+        }
+
+    def _infos(
+        self, agents: list[str], collided: np.ndarray, progress: np.ndarray, penalty: np.ndarray
+    ) -> dict:
+        world = self.world
+        ranks = self.laps.ranks() if self.laps is not None else None
+        infos = {}
+        for a in agents:
+            i = self._index[a]
+            contacts = world.touched(i) if collided[i] else ()
+            info = {
+                "pose": world.poses[i].copy(),
+                "twist": world.twists[i].copy(),
+                "collision": contacts[0] if contacts else "",
+                "contacts": contacts,
+                "time": world.cars[i].time,
+                "new_scan": bool(world.fresh[i]),
+                "rewards": {"progress": float(progress[i]), "collision": float(penalty[i])},
+            }
+            if self.laps is not None:
+                info.update(self.laps.info(ranks, i))
+            infos[a] = info
+        return infos
