@@ -293,12 +293,15 @@ class RaceEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ internals
     def _observations(self, agents: list[str]) -> dict[str, dict[str, np.ndarray]]:
-        scans, odom = self.world.scans, self.world.odom
-        return {
-            a: {"scan": scans[i].copy(), "odom": odom[i].copy()}
-            for a in agents
-            for i in (self._index[a],)
-        }
+        scans, odom, imu = self.world.scans, self.world.odom, self.world.imu
+        with_imu = "imu" in self._obs_space.spaces
+        out = {}
+        for a in agents:
+            i = self._index[a]
+            out[a] = {"scan": scans[i].copy(), "odom": odom[i].copy()}
+            if with_imu:
+                out[a]["imu"] = imu[i].copy()
+        return out
 
     def _infos(
         self, agents: list[str], collided: np.ndarray, progress: np.ndarray, penalty: np.ndarray

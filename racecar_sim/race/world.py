@@ -61,8 +61,8 @@ class RaceWorld:
             cores.
 
     Raises:
-        ValueError: a setting the batched cast does not know (scan effects, odometry bias,
-            obstacles), ``n_cars`` < 1.
+        ValueError: a setting the race's cast does not know (scan effects, obstacles),
+            ``n_cars`` < 1.
     """
 
     def __init__(self, n_cars: int, config: EnvConfig, workers: int = 1) -> None:
@@ -70,9 +70,7 @@ class RaceWorld:
             raise ValueError(f"n_cars must be a positive integer, got {n_cars!r}")
         if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
             raise ValueError(f"workers must be a positive integer, got {workers!r}")
-        extras = [
-            n for n in ("scan_effects", "odom_bias", "obstacles") if getattr(config, n) is not None
-        ]
+        extras = [n for n in ("scan_effects", "obstacles") if getattr(config, n) is not None]
         if extras:
             raise ValueError(
                 f"a race does not support {', '.join(extras)} (set by a noise profile or given); "
@@ -99,7 +97,6 @@ class RaceWorld:
         self.radius = bounding_radius(self._corners)
         """Metres from a car box's centre to its corners."""
         self._speed_factor = float(first.physics._free_const[6])
-        self._odo_prop, self._odo_add = first.odometry._prop, first.odometry._add
         self._workers = workers
         self._threaded = n_cars * self.lidar_params.n_beams >= PARALLEL_MIN_RAYS and workers > 1
         n, m = n_cars, self.lidar_params.n_beams
@@ -110,6 +107,9 @@ class RaceWorld:
         self.ranges = np.zeros((n, m))
         """(N, n_beams) the exact ranges of the last scan (walls and cars, no noise), metres."""
         self.odom = np.zeros((n, 3), dtype=np.float32)
+        """(N, 3) the last odometry of every car (the VESC's noisy car-frame twist)."""
+        self.imu = np.zeros((n, 1), dtype=np.float32)
+        """(N, 1) the last IMU yaw rate of every car (rad/s; zeros without the ``imu`` setting)."""
         self.twists = np.zeros((n, 3))
         self.fresh = np.zeros(n, dtype=np.bool_)
         self.time = 0.0
@@ -169,6 +169,7 @@ class RaceWorld:
             car.physics.reset(arr[i])
             car._n_steps = 0
             car.time = 0.0
+            car.command_delay.reset(car.physics.steer, car.physics.wheel_speed)
         self.time = 0.0
         self.poses = np.array([car.physics.pose for car in self.cars])
         self.twists = np.array([car.physics.twist for car in self.cars])
@@ -184,6 +185,11 @@ class RaceWorld:
         are seen and touched where they stand. Returns the collided flags (N,)."""
         n = self.n_cars
         stepped = np.flatnonzero(active).tolist()
+        if self.cars[0].command_delay.n:  # the body gets each command odom_lead late (vesc.py)
+            actions = actions.copy()
+            for i in stepped:
+                delay = self.cars[i].command_delay
+                actions[i] = delay.push(float(actions[i, 0]), float(actions[i, 1]))
         poses = self.poses
         vel = np.zeros((n, 3))
         travel = np.zeros(n)
@@ -251,14 +257,11 @@ class RaceWorld:
             self.cars[i]._store_scan(self.poses[i], out[j])
 
     def _measure_odometry(self, cars: np.ndarray) -> None:
-        """The odometry of ``cars`` from their twists: each car's six normals from its generator,
-        the single env's arithmetic (:meth:`racecar_sim.sensors.Odometry.noisy`) on arrays."""
-        if len(cars) == 0:
-            return
-        z = np.empty((len(cars), 6))
-        for j, i in enumerate(cars.tolist()):
-            self.cars[i].np_random.standard_normal(out=z[j])
-        twist = self.twists[cars]
-        self.odom[cars] = (
-            twist * (1.0 + self._odo_prop * z[:, :3]) + self._odo_add * z[:, 3:]
-        ).astype(np.float32)
+        """The observations of ``cars`` after their scans: the single env's own
+        (:meth:`RacecarEnv._observation`: the VESC odometry, its bias and lead, the IMU), drawn
+        from each car's generator in the single env's order."""
+        for i in cars.tolist():
+            obs = self.cars[i]._observation(self.twists[i])
+            self.odom[i] = obs["odom"]
+            if "imu" in obs:
+                self.imu[i] = obs["imu"]

@@ -23,7 +23,7 @@ def test_opponents_drive_their_own_speeds_and_car_0_sees_them():
     obs, info = env.reset(seed=1)
     start = info["opponent_poses"].copy()
     for _ in range(80):  # 2 s, car 0 stays on the grid
-        obs, _, term, _, info = env.step(np.array([0.0, 0.0], dtype=np.float32))
+        _, _, term, _, info = env.step(np.array([0.0, 0.0], dtype=np.float32))
         assert not term
     moved = np.hypot(*(info["opponent_poses"][:, :2] - start[:, :2]).T)
     assert (moved > 1.0).all()  # both opponents are racing
@@ -34,6 +34,7 @@ def test_make_vec_works():
     obs, _ = vec.reset(seed=0)
     assert obs["scan"].shape == (2, 61)
     obs, rew, term, trunc, _ = vec.step(np.zeros((2, 2), dtype=np.float32))
+    assert obs["scan"].shape == (2, 61) and term.shape == trunc.shape == (2,)
     assert rew.shape == (2,)
     vec.close()
 
