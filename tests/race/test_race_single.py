@@ -15,12 +15,12 @@ def test_check_env_passes():
     check_env(env.unwrapped, skip_render_check=True)
 
 
-def test_opponents_drive_their_own_speeds_and_car_0_sees_them():
+def test_opponents_race_on_their_own_drivers():
     env = gym.make(
         "RacecarRace-v0", map="basement_loop", opponents=2, opponent_driver=["pure_pursuit", "wall_follower"],
         opponent_speeds=[2.0, 1.5], n_beams=61,
     )  # fmt: skip
-    obs, info = env.reset(seed=1)
+    _, info = env.reset(seed=1)
     start = info["opponent_poses"].copy()
     for _ in range(80):  # 2 s, car 0 stays on the grid
         _, _, term, _, info = env.step(np.array([0.0, 0.0], dtype=np.float32))
