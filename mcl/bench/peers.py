@@ -4,6 +4,10 @@
   on range_libc's giant lookup table, Stata basement, 4 000 particles x 100 beams by default;
   skipped with a message when ``range_libc`` is not importable.
 
+* races (:mod:`mcl.bench.peer_race`): agent-steps per second of ``--race-cars`` cars one behind
+  the other, every car scanning every step, against f1tenth_gym's multi-agent env, and our race
+  alone at ``--race-max-cars`` cars.
+
 * f1tenth_gym (:mod:`mcl.bench.peer_f1tenth`): simulator steps per second on f1tenth_gym's own
   workload (one car, 1080 beams over 4.7 rad, 30 m, a scan every step, dt 0.01 s, slalom at
   1 m/s), our single env and our vector env of ``--num-envs`` cars interleaved with it round by
@@ -15,7 +19,7 @@ in :func:`add_arguments`. Every part prints its workload (particles, beams, rang
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
-        [--only rangelibc|f1tenth] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
+        [--only rangelibc|f1tenth|race] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
         [--sim-steps 1000] [--sim-runs 5] [--num-envs 32]
 """
 
@@ -43,13 +47,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--threads", type=int, nargs="+", default=[1, 2], help="numba threads for ours"
     )
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--only", choices=("rangelibc", "f1tenth"), help="run one part only")
+    parser.add_argument(
+        "--only", choices=("rangelibc", "f1tenth", "race"), help="run one part only"
+    )
     parser.add_argument("--f1tenth-python", help="python of a venv with f1tenth_gym installed")
     parser.add_argument("--f1tenth-path", help="the f1tenth_gym checkout (branch dev-dynamics)")
     parser.add_argument("--sim-steps", type=int, default=1000, help="steps per simulator run")
     parser.add_argument("--sim-runs", type=int, default=5, help="simulator runs (median)")
     parser.add_argument("--num-envs", type=int, default=32, help="cars in our vector env")
     parser.add_argument("--vector-steps", type=int, default=300, help="steps per vector run")
+    parser.add_argument(
+        "--race-cars", type=int, nargs="+", default=[2, 4, 8, 16], help="cars per race (race part)"
+    )
+    parser.add_argument("--race-max-cars", type=int, default=32, help="cars of our race alone")
+    parser.add_argument("--race-steps", type=int, default=300, help="steps per race run")
+    parser.add_argument("--race-runs", type=int, default=3, help="race rounds (median)")
+    parser.add_argument(
+        "--race-spacing", type=float, default=1.0, help="metres between the cars' rear axles"
+    )
 
 
 def rangelibc_part(args: argparse.Namespace) -> int:
@@ -74,12 +89,8 @@ def rangelibc_part(args: argparse.Namespace) -> int:
     return 0
 
 
-def f1tenth_part(args: argparse.Namespace) -> int:
-    """Simulator steps per second against f1tenth_gym on its workload (peer in its own venv)."""
-    from mcl.bench import peer_f1tenth
-    from racecar_sim.maps import load_map
-
-    print("== simulator vs f1tenth_gym (its workload), one run ==")
+def _check_peer_flags(args: argparse.Namespace) -> int:
+    """2 (after a one-line error naming the flag) when the f1tenth_gym flags are unusable, else 0."""
     if bool(args.f1tenth_python) != bool(args.f1tenth_path):
         print("racecar-sim bench peers: error: give both --f1tenth-python and --f1tenth-path",
               file=sys.stderr)  # fmt: skip
@@ -89,6 +100,18 @@ def f1tenth_part(args: argparse.Namespace) -> int:
         if value and not Path(value).exists():
             print(f"racecar-sim bench peers: error: {flag} {value} does not exist", file=sys.stderr)
             return 2
+    return 0
+
+
+def f1tenth_part(args: argparse.Namespace) -> int:
+    """Simulator steps per second against f1tenth_gym on its workload (peer in its own venv)."""
+    from mcl.bench import peer_f1tenth
+    from racecar_sim.maps import load_map
+
+    print("== simulator vs f1tenth_gym (its workload), one run ==")
+    status = _check_peer_flags(args)
+    if status:
+        return status
     peer_f1tenth.compare(
         load_map(args.map),
         args.map,
@@ -102,7 +125,34 @@ def f1tenth_part(args: argparse.Namespace) -> int:
     return 0
 
 
-PARTS: list[Callable[[argparse.Namespace], int]] = [rangelibc_part, f1tenth_part]
+def race_part(args: argparse.Namespace) -> int:
+    """Agent-steps per second of a race against f1tenth_gym's multi-agent env (every car scans)."""
+    from mcl.bench import peer_race
+    from racecar_sim.maps import load_map
+
+    print("== race vs f1tenth_gym's multi-agent env, one run ==")
+    status = _check_peer_flags(args)
+    if status:
+        return status
+    try:
+        peer_race.compare_race(
+            load_map(args.map),
+            args.map,
+            args.f1tenth_python,
+            args.f1tenth_path,
+            sizes=tuple(args.race_cars),
+            max_cars=args.race_max_cars,
+            steps=args.race_steps,
+            runs=args.race_runs,
+            spacing=args.race_spacing,
+        )
+    except ValueError as exc:
+        print(f"racecar-sim bench peers: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+PARTS: list[Callable[[argparse.Namespace], int]] = [rangelibc_part, f1tenth_part, race_part]
 """The peer comparisons run by :func:`main`, in order."""
 
 
@@ -117,7 +167,9 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"--{name} must be at least 1")
     if any(t < 1 for t in args.threads):
         parser.error("--threads must be at least 1")
-    for name in ("sim_steps", "sim_runs", "num_envs", "vector_steps"):
+    if any(n < 1 for n in args.race_cars) or args.race_max_cars < 1 or not args.race_spacing > 0:
+        parser.error("--race-cars and --race-max-cars must be at least 1, --race-spacing positive")
+    for name in ("sim_steps", "sim_runs", "num_envs", "vector_steps", "race_steps", "race_runs"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be at least 1")
     if not args.map.is_file():

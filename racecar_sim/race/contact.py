@@ -30,19 +30,21 @@ WALL = -1
 _MARGIN = 0.1  # metres added to the reach of two cars before they see each other
 
 
-def near_pairs(centres: np.ndarray, radius: float, travel: np.ndarray) -> np.ndarray:
+def near_pairs(
+    centres: np.ndarray, radius: float, travel: np.ndarray, pairs: tuple[np.ndarray, np.ndarray]
+) -> np.ndarray:
     """(P, 2) index pairs i < j of the cars that could touch within a step.
 
     Args:
         centres: (N, 2) world centres of the boxes, metres.
         radius: metres from a box's centre to its corners.
         travel: (N,) metres each box's centre can move within the step.
+        pairs: every pair (i, j), i < j, as ``numpy.triu_indices(N, 1)``.
     """
-    diff = centres[:, None, :] - centres[None, :, :]
-    dist = np.hypot(diff[..., 0], diff[..., 1])
-    reach = 2.0 * radius + travel[:, None] + travel[None, :] + _MARGIN
-    i, j = np.nonzero(np.triu(dist < reach, 1))
-    return np.stack([i, j], axis=1)
+    i, j = pairs
+    d = centres[i] - centres[j]
+    near = np.hypot(d[:, 0], d[:, 1]) < 2.0 * radius + travel[i] + travel[j] + _MARGIN
+    return np.stack([i[near], j[near]], axis=1)
 
 
 class CarContacts:

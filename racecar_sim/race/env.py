@@ -293,33 +293,38 @@ class RaceEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ internals
     def _observations(self, agents: list[str]) -> dict[str, dict[str, np.ndarray]]:
-        scans, odom, imu = self.world.scans, self.world.odom, self.world.imu
-        with_imu = "imu" in self._obs_space.spaces
-        out = {}
-        for a in agents:
-            i = self._index[a]
-            out[a] = {"scan": scans[i].copy(), "odom": odom[i].copy()}
-            if with_imu:
-                out[a]["imu"] = imu[i].copy()
-        return out
+        # One copy of each array; the agents get rows of it (the world overwrites its own).
+        scans, odom = self.world.scans.copy(), self.world.odom.copy()
+        index = self._index
+        if "imu" not in self._obs_space.spaces:
+            return {a: {"scan": scans[index[a]], "odom": odom[index[a]]} for a in agents}
+        imu = self.world.imu.copy()
+        return {
+            a: {"scan": scans[index[a]], "odom": odom[index[a]], "imu": imu[index[a]]}
+            for a in agents
+        }
 
     def _infos(
         self, agents: list[str], collided: np.ndarray, progress: np.ndarray, penalty: np.ndarray
     ) -> dict:
         world = self.world
         ranks = self.laps.ranks() if self.laps is not None else None
+        poses, twists = world.poses.copy(), world.twists.copy()  # rows of one copy each
+        fresh = world.fresh.tolist()
+        prog, pen, hit = progress.tolist(), penalty.tolist(), collided.tolist()
+        cars = world.cars
         infos = {}
         for a in agents:
             i = self._index[a]
-            contacts = world.touched(i) if collided[i] else ()
+            contacts = world.touched(i) if hit[i] else ()
             info = {
-                "pose": world.poses[i].copy(),
-                "twist": world.twists[i].copy(),
+                "pose": poses[i],
+                "twist": twists[i],
                 "collision": contacts[0] if contacts else "",
                 "contacts": contacts,
-                "time": world.cars[i].time,
-                "new_scan": bool(world.fresh[i]),
-                "rewards": {"progress": float(progress[i]), "collision": float(penalty[i])},
+                "time": cars[i].time,
+                "new_scan": fresh[i],
+                "rewards": {"progress": prog[i], "collision": pen[i]},
             }
             if self.laps is not None:
                 info.update(self.laps.info(ranks, i))

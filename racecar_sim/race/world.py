@@ -28,6 +28,7 @@ from racecar_sim.race.lidar import car_boxes, race_scans_serial, race_scans_shar
 from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.shared_work import run_shared
+from racecar_sim.vesc import wheel_twist
 
 __all__ = ["RaceWorld", "boxes_overlap"]
 
@@ -84,7 +85,10 @@ class RaceWorld:
         self.dt = first.dt
         self.car_params = first.car_params
         self.lidar_params = first.lidar_params
+        self._odo_prop, self._odo_add = first.odometry._prop, first.odometry._add
         self._physics = FreeStepBatch([c.physics for c in self.cars])
+        self._phys = [c.physics for c in self.cars]
+        self._pairs = np.triu_indices(n_cars, 1)
         self.contacts = CarContacts([c.physics for c in self.cars])
         lidar = first.lidar
         self._field, self._geometry = lidar._caster.field, lidar._geometry
@@ -192,18 +196,26 @@ class RaceWorld:
                 actions[i] = delay.push(float(actions[i, 0]), float(actions[i, 1]))
         poses = self.poses
         vel = np.zeros((n, 3))
-        travel = np.zeros(n)
+        speed = np.zeros(n)
+        phys = self._phys
+        in_states = []  # cars whose motion state is in the free-step rows (pymunk's body lags)
         for i in stepped:
-            p = self.cars[i].physics
-            vel[i] = world_velocity(p)
-            travel[i] = self.dt * max(abs(p.speed), abs(float(actions[i, 1]))) * self._speed_factor
+            p = phys[i]
+            speed[i] = p.speed
+            if p._free_valid:
+                in_states.append(i)
+            else:
+                vel[i] = world_velocity(p)
+        vel[in_states] = self._physics.states[in_states, 3:6]
+        travel = self.dt * np.maximum(np.abs(speed), np.abs(actions[:, 1])) * self._speed_factor
+        travel[~active] = 0.0
         c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
         centres = poses[:, :2] + np.stack(
             [c * self._centre[0] - s * self._centre[1], s * self._centre[0] + c * self._centre[1]],
             axis=1,
         )
         self.contacts.clear()
-        self.contacts.show(near_pairs(centres, self.radius, travel), poses, vel)
+        self.contacts.show(near_pairs(centres, self.radius, travel, self._pairs), poses, vel)
         hits, free = self._physics.step(stepped, actions, self.dt)
         collided = np.zeros(n, dtype=np.bool_)
         collided[stepped] = hits
@@ -257,11 +269,27 @@ class RaceWorld:
             self.cars[i]._store_scan(self.poses[i], out[j])
 
     def _measure_odometry(self, cars: np.ndarray) -> None:
-        """The observations of ``cars`` after their scans: the single env's own
-        (:meth:`RacecarEnv._observation`: the VESC odometry, its bias and lead, the IMU), drawn
-        from each car's generator in the single env's order."""
-        for i in cars.tolist():
-            obs = self.cars[i]._observation(self.twists[i])
-            self.odom[i] = obs["odom"]
-            if "imu" in obs:
-                self.imu[i] = obs["imu"]
+        """The odometry (and IMU) of ``cars`` after their scans, as the single env measures it
+        (:meth:`RacecarEnv._observation`), drawn from each car's generator in its order: with an
+        IMU, an odometry bias or lead, the single env's own call per car; else the VESC's twist
+        from the wheels and the noise on arrays (the same draws and double operations)."""
+        if len(cars) == 0:
+            return
+        first = self.cars[0]
+        if first.imu is not None or first.odom_bias is not None or first.command_delay.n:
+            for i in cars.tolist():
+                obs = self.cars[i]._observation(self.twists[i])
+                self.odom[i] = obs["odom"]
+                if "imu" in obs:
+                    self.imu[i] = obs["imu"]
+            return
+        k = len(cars)
+        z = np.empty((k, 6))
+        wheels = np.empty((k, 3))
+        wheelbase = first._wheelbase
+        for j, i in enumerate(cars.tolist()):
+            p = self._phys[i]
+            wheels[j] = wheel_twist(p.wheel_speed, p.steer, wheelbase)
+            self.cars[i].np_random.standard_normal(out=z[j])
+        prop, add = self._odo_prop, self._odo_add
+        self.odom[cars] = (wheels * (1.0 + prop * z[:, :3]) + add * z[:, 3:]).astype(np.float32)
