@@ -41,7 +41,7 @@ import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
 
-__all__ = ["ENV_SETTINGS", "PEER_SCRIPT", "WORKLOAD", "compare", "slalom", "start_pose"]
+__all__ = ["ENV_SETTINGS", "PEER_PREAMBLE", "PEER_SCRIPT", "WORKLOAD", "compare", "slalom", "start_pose"]
 
 ENV_SETTINGS: dict[str, Any] = {
     "n_beams": 1080,
@@ -84,7 +84,7 @@ def start_pose(grid: OccupancyMap, length: float, clearance: float = 1.0) -> np.
     return poses[best]
 
 
-PEER_SCRIPT = r"""
+PEER_PREAMBLE = r"""
 import json, math, os, sys, tempfile, time
 cfg = json.loads(sys.argv[1])
 sys.path.insert(0, cfg["path"])
@@ -107,6 +107,11 @@ with tempfile.TemporaryDirectory() as tmp:
     with open(os.path.join(tmp, "map.yaml"), "w") as f:
         yaml.safe_dump(keys, f)
     track = Track.from_track_path(os.path.join(tmp, "map.yaml"))
+"""
+"""The start of a peer script: reads ``cfg`` (JSON in ``argv[1]``), imports f1tenth_gym from
+its checkout and loads the map as its ``Track`` (a converted copy in a temporary folder)."""
+
+PEER_SCRIPT = PEER_PREAMBLE + r"""
 env = gym.make("f1tenth_gym:f1tenth-v0", config={
     "map": track, "num_agents": 1, "timestep": 0.01, "integrator": "rk4", "model": "st",
     "control_input": ["speed", "steering_angle"], "observation_config": {"type": "original"},
@@ -137,11 +142,13 @@ for line in sys.stdin:
 class _Peer:
     """The f1tenth_gym subprocess (see :data:`PEER_SCRIPT`)."""
 
-    def __init__(self, python: str, path: str, map_yaml: Path, pose: np.ndarray) -> None:
+    def __init__(
+        self, python: str, path: str, map_yaml: Path, pose: np.ndarray, script: str = PEER_SCRIPT
+    ) -> None:
         cfg = {"path": path, "map": str(map_yaml), "pose": [float(v) for v in pose],
                "steer": STEER, "speed": SPEED}  # fmt: skip
         self.proc = subprocess.Popen(
-            [python, "-c", PEER_SCRIPT, json.dumps(cfg)],
+            [python, "-c", script, json.dumps(cfg)],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             env={**os.environ, "PYTHONPATH": ""},
         )  # fmt: skip

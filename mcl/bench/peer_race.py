@@ -7,7 +7,7 @@ rear axles, every car a 1080-beam lidar over 4.7 rad out to 30 m with a fresh sc
 (:func:`~mcl.bench.peer_f1tenth.slalom`), so they follow each other without crashing (checked:
 collisions are reported). Only the step is timed. f1tenth_gym (branch dev-dynamics) runs in its
 own venv as a subprocess (:mod:`mcl.bench.peer_f1tenth`), our :class:`racecar_sim.RaceEnv` in
-this process on one thread (``workers=1``); the two are interleaved size by size, round by round,
+this process, its scans cast on ``--race-workers`` threads (default 1); the two are interleaved size by size, round by round,
 and the report gives medians of agent-steps per second and the median of the per-round ratios.
 A last row times our race alone at ``--race-max-cars`` cars (beyond what f1tenth_gym is run at).
 """
@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from mcl.bench.peer_f1tenth import ENV_SETTINGS, SPEED, STEER, slalom
+from mcl.bench.peer_f1tenth import ENV_SETTINGS, PEER_PREAMBLE, SPEED, _Peer, slalom
 from racecar_sim.maps import OccupancyMap
 
 __all__ = ["RACE_PEER_SCRIPT", "WORKLOAD", "column_poses", "column_start", "compare_race"]
@@ -77,29 +77,7 @@ def column_poses(start: np.ndarray, n: int, spacing: float) -> np.ndarray:
     return out
 
 
-RACE_PEER_SCRIPT = r"""
-import json, math, os, sys, tempfile, time
-cfg = json.loads(sys.argv[1])
-sys.path.insert(0, cfg["path"])
-import numpy as np, yaml
-from PIL import Image
-import gymnasium as gym
-import f1tenth_gym
-from f1tenth_gym.envs.track import Track
-
-src = cfg["map"]
-with open(src) as f:
-    spec = yaml.safe_load(f)
-with tempfile.TemporaryDirectory() as tmp:
-    Image.open(os.path.join(os.path.dirname(src), spec["image"])).convert("L").save(
-        os.path.join(tmp, "map.png"))
-    keys = {"image": "map.png", "resolution": float(spec["resolution"]),
-            "origin": [float(v) for v in spec["origin"]], "negate": int(spec.get("negate", 0)),
-            "occupied_thresh": float(spec.get("occupied_thresh", 0.65)),
-            "free_thresh": float(spec.get("free_thresh", 0.196))}
-    with open(os.path.join(tmp, "map.yaml"), "w") as f:
-        yaml.safe_dump(keys, f)
-    track = Track.from_track_path(os.path.join(tmp, "map.yaml"))
+RACE_PEER_SCRIPT = PEER_PREAMBLE + r"""
 envs = {}
 print(json.dumps({"ready": True, "module": f1tenth_gym.__file__,
                   "gymnasium": gym.__version__}), flush=True)
@@ -151,18 +129,8 @@ class _RacePeer:
     """The f1tenth_gym subprocess of :data:`RACE_PEER_SCRIPT`."""
 
     def __init__(self, python: str, path: str, map_yaml: Path) -> None:
-        import subprocess
-
-        from mcl.bench.peer_f1tenth import _Peer
-
-        cfg = {"path": path, "map": str(map_yaml), "steer": STEER, "speed": SPEED}
-        self._peer = _Peer.__new__(_Peer)
-        self._peer.proc = subprocess.Popen(
-            [python, "-c", RACE_PEER_SCRIPT, json.dumps(cfg)],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-            env={**os.environ, "PYTHONPATH": ""},
-        )  # fmt: skip
-        self.info = self._peer._answer("ready")
+        self._peer = _Peer(python, path, map_yaml, np.zeros(3), script=RACE_PEER_SCRIPT)
+        self.info = self._peer.info
 
     def run(self, steps: int, poses: np.ndarray) -> dict[str, Any]:
         proc = self._peer.proc
@@ -187,6 +155,7 @@ def compare_race(
     steps: int = 300,
     runs: int = 3,
     spacing: float = 1.0,
+    workers: int = 1,
 ) -> dict[int, dict[str, float]]:
     """Interleaved races of ``sizes`` cars in f1tenth_gym (when ``python`` and ``path`` are
     given) and in ours, then ours alone at ``max_cars``; prints the table, returns the medians."""
@@ -204,14 +173,14 @@ def compare_race(
     assert column is not None
     print(f"workload: {WORKLOAD}; map {grid.name}, rear car at {np.round(column, 2).tolist()}, "
           f"{spacing} m apart, {steps}-step races, {runs} rounds after a warm-up, only the step timed, "
-          "ours on one thread")  # fmt: skip
+          f"ours casting on {workers} thread(s), {max_cars} cars on one")  # fmt: skip
     peer = None
     if python and path:
         peer = _RacePeer(python, path, map_yaml)
         print(f"f1tenth_gym: {peer.info['module']} (gymnasium {peer.info['gymnasium']})")
     else:
         print("f1tenth_gym: not measured (give --f1tenth-python and --f1tenth-path)")
-    ours = {n: RaceEnv(grid, n_cars=n, track=None, **ENV_SETTINGS) for n in sizes}
+    ours = {n: RaceEnv(grid, n_cars=n, track=None, workers=workers, **ENV_SETTINGS) for n in sizes}
     rows: dict[int, dict[str, list[dict[str, Any]]]] = {n: {"peer": [], "ours": []} for n in sizes}
     extra: list[dict[str, Any]] = []
     try:
@@ -231,7 +200,7 @@ def compare_race(
                 poses = column_poses(
                     column_start(grid, (max_cars - 1) * spacing + 1.0), max_cars, spacing
                 )
-                big = RaceEnv(grid, n_cars=max_cars, track=None, **ENV_SETTINGS)
+                big = RaceEnv(grid, n_cars=max_cars, track=None, workers=1, **ENV_SETTINGS)
                 _run_ours(big, 30, poses, 0)
                 extra = [_run_ours(big, steps // 3, poses, r) for r in range(runs)]
             except ValueError as exc:

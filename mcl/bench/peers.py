@@ -62,6 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--race-max-cars", type=int, default=32, help="cars of our race alone")
     parser.add_argument("--race-steps", type=int, default=300, help="steps per race run")
     parser.add_argument("--race-runs", type=int, default=3, help="race rounds (median)")
+    parser.add_argument("--race-workers", type=int, default=1, help="threads casting our scans")
     parser.add_argument(
         "--race-spacing", type=float, default=1.0, help="metres between the cars' rear axles"
     )
@@ -145,6 +146,7 @@ def race_part(args: argparse.Namespace) -> int:
             steps=args.race_steps,
             runs=args.race_runs,
             spacing=args.race_spacing,
+            workers=args.race_workers,
         )
     except ValueError as exc:
         print(f"racecar-sim bench peers: error: {exc}", file=sys.stderr)
@@ -169,6 +171,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--threads must be at least 1")
     if any(n < 1 for n in args.race_cars) or args.race_max_cars < 1 or not args.race_spacing > 0:
         parser.error("--race-cars and --race-max-cars must be at least 1, --race-spacing positive")
+    if args.race_workers < 1:
+        parser.error("--race-workers must be at least 1")
     for name in ("sim_steps", "sim_runs", "num_envs", "vector_steps", "race_steps", "race_runs"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be at least 1")
