@@ -8,7 +8,8 @@ driving direction. The class and the loop recorder live in the simulator
 
 from __future__ import annotations
 
-from racecar_sim.race.track import LOOP_STARTS, Track, track_for_map
+from racecar_sim.race.loops import track_for_map
+from racecar_sim.race.track import LOOP_STARTS, Track
 
 __all__ = ["LOOP_STARTS", "Track", "loop_maps", "track_for_map"]
 

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from racecar_sim.race.track import Track, centerline_for_map, resolve_track, track_for_map
+from racecar_sim.race.track import Track, resolve_track
 
-__all__ = ["RaceEnv", "Track", "centerline_for_map", "resolve_track", "track_for_map"]
+__all__ = ["RaceEnv", "Track", "resolve_track"]
 
 
 def __getattr__(name: str) -> Any:

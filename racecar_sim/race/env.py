@@ -29,6 +29,7 @@ from racecar_sim.config import EnvConfig, merge_settings
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.race.grid import start_grid
 from racecar_sim.race.laps import LapCounter
+from racecar_sim.race.loops import centerline_for_map
 from racecar_sim.race.track import LOOP_STARTS, Track, resolve_track
 from racecar_sim.race.world import RaceWorld
 from racecar_sim.render import MapRenderer
@@ -122,7 +123,7 @@ class RaceEnv(ParallelEnv):
         spec = cfg.track
         if spec is None and grid.name in LOOP_STARTS:
             spec = "auto"
-        self.track: Track | None = resolve_track(spec, grid)
+        self.track: Track | None = resolve_track(spec, grid, auto=centerline_for_map)
         """The race's track (None: no progress, laps or grid)."""
         self.config = dataclasses.replace(cfg, map=grid, track=None)  # the cars' own settings
         self.world = RaceWorld(n_cars, self.config, workers=workers)

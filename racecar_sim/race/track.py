@@ -4,8 +4,7 @@ A :class:`Track` is a closed polyline of world points (metres) in driving order,
 to the right and to the left of each point. It loads from f1tenth's track format (a CSV with
 ``x_m, y_m, w_tr_right_m, w_tr_left_m`` per row, header lines starting with ``#``; their users'
 ``*_centerline.csv`` files load as they are), or is derived from a loop map
-(:func:`centerline_for_map`: the loop the wall follower drives, moved to the middle of the free
-space). The start line crosses the track at its first point; arc length ``s`` runs from there in
+(:func:`centre_loop` of the loop the wall follower drives, :mod:`racecar_sim.race.loops`). The start line crosses the track at its first point; arc length ``s`` runs from there in
 the driving direction. Frames: ``world`` (the map's) for the points and poses, ``car`` (x forward,
 y left, origin at the rear axle) for :meth:`Track.ahead`.
 """
@@ -14,8 +13,8 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from functools import lru_cache
 from pathlib import Path
 
 import numba as nb
@@ -24,7 +23,7 @@ import numpy as np
 from racecar_sim.drivers.pure_pursuit import resample_polyline
 from racecar_sim.maps import OccupancyMap
 
-__all__ = ["LOOP_STARTS", "Track", "centerline_for_map", "resolve_track", "track_for_map"]
+__all__ = ["LOOP_STARTS", "Track", "centre_loop", "resolve_track"]
 
 LOOP_STARTS: dict[str, tuple[float, float, float]] = {
     "basement_loop": (9.0, 2.5, 0.0),  # south hallway, driving east (island on the left)
@@ -225,33 +224,6 @@ class Track:
         return d - self.length if d > self.length / 2 else d
 
 
-@lru_cache(maxsize=4)
-def track_for_map(map_name: str, start: tuple[float, float, float] | None = None) -> Track:
-    """The loop the wall follower drives on ``map_name`` from ``start`` (default: the map's loop
-    start, :data:`LOOP_STARTS`), 0.25 m between points, oriented along the start heading;
-    computed once per process.
-
-    Raises:
-        ValueError: no start is known for the map and none is given, or the drive closes no loop.
-    """
-    from racecar_sim.drivers import WallFollower, waypoints_from_drive
-    from racecar_sim.env import RacecarEnv
-
-    if start is None:
-        if map_name not in LOOP_STARTS:
-            raise ValueError(
-                f"no loop start known for map {map_name!r}; give start=(x, y, theta) "
-                f"(known: {sorted(LOOP_STARTS)})"
-            )
-        start = LOOP_STARTS[map_name]
-    env = RacecarEnv(map_name)
-    try:
-        points = waypoints_from_drive(env, WallFollower(), start_pose=np.array(start), seed=0)
-    except RuntimeError as exc:
-        raise ValueError(f"map {map_name!r}: the wall follower closes no loop: {exc}") from exc
-    return Track(points)
-
-
 def _free_extent(grid: OccupancyMap, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """(K, 2) free metres from each point to the first occupied cell along -normal and +normal."""
     steps = np.arange(1, int(_WIDTH_REACH / (0.5 * grid.resolution)) + 1) * 0.5 * grid.resolution
@@ -295,32 +267,34 @@ def centre_loop(
     return Track(pts, np.stack([ext[:, 0], ext[:, 1]], axis=1))
 
 
-@lru_cache(maxsize=4)
-def centerline_for_map(map_name: str) -> Track:
-    """The centerline of a bundled loop map (:data:`LOOP_STARTS`): the wall follower's loop
-    (:func:`track_for_map`) centred between the walls, with widths; computed once per process."""
-    from racecar_sim.maps import resolve_map
-
-    return centre_loop(resolve_map(map_name), track_for_map(map_name).points)
-
-
-def resolve_track(spec: object, grid: OccupancyMap) -> Track | None:
+def resolve_track(
+    spec: object, grid: OccupancyMap, auto: Callable[[str], Track] | None = None
+) -> Track | None:
     """The track of the ``track`` setting: None (no track), a :class:`Track`, a CSV path
-    (f1tenth's centerline format) or ``"auto"`` (derived from the loop map, :data:`LOOP_STARTS`).
+    (f1tenth's centerline format) or ``"auto"``: ``auto(map name)``, the centerline derived from
+    a loop map (:func:`racecar_sim.race.loops.centerline_for_map`, which drives the map, so only
+    the race envs above the single env pass it).
 
     Raises:
-        ValueError: a file that is not a track, or ``"auto"`` on a map with no known loop.
+        ValueError: a file that is not a track, ``"auto"`` on a map with no known loop, or
+            ``"auto"`` where no derivation is given.
     """
     if spec is None or isinstance(spec, Track):
         return spec
     if isinstance(spec, str | os.PathLike):
         text = os.fspath(spec)
         if text == "auto":
+            if auto is None:
+                raise ValueError(
+                    "track='auto' derives the centerline by driving the map, which RaceEnv and "
+                    "RacecarRace-v0 do; here give a centerline CSV or a Track "
+                    "(racecar_sim.race.loops.centerline_for_map(name).to_csv(path))"
+                )
             if grid.name not in LOOP_STARTS:
                 raise ValueError(
                     f"track='auto': no loop known on map {grid.name!r} (known: {sorted(LOOP_STARTS)}); "
                     "give a centerline CSV"
                 )
-            return centerline_for_map(grid.name)
+            return auto(grid.name)
         return Track.from_csv(text)
     raise ValueError(f"track must be None, 'auto', a CSV path or a Track, got {spec!r}")

@@ -10,7 +10,8 @@ from race_helpers import QUIET
 
 from racecar_sim.race.env import RaceEnv
 from racecar_sim.race.laps import LapCounter
-from racecar_sim.race.track import Track, centerline_for_map
+from racecar_sim.race.loops import centerline_for_map
+from racecar_sim.race.track import Track
 
 
 def circle(radius: float = 5.0, n: int = 400) -> Track:
