@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import os
 import shutil
+import struct
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -116,9 +117,10 @@ class BagRecorder:
         return self._writer is not None or (self.live is not None and self.live.wants(topic))
 
     def _write(self, topic: str, t: float, msg) -> None:
-        if not self.wants(topic):
-            return
-        data = self.ts.serialize_cdr(msg, _TYPES[topic])
+        if self.wants(topic):
+            self._write_raw(topic, t, self.ts.serialize_cdr(msg, _TYPES[topic]))
+
+    def _write_raw(self, topic: str, t: float, data: bytes) -> None:
         ns = self._stamp_ns(t)
         if self._writer is not None:
             self._writer.write(self._cons[topic], ns, data)
@@ -283,14 +285,9 @@ class BagRecorder:
             tf = self._transform(t, "map", "odom", tx, ty, yaw)
             self._write("/tf", t, T["tf2_msgs/msg/TFMessage"](transforms=[tf]))
         if particles is not None and len(particles) and self.wants("/pf/particles"):
-            p = np.asarray(particles)
+            p = np.asarray(particles, dtype=np.float64)
             step = max(1, math.ceil(len(p) / self.max_particles))
-            poses = [self._pose(*q) for q in p[::step]]
-            self._write(
-                "/pf/particles",
-                t,
-                T["geometry_msgs/msg/PoseArray"](header=self._header(t, "map"), poses=poses),
-            )
+            self._write_raw("/pf/particles", t, pose_array_cdr(self._stamp_ns(t), "map", p[::step]))
 
     # ------------------------------------------------------------------ lifetime
     def close(self) -> None:
@@ -304,6 +301,21 @@ class BagRecorder:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def pose_array_cdr(stamp_ns: int, frame_id: str, poses: np.ndarray) -> bytes:
+    """A ``geometry_msgs/msg/PoseArray`` of the (N, 3) planar poses [x m, y m, theta rad],
+    serialized as little-endian CDR in one numpy pass (the same bytes as rosbags'
+    ``serialize_cdr`` of the message, tested; hundreds of times faster for 500 poses)."""
+    frame = frame_id.encode() + b"\0"
+    head = struct.pack("<4siII", b"\x00\x01\x00\x00", stamp_ns // 10**9, stamp_ns % 10**9, len(frame))
+    body = head + frame
+    body += b"\0" * (-len(body) % 4) + struct.pack("<I", len(poses))
+    body += b"\0" * (-(len(body) - 4) % 8)  # doubles align to 8 bytes after the 4-byte header
+    out = np.zeros((len(poses), 7))
+    out[:, 0], out[:, 1] = poses[:, 0], poses[:, 1]
+    out[:, 5], out[:, 6] = np.sin(poses[:, 2] / 2.0), np.cos(poses[:, 2] / 2.0)
+    return body + out.astype("<f8").tobytes()
 
 
 def start_live(address: str | int) -> LiveServer:

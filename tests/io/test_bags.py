@@ -218,3 +218,23 @@ def test_static_mount_follows_the_chain_and_upside_down_lidars():
     _static_mount([NS(transforms=[_tf("base_link", "laser", 0.2, 0.1, 0.0)])], "laser", warnings)
     assert warnings and "to the side" in warnings[0]
     assert _static_mount(chain, "other_frame", []) is None
+
+
+@pytest.mark.parametrize("frame", ["map", "ab", "a_longer_frame"])
+def test_pose_array_bytes_decode_as_rosbags_serializes_them(frame: str) -> None:
+    from rosbags.typesys import Stores, get_typestore
+
+    from mcl.io.bag_writer import pose_array_cdr
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    poses = np.random.default_rng(len(frame)).normal(0, 5, (23, 3))
+    stamp = 946_684_800 * 10**9 + 123_456_789
+    data = pose_array_cdr(stamp, frame, poses)
+    msg = ts.deserialize_cdr(data, "geometry_msgs/msg/PoseArray")
+    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (946_684_800, 123_456_789)
+    assert msg.header.frame_id == frame and len(msg.poses) == len(poses)
+    got = np.array([[p.position.x, p.position.y, p.position.z, p.orientation.z, p.orientation.w] for p in msg.poses])
+    np.testing.assert_array_equal(got[:, :3], np.column_stack([poses[:, :2], np.zeros(len(poses))]))
+    np.testing.assert_allclose(got[:, 3:], np.column_stack([np.sin(poses[:, 2] / 2), np.cos(poses[:, 2] / 2)]), atol=1e-15)
+    again = ts.serialize_cdr(msg, "geometry_msgs/msg/PoseArray")
+    assert len(again) == len(data)  # the same layout (padding, alignment) as rosbags writes
