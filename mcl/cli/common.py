@@ -38,6 +38,7 @@ __all__ = [
     "check_out",
     "check_resume",
     "compile_notice",
+    "compile_report",
     "kernel_modules",
     "kernels_cached",
     "non_negative_float",
@@ -350,10 +351,38 @@ def output_folder(parser: Parser, path: Path, flag: str = "--out") -> Iterator[P
 
 
 # ---------------------------------------------------------------------- numba's first compile
-COMPILE_SECONDS = 20
-"""About how long numba takes to compile the kernels of a drive the first time (2 cores)."""
+COMPILE_SECONDS = (20, 50)
+"""Seconds of wall time numba took to compile the kernels of one drive on first runs on 2-core
+machines (20 s on a calm one, 35 s on a fresh one, up to ~50 s when other work shares the cores);
+the commands measure and print their own (:func:`compile_report`)."""
 
 
+class _CompileClock:
+    """Wall-clock seconds this process spends in numba compiles (``numba:compile`` events; a
+    kernel loaded from the on-disk cache is not one), from :meth:`start` on."""
+
+    def __init__(self) -> None:
+        self._listener: Any = None
+
+    def start(self) -> None:
+        from numba.core import event
+
+        if self._listener is None:
+            self._listener = event.TimingListener()
+            event.register("numba:compile", self._listener)
+
+    def stop(self) -> float:
+        """Stop listening; the seconds measured (0 when nothing was compiled here)."""
+        from numba.core import event
+
+        listener, self._listener = self._listener, None
+        if listener is None:
+            return 0.0
+        event.unregister("numba:compile", listener)
+        return float(listener.duration) if listener.done else 0.0
+
+
+_COMPILE_CLOCK = _CompileClock()
 _CACHED_KERNEL = re.compile(r"^\s*@\S*njit\([^)]*cache=True", re.MULTILINE)
 
 
@@ -406,12 +435,31 @@ def kernels_cached() -> bool:
 
 
 def compile_notice(stream: TextIO | None = None) -> bool:
-    """Say so when the numba kernels have to be compiled first; returns whether it said so."""
+    """Say so when the numba kernels have to be compiled first, and start measuring how long the
+    compiles take (:func:`compile_report` prints it); returns whether it said so."""
     if kernels_cached():
         return False
+    low, high = COMPILE_SECONDS
     print(
-        f"compiling numba kernels (first run only, about {COMPILE_SECONDS} s)...",
+        f"compiling numba kernels (first run only; {low}-{high} s of wall time on a 2-core "
+        "machine, measured and printed at the end)...",
         file=stream if stream is not None else sys.stderr,
         flush=True,
     )
+    _COMPILE_CLOCK.start()
     return True
+
+
+def compile_report(stream: TextIO | None = None) -> float:
+    """After :func:`compile_notice` said it: print the wall-clock seconds this process spent
+    compiling numba kernels (not loading them from the cache) and stop measuring; returns them
+    (0, and nothing printed, when there was no notice or nothing was compiled here)."""
+    seconds = _COMPILE_CLOCK.stop()
+    if seconds > 0:
+        print(
+            f"numba compiled its kernels in {seconds:.1f} s of this run (wall clock); they are "
+            "cached on disk now, later runs load them",
+            file=stream if stream is not None else sys.stderr,
+            flush=True,
+        )
+    return seconds

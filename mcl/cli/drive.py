@@ -37,6 +37,7 @@ from mcl.cli.common import (
     check_map,
     check_out,
     compile_notice,
+    compile_report,
     non_negative_float,
     non_negative_int,
     output_folder,
@@ -256,6 +257,7 @@ def _drive(
     if bag is not None:
         print(f"\nrecorded the drive as a ROS 2 / MCAP bag: {bag.resolve()}", end="")
     print(f"\noutput folder: {out.resolve()}")
+    compile_report()
     return 0
 
 

@@ -22,6 +22,7 @@ from mcl.cli.common import (
     check_map,
     check_out,
     compile_notice,
+    compile_report,
     non_negative_float,
     non_negative_int,
     output_folder,
@@ -165,6 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if server is not None:
             server.close()
+    compile_report()
     return 0
 
 
