@@ -193,22 +193,22 @@ def salvage_ros1(
             yield topic, msgtype, t, msg
 
     cut: list[int] = []
-    for header, body, complete in _records(data[len(_ROS1_MAGIC) :], cut):
-        op = header.get("op", b"\x00")[0]
-        if op == 0x05:  # chunk
-            state.chunks += 1
-            kind = header.get("compression", b"none").decode()
-            if not complete:
-                state.cut_in_chunk, state.cut_compression = state.chunks - 1, kind
-            try:
+    try:
+        for header, body, complete in _records(data[len(_ROS1_MAGIC) :], cut):
+            op = header.get("op", b"\x00")[0]
+            if op == 0x05:  # chunk
+                state.chunks += 1
+                kind = header.get("compression", b"none").decode()
+                if not complete:
+                    state.cut_in_chunk, state.cut_compression = state.chunks - 1, kind
                 inner = _decompress(kind, body, complete)
-            except Exception:
-                return
-            for fields, record, whole in _records(inner):
-                if whole:
-                    yield from handle(fields, record)
-        elif complete:
-            yield from handle(header, body)
+                for fields, record, whole in _records(inner):
+                    if whole:
+                        yield from handle(fields, record)
+            elif complete:
+                yield from handle(header, body)
+    except Exception:  # a damaged record (bad lengths, names, types, compressed data): stop here
+        return
     if cut:
         state.cut_at = len(_ROS1_MAGIC) + cut[0]
 
