@@ -21,6 +21,7 @@ from racecar_sim.noise_profiles import profile_document
 from racecar_sim.obstacles import ObstacleParams
 from racecar_sim.scan_effects import OdometryBias, ScanEffects
 from racecar_sim.validation import check_number, read_yaml_mapping
+from racecar_sim.vehicle import check_car_model
 
 __all__ = [
     "CarParams",
@@ -86,6 +87,9 @@ def _positive(owner: str, obj: Any, *names: str) -> None:
         check_number(owner, name, getattr(obj, name), low=0.0, low_open=True)
 
 
+_F1TENTH_REAR_SHARE = 0.17145 / (0.15875 + 0.17145)  # lr / (lf + lr), f1tenth_gym's parameters
+
+
 @dataclass(frozen=True)
 class CarParams:
     """A 1/10-scale F1TENTH / MIT RSS racecar (kinematic bicycle about the rear axle).
@@ -102,6 +106,26 @@ class CarParams:
         width: metres.
         rear_overhang: metres from the rear axle back to the rear bumper.
         mass: kilograms.
+
+    The single-track car (``car_model="single_track"``, :mod:`racecar_sim.vehicle.single_track`)
+    also uses the following; their defaults are F1TENTH's as f1tenth_gym gives them
+    (``f1tenth_gym/envs/f110_env.py``, from the CommonRoad vehicle models' parameter sets fitted to
+    the F1TENTH car). The fields above keep their values (the kinematic car's are unchanged); for
+    the F1TENTH car throughout (wheelbase 0.3302, mass 3.74, ...) use :meth:`f1tenth`.
+
+    Attributes:
+        cg_to_rear: metres from the rear axle forwards to the centre of gravity (``lr``; the front
+            axle is ``wheelbase - cg_to_rear`` ahead of it, ``lf``); None = F1TENTH's share of the
+            wheelbase, ``0.17145 / (0.15875 + 0.17145)`` of it (0.17135 m at 0.33 m).
+        cg_height: metres, height of the centre of gravity (``h``, longitudinal load transfer).
+        yaw_inertia: kg m², moment of inertia about the vertical axis (``I``).
+        friction: tire-road friction coefficient (``mu``).
+        cornering_front: front cornering stiffness per unit load, 1/rad (``C_Sf``).
+        cornering_rear: rear cornering stiffness per unit load, 1/rad (``C_Sr``).
+        v_switch: m/s above which the motor's power limits the acceleration to
+            ``max_accel * v_switch / v``.
+        kinematic_below: m/s below which the car is the kinematic bicycle.
+        dynamic_above: m/s above which it is fully dynamic (blended in between).
     """
 
     wheelbase: float = 0.33
@@ -115,10 +139,39 @@ class CarParams:
     width: float = 0.30
     rear_overhang: float = 0.11
     mass: float = 3.5
+    cg_to_rear: float | None = None
+    cg_height: float = 0.074
+    yaw_inertia: float = 0.04712
+    friction: float = 1.0489
+    cornering_front: float = 4.718
+    cornering_rear: float = 5.4562
+    v_switch: float = 7.319
+    kinematic_below: float = 0.5
+    dynamic_above: float = 1.0
+
+    @classmethod
+    def f1tenth(cls, **overrides: Any) -> CarParams:
+        """The F1TENTH car as f1tenth_gym's defaults give it (its ``params``: lf + lr, s_max,
+        sv_max, a_max, m, v_max), with ``overrides``; the kinematic car's footprint is kept."""
+        values: dict[str, Any] = {
+            "wheelbase": 0.15875 + 0.17145, "max_steer": 0.4189, "max_steer_rate": 3.2,
+            "max_accel": 9.51, "max_decel": 9.51, "mass": 3.74, "max_speed": 20.0,
+            "cg_to_rear": 0.17145,
+        }  # fmt: skip
+        values.update(overrides)
+        return cls(**values)
 
     def __post_init__(self) -> None:
         _positive("CarParams", self, "wheelbase", "max_steer_rate", "max_speed", "max_accel")
         _positive("CarParams", self, "max_decel", "length", "width", "mass")
+        _positive("CarParams", self, "cg_height", "yaw_inertia", "friction", "cornering_front")
+        _positive("CarParams", self, "cornering_rear", "v_switch", "kinematic_below")
+        if self.cg_to_rear is None:
+            object.__setattr__(self, "cg_to_rear", self.wheelbase * _F1TENTH_REAR_SHARE)
+        check_number("CarParams", "cg_to_rear", self.cg_to_rear, low=0, high=self.wheelbase,
+                     low_open=True, high_open=True)  # fmt: skip
+        check_number("CarParams", "dynamic_above", self.dynamic_above, low=self.kinematic_below,
+                     low_open=True)  # fmt: skip
         check_number("CarParams", "max_steer", self.max_steer, low=0, high=math.pi / 2,
                      low_open=True, high_open=True)  # fmt: skip
         check_number("CarParams", "max_reverse_speed", self.max_reverse_speed, low=0)
@@ -252,6 +305,8 @@ class EnvConfig:
         track: the race track for progress, laps, lap times and rank in the info
             (:func:`racecar_sim.race.track.resolve_track`): a centerline CSV in f1tenth's format,
             ``"auto"`` (derived from a loop map) or a ``Track``; None = no track.
+        car_model: ``"kinematic"`` (the kinematic bicycle) or ``"single_track"`` (tire slip, a
+            friction limit): :mod:`racecar_sim.vehicle`.
     """
 
     map: str | os.PathLike[str] | OccupancyMap | None = None
@@ -280,8 +335,10 @@ class EnvConfig:
     odom_lead: float = 0.0
     imu: Any = None
     track: Any = None
+    car_model: str = "kinematic"
 
     def __post_init__(self) -> None:
+        check_car_model(self.car_model)
         track = self.track
         if not (track is None or isinstance(track, str | os.PathLike) or type(track).__name__ == "Track"):
             raise ValueError(f"track must be a CSV path, 'auto', a Track or None, got {track!r}")

@@ -41,7 +41,9 @@ class RacecarEnv(gym.Env):
 
     ## Description
     A headless simulator of an F1TENTH / MIT RSS style racecar. The car is a kinematic bicycle
-    about its rear axle with steering-rate and acceleration limits, driving in a pymunk world
+    about its rear axle (``car_model="kinematic"``, the default) or a single-track model with tire
+    slip and a friction limit (``car_model="single_track"``, :mod:`racecar_sim.vehicle`), with
+    steering-rate and acceleration limits, driving in a pymunk world
     whose walls are the map's occupied-cell edges, so it cannot pass through walls and every wall
     contact is reported. A lidar ``mount_offset`` ahead of the rear axle casts exact rays on the
     grid and adds beam-model noise; the odometry reports what a VESC measures (wheel speed and
@@ -102,8 +104,9 @@ class RacecarEnv(gym.Env):
     ``dt``, ``substep``, ``terminate_on_collision``, ``collision_penalty``, ``start_clearance``,
     ``range_sigma``, ``p_short``, ``short_lambda``, ``p_max``, ``p_rand``,
     ``odom_proportional``, ``odom_additive``, ``odom_lead``, ``imu``, ``car`` (a ``CarParams``
-    or a mapping of its fields). ``config`` names a YAML file (or is a mapping / :class:`EnvConfig`) with the same
-    keys; keyword arguments override it. Unknown keys raise ``ValueError`` naming them.
+    or a mapping of its fields), ``car_model``. ``config`` names a YAML file (or is a mapping /
+    :class:`EnvConfig`) with the same keys; keyword arguments override it. Unknown keys raise
+    ``ValueError`` naming them.
     ``render_mode="rgb_array"`` makes :meth:`render` return an RGB ``uint8`` frame (H, W, 3) of
     the map, the car and the last scan's hits, plus whatever hooks added with
     :meth:`add_render_hook` draw.
@@ -135,7 +138,9 @@ class RacecarEnv(gym.Env):
         self.dt = float(cfg.dt)
         self.metadata = {**self.metadata, "render_fps": max(1, round(1.0 / self.dt))}
 
-        self.physics = RacecarPhysics(self.map, self.car_params, substep=cfg.substep)
+        self.physics = RacecarPhysics(
+            self.map, self.car_params, substep=cfg.substep, car_model=cfg.car_model
+        )
         self.lidar = Lidar(self.map, self.lidar_params)
         self.odometry = Odometry(self.odometry_noise)
         self._wheelbase = float(self.car_params.wheelbase)

@@ -15,7 +15,7 @@ import math
 import numba as nb
 import numpy as np
 
-from racecar_sim.free_steps import free_step
+from racecar_sim.free_steps import STATE_FIELDS, free_step
 from racecar_sim.physics import RacecarPhysics
 
 __all__ = ["FreeStepBatch"]
@@ -42,7 +42,7 @@ class FreeStepBatch:
     def __init__(self, physics: list[RacecarPhysics]) -> None:
         self.physics = physics
         n = len(physics)
-        self.states = np.zeros((n, 9))
+        self.states = np.zeros((n, len(STATE_FIELDS)))
         self.twists = np.zeros((n, 3))
         for i, p in enumerate(physics):
             self.states[i] = p._free

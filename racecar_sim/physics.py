@@ -1,4 +1,4 @@
-"""Car physics: a pymunk world with the map's walls and a kinematic-bicycle racecar.
+"""Car physics: a pymunk world with the map's walls and a racecar (kinematic or single-track).
 
 Frames: ``world`` (the map's frame, metres, radians) and ``car`` (x forward, y left, origin at the
 rear axle). The car's pose is the world pose [x, y, theta] of the *rear axle*.
@@ -28,6 +28,13 @@ Car
     what it actually makes along its heading (the wheels do not spin), so backing away from a
     wall starts at once.
 
+    With ``car_model="single_track"`` (:mod:`racecar_sim.vehicle.single_track`: tire slip, a
+    friction limit) each substep first advances the model, then sets the body's velocity to the
+    model's rear-axle velocity for the substep *before* ``space.step`` (so a command acts at once,
+    not a substep late), unless the previous substep touched a wall: then the solver's velocity
+    stands and the model's slip, yaw rate and speed are taken from it. Without a contact the solver
+    leaves the velocity alone, so this is still exactly what the free steps compute.
+
 Free steps
     Far from every wall pymunk has nothing to solve: a substep only moves the body by its velocity
     (``p += v h``, ``a += w h``) and then calls the velocity function. :meth:`RacecarPhysics.step`
@@ -47,8 +54,19 @@ import numpy as np
 import pymunk
 
 from racecar_sim.config import CarParams
-from racecar_sim.free_steps import free_constants, free_step, se2_log_twist
+from racecar_sim.free_steps import (
+    CONSTANT_FIELDS,
+    STATE_FIELDS,
+    body_velocity,
+    free_constants,
+    free_step,
+    se2_log_twist,
+)
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.vehicle import check_car_model
+from racecar_sim.vehicle.kinematic import actuate
+from racecar_sim.vehicle.single_track import settle
+from racecar_sim.vehicle.single_track import substep as single_track_substep
 from racecar_sim.walls import (
     WALL_COLLISION_TYPE,
     WALL_FRICTION,
@@ -83,12 +101,19 @@ class RacecarPhysics:
         substep: longest physics substep in seconds; :meth:`step` splits ``dt`` into equal
             substeps no longer than this. At the default 5 ms a car at 7 m/s moves 3.5 cm (less
             than a typical 5 cm cell) per substep, which bounds how far it can overlap a wall.
+        car_model: ``"kinematic"`` (the bicycle above) or ``"single_track"`` (tire slip and a
+            friction limit, :mod:`racecar_sim.vehicle.single_track`): the velocity each substep
+            sets is then the single-track model's rear-axle velocity, walls act the same way.
 
     The car starts at rest at the first free cell with room for it; call :meth:`reset`.
     """
 
     def __init__(
-        self, occupancy_map: OccupancyMap, car: CarParams | None = None, substep: float = 0.005
+        self,
+        occupancy_map: OccupancyMap,
+        car: CarParams | None = None,
+        substep: float = 0.005,
+        car_model: str = "kinematic",
     ) -> None:
         if not (isinstance(substep, int | float) and math.isfinite(substep) and substep > 0):
             raise ValueError(f"substep must be a positive number of seconds, got {substep!r}")
@@ -97,6 +122,8 @@ class RacecarPhysics:
         if not isinstance(self.car, CarParams):
             raise TypeError(f"car must be a CarParams, got {type(self.car).__name__}")
         self.substep = float(substep)
+        self.car_model = check_car_model(car_model)
+        self._single_track = self.car_model == "single_track"
 
         self.space = pymunk.Space()
         self.space.collision_slop = _COLLISION_SLOP
@@ -149,13 +176,14 @@ class RacecarPhysics:
         # substeps since the last contact (a contact stays cached for collision_persistence steps).
         self.free_steps = True
         """Take free steps without pymunk far from walls (same results; False forces pymunk)."""
-        self._free = np.zeros(9)
+        self._free = np.zeros(len(STATE_FIELDS))
         self._free_valid = False
         self._body_stale = False
         self._quiet_needed = int(self.space.collision_persistence) + 1
         self._quiet = self._quiet_needed
         self._placed = True  # no pymunk step since the last placement
-        self._free_const = free_constants(c, occupancy_map, _FREE_MARGIN)
+        self._free_const = free_constants(c, occupancy_map, _FREE_MARGIN, self.car_model)
+        self._model_params = self._free_const[len(CONSTANT_FIELDS) :]
         self._distance = occupancy_map.distance
         self._place(self._first_free_pose(), 0.0, 0.0)
 
@@ -175,7 +203,9 @@ class RacecarPhysics:
 
     # ------------------------------------------------------------------ pymunk callbacks
     def _set_velocity(self, body: pymunk.Body, gravity, damping, dt) -> None:
-        """Velocity integration replaced by the kinematic bicycle command (see module doc)."""
+        """Velocity integration replaced by the car model's velocity (see module doc)."""
+        if self._single_track:  # set before the step (see step); the solver corrects it
+            return
         heading = body.angle + self._omega * self._half_h
         body.velocity = (self._speed * math.cos(heading), self._speed * math.sin(heading))
         body.angular_velocity = self._omega
@@ -213,7 +243,8 @@ class RacecarPhysics:
 
     @property
     def speed(self) -> float:
-        """Current wheel speed at the rear axle, m/s (negative when reversing).
+        """Current speed, m/s (negative when reversing): the kinematic car's rear-axle (wheel)
+        speed, the single-track car's speed of its centre of gravity.
 
         It follows the command within the acceleration limits; while a wall blocks the car it is
         cut to the speed the car actually makes along its heading.
@@ -222,9 +253,23 @@ class RacecarPhysics:
 
     @property
     def wheel_speed(self) -> float:
-        """Wheel speed a VESC reports, m/s (negative when reversing): the kinematic car's wheels
-        roll without slip, so it is :attr:`speed`."""
+        """Rolling speed of the driven (rear) wheels, m/s, forward positive: what a VESC measures.
+
+        The kinematic car's wheels roll at its speed; the single-track car's rear wheels at the
+        rear axle's velocity along the heading, ``speed * cos(slip_angle)``.
+        """
+        if self._single_track:
+            return self._speed * math.cos(float(self._free[9]))
         return self._speed
+
+    @property
+    def slip_angle(self) -> float:
+        """Body slip angle at the centre of gravity, radians (velocity left of the heading is
+        positive): the single-track car's state; the kinematic car's geometric
+        ``atan(cg_to_rear * tan(steer) / wheelbase)``."""
+        if self._single_track:
+            return float(self._free[9])
+        return math.atan(self.car.cg_to_rear * math.tan(self._steer) / self.car.wheelbase)
 
     def footprint(self, pose: np.ndarray | None = None) -> np.ndarray:
         """(4, 2) world corners of the car's box (rear right, front right, front left, rear left).
@@ -270,6 +315,13 @@ class RacecarPhysics:
         self._steer = float(np.clip(steer, -self.car.max_steer, self.car.max_steer))
         self._speed = float(np.clip(speed, -self.car.max_reverse_speed, self.car.max_speed))
         self._omega = self._speed * math.tan(self._steer) / self.car.wheelbase
+        ux = self._speed
+        if self._single_track:  # starts on the kinematic bicycle's slip and yaw rate
+            f = self._free
+            f[6], f[7] = self._steer, self._speed
+            settle(f, self._model_params)
+            self._omega = float(f[8])
+            ux = float(f[11])
         body = self.body
         self._free_valid = False
         self._body_stale = False
@@ -282,13 +334,13 @@ class RacecarPhysics:
         self.space.remove(body, self.shape)
         body.position = (float(x), float(y))
         body.angle = _wrap(float(theta))
-        body.velocity = (self._speed * math.cos(body.angle), self._speed * math.sin(body.angle))
+        body.velocity = (ux * math.cos(body.angle), ux * math.sin(body.angle))
         body.angular_velocity = self._omega
         body.force = (0.0, 0.0)
         body.torque = 0.0
         self.space.add(body, self.shape)
         self._contact = False
-        self._twist[:] = (self._speed, 0.0, self._omega)  # in place: a vector env shares it
+        self._twist[:] = (ux, 0.0, self._omega)  # in place: a vector env shares it
 
     def reset(self, pose: np.ndarray, speed: float = 0.0, steer: float = 0.0) -> None:
         """Put the car at ``pose`` (rear-axle world [x, y, theta]) driving at ``speed`` (m/s) with
@@ -372,17 +424,24 @@ class RacecarPhysics:
         collided = False
         steer = self._steer
         speed = self._speed
+        f = self._free
         for _ in range(n_sub):
-            steer += min(max(target_steer - steer, -max_dsteer), max_dsteer)
-            if speed > 0.0 and target_speed < speed:  # braking forwards: stop before reversing
-                speed = max(speed - decel, target_speed, 0.0)
-            elif speed < 0.0 and target_speed > speed:  # braking backwards
-                speed = min(speed + decel, target_speed, 0.0)
-            else:  # at rest, or speeding up in the direction of motion
-                speed += min(max(target_speed - speed, -accel), accel)
+            if self._single_track:
+                f[6], f[7] = steer, speed
+                single_track_substep(f, target_steer, target_speed, self._model_params, h)
+                steer, speed = float(f[6]), float(f[7])
+                self._omega = float(f[8])
+                if self._quiet > 0:  # no contact last substep: the solver left the velocity alone
+                    body.velocity = body_velocity(body.angle, self._omega, self._half_h, f[11],
+                                                  f[12])  # fmt: skip
+                    body.angular_velocity = self._omega
+            else:
+                steer, speed = actuate(
+                    steer, speed, target_steer, target_speed, max_dsteer, accel, decel
+                )
+                self._omega = speed * math.tan(steer) * inv_wheelbase
             self._steer = steer
             self._speed = speed
-            self._omega = speed * math.tan(steer) * inv_wheelbase
             self.space.step(h)
             self._quiet += 1
             if self._contact:
@@ -394,12 +453,25 @@ class RacecarPhysics:
                 vx, vy = body.velocity
                 heading = body.angle
                 speed = vx * math.cos(heading) + vy * math.sin(heading)
+                if self._single_track:
+                    across = vy * math.cos(heading) - vx * math.sin(heading)
+                    speed = self._slide_after_contact(speed, across)
                 speed = min(max(speed, -car.max_reverse_speed), car.max_speed)
                 self._speed = speed
         x1, y1 = body.position
         # The same numba function as the free steps' (identical doubles either way).
         self._twist[:] = se2_log_twist(x1 - x0, y1 - y0, a0, body.angle - a0, dt)
         return collided
+
+    def _slide_after_contact(self, ux: float, uy: float) -> float:
+        """The single-track states from the solved rear-axle velocity (car frame, m/s) and yaw
+        rate after a wall contact; returns the new speed of the centre of gravity."""
+        f = self._free
+        r = float(self.body.angular_velocity)
+        vy_cg = uy + self.car.cg_to_rear * r
+        f[9] = math.atan(vy_cg / ux) if abs(ux) > 1e-6 else 0.0
+        f[10] = r
+        return math.copysign(math.hypot(ux, vy_cg), ux)
 
     # ------------------------------------------------------------------ free steps
     def _load_free_state(self) -> None:

@@ -70,6 +70,7 @@ DRIVE_MISTAKES = [
     (["--env", "odom_additive=3"], "--env odom_additive", "3 numbers"),
     (["--env", "car=3"], "--env car", "mapping"),
     (["--env", "map=office"], "--env map", "--map"),
+    (["--env", "car_model=dynamic"], "--env car_model", "must be one of"),
     (["--filter-map", "{missing}"], "--filter-map", "not found"),
     (["--noise-profile", "mit_racecer"], "--env noise_profile", "mit_racecar"),
     (["--env", "obstacles={boxs: 3}"], "--env obstacles", "unknown obstacles setting"),
