@@ -20,13 +20,13 @@ from racecar_sim.vehicle.single_track import substep as single_track_substep
 
 __all__ = ["CONSTANT_FIELDS", "STATE_FIELDS", "advance", "body_velocity", "free_step", "se2_log_twist"]
 
-STATE_FIELDS = ("x", "y", "angle", "vx", "vy", "w", "steer", "speed", "omega", "beta", "yaw_rate",
-                "ux", "uy")  # fmt: skip
+STATE_FIELDS = ("x", "y", "angle", "vx", "vy", "w", "steer", "speed", "omega", "lateral",
+                "yaw_rate", "ux", "uy")  # fmt: skip
 """Layout of the float64 state array: rear-axle world pose (m, rad, angle unwrapped as pymunk's),
-body velocity (m/s, rad/s), wheel angle (rad), speed (m/s: the rear wheels' for the kinematic car,
-the centre of gravity's for the single-track car), commanded turn rate (rad/s); the single-track
-car's body slip angle (rad), yaw rate (rad/s) and the rear axle's car-frame velocity for the next
-substep (m/s)."""
+body velocity (m/s, rad/s), wheel angle (rad), speed (m/s: the rear wheels' rolling speed, the
+car-frame forward velocity), turn rate of the substep (rad/s); the single-track car's car-frame
+lateral velocity of its centre of gravity (m/s), yaw rate (rad/s) and the rear axle's car-frame
+velocity for the substep (m/s)."""
 
 CONSTANT_FIELDS = ("max_steer_rate", "max_accel", "max_decel", "wheelbase", "ahead", "reach",
                    "centre_speed", "origin_x", "origin_y", "cos_yaw", "sin_yaw", "inv_res",
@@ -73,7 +73,7 @@ def free_step(distance, const, state, target_steer, target_speed, n_sub, h, dt, 
     if const[_MODEL] != 0.0:  # the single-track car also turns about its centre and may slide
         p = const[_MODEL + 1 :]
         growth = p[4] * max(p[1], p[2]) * p[5] * 9.81 * dt  # the most its yaw rate may change
-        reach += dt * (p[2] + abs(const[4])) * (abs(state[10]) + growth)
+        reach += dt * (abs(state[9]) + (p[2] + abs(const[4])) * (abs(state[10]) + growth))
     ddx = x + const[4] * math.cos(a) - const[7]
     ddy = y + const[4] * math.sin(a) - const[8]
     c, s, inv_res = const[9], const[10], const[11]

@@ -243,8 +243,8 @@ class RacecarPhysics:
 
     @property
     def speed(self) -> float:
-        """Current speed, m/s (negative when reversing): the kinematic car's rear-axle (wheel)
-        speed, the single-track car's speed of its centre of gravity.
+        """Current speed of the rear wheels, m/s (negative when reversing): the car-frame forward
+        velocity of the rear axle (for the single-track car also of its centre of gravity).
 
         It follows the command within the acceleration limits; while a wall blocks the car it is
         cut to the speed the car actually makes along its heading.
@@ -255,20 +255,18 @@ class RacecarPhysics:
     def wheel_speed(self) -> float:
         """Rolling speed of the driven (rear) wheels, m/s, forward positive: what a VESC measures.
 
-        The kinematic car's wheels roll at its speed; the single-track car's rear wheels at the
-        rear axle's velocity along the heading, ``speed * cos(slip_angle)``.
+        Both car models' wheels roll at the car-frame forward velocity of the rear axle, so this
+        is :attr:`speed`; a sliding single-track car's true speed over the ground is higher.
         """
-        if self._single_track:
-            return self._speed * math.cos(float(self._free[9]))
         return self._speed
 
     @property
     def slip_angle(self) -> float:
         """Body slip angle at the centre of gravity, radians (velocity left of the heading is
-        positive): the single-track car's state; the kinematic car's geometric
+        positive): the single-track car's ``atan2(vy, u)``; the kinematic car's geometric
         ``atan(cg_to_rear * tan(steer) / wheelbase)``."""
         if self._single_track:
-            return float(self._free[9])
+            return math.atan2(float(self._free[9]), self._speed)
         return math.atan(self.car.cg_to_rear * math.tan(self._steer) / self.car.wheelbase)
 
     def footprint(self, pose: np.ndarray | None = None) -> np.ndarray:
@@ -465,13 +463,12 @@ class RacecarPhysics:
 
     def _slide_after_contact(self, ux: float, uy: float) -> float:
         """The single-track states from the solved rear-axle velocity (car frame, m/s) and yaw
-        rate after a wall contact; returns the new speed of the centre of gravity."""
+        rate after a wall contact; returns the new wheel speed (``ux``)."""
         f = self._free
         r = float(self.body.angular_velocity)
-        vy_cg = uy + self.car.cg_to_rear * r
-        f[9] = math.atan(vy_cg / ux) if abs(ux) > 1e-6 else 0.0
+        f[9] = uy + self.car.cg_to_rear * r
         f[10] = r
-        return math.copysign(math.hypot(ux, vy_cg), ux)
+        return ux
 
     # ------------------------------------------------------------------ free steps
     def _load_free_state(self) -> None:

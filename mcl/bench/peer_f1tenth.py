@@ -181,7 +181,7 @@ class _Peer:
                 self.proc.kill()
 
 
-def _run_ours(env, steps: int, seed: int, pose: np.ndarray, cars: int = 0) -> dict[str, Any]:
+def run_ours(env, steps: int, seed: int, pose: np.ndarray, cars: int = 0) -> dict[str, Any]:
     """One timed episode of our single env (``cars`` = 0) or vector env (``cars`` cars)."""
     env.reset(seed=seed, options={"pose": pose})
     wall = cpu = 0.0
@@ -232,8 +232,8 @@ def compare(
             n, nv = (200, 20) if warm else (steps, vector_steps)
             results = {
                 "f1tenth_gym": peer.run(n) if peer else None,
-                "ours": _run_ours(single, n, r, pose),
-                "vector": _run_ours(vector, nv, r * num_envs, pose, cars=num_envs),
+                "ours": run_ours(single, n, r, pose),
+                "vector": run_ours(vector, nv, r * num_envs, pose, cars=num_envs),
             }
             if not warm:
                 for key, res in results.items():

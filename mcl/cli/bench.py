@@ -24,6 +24,7 @@ BENCHMARKS: dict[str, str] = {
     "replay": "replaying the real bags: real-time factor on one core, settling time, scan_fit",
     "soak": "a 2-hour headless drive: peak memory at 10, 60 and 120 simulated minutes",
     "live": "a localized drive with and without the Foxglove live view (steps/s)",
+    "dynamics": "the single-track car vs f1tenth_gym (skidpad, open loop) and its speed cost",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 

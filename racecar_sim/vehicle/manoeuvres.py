@@ -16,7 +16,7 @@ from racecar_sim.free_steps import STATE_FIELDS, advance, free_constants
 
 __all__ = ["Circle", "drive", "skidpad"]
 
-_X, _Y, _A, _STEER, _SPEED, _OMEGA, _BETA, _R = 0, 1, 2, 6, 7, 8, 9, 10
+_X, _Y, _A, _STEER, _SPEED, _OMEGA, _LATERAL, _R = 0, 1, 2, 6, 7, 8, 9, 10
 
 
 def drive(car, car_model: str, commands: np.ndarray, dt: float, substep: float = 0.005) -> np.ndarray:
@@ -24,9 +24,11 @@ def drive(car, car_model: str, commands: np.ndarray, dt: float, substep: float =
     m/s] held ``dt`` seconds each, in substeps no longer than ``substep`` seconds.
 
     Returns:
-        (K + 1, 7) float64 rows [x, y, theta (unwrapped), steer, speed, slip angle, yaw rate] of
-        the rear axle (world m, rad) and the model's states (rad, m/s, rad, rad/s) after each
-        step, the start first. The kinematic car's slip angle is 0 and its yaw rate ``omega``.
+        (K + 1, 8) float64 rows [x, y, theta (unwrapped), steer, wheel speed, slip angle, yaw
+        rate, speed] after each step, the start first: the rear axle's world pose (m, rad), the
+        steering angle (rad), the rear wheels' rolling speed (m/s), the body slip angle at the
+        centre of gravity (rad), the yaw rate (rad/s) and the speed of the centre of gravity
+        (m/s). The kinematic car's slip angle is the geometric ``atan(lr tan(steer) / L)``.
     """
     const = free_constants(car, None, 0.0, car_model)
     state = np.zeros(len(STATE_FIELDS))
@@ -36,16 +38,22 @@ def drive(car, car_model: str, commands: np.ndarray, dt: float, substep: float =
     lo = (-car.max_steer, -car.max_reverse_speed)
     hi = (car.max_steer, car.max_speed)
     commands = np.asarray(commands, dtype=np.float64)
-    out = np.zeros((len(commands) + 1, 7))
+    out = np.zeros((len(commands) + 1, 8))
+    q = car.cg_to_rear / car.wheelbase
     kinematic = car_model == "kinematic"
     for k in range(len(commands) + 1):
         if k:
             steer = min(max(commands[k - 1, 0], lo[0]), hi[0])
             speed = min(max(commands[k - 1, 1], lo[1]), hi[1])
             advance(const, state, steer, speed, n_sub, h, dt, twist)
-        yaw_rate = state[_OMEGA] if kinematic else state[_R]
-        out[k] = (state[_X], state[_Y], state[_A], state[_STEER], state[_SPEED],
-                  state[_BETA], yaw_rate)  # fmt: skip
+        u = state[_SPEED]
+        if kinematic:
+            slip, yaw_rate = math.atan(q * math.tan(state[_STEER])), state[_OMEGA]
+            speed = u / math.cos(slip)
+        else:
+            slip, yaw_rate = math.atan2(state[_LATERAL], u), state[_R]
+            speed = math.hypot(u, state[_LATERAL])
+        out[k] = (state[_X], state[_Y], state[_A], state[_STEER], u, slip, yaw_rate, speed)
     return out
 
 
@@ -54,7 +62,7 @@ class Circle:
     """A steady-state circle at fixed steer and speed (all of the centre of gravity).
 
     Attributes:
-        steer: rad. speed: m/s, the speed of the centre of gravity.
+        steer: rad. speed: m/s, the speed of the centre of gravity (over the ground).
         radius: m, ``speed / yaw_rate``. rear_radius: m, the rear axle's, ``speed cos(slip) /
         yaw_rate``. yaw_rate: rad/s. lateral_accel: m/s², ``speed * yaw_rate``.
         slip_angle: rad, body slip angle at the centre of gravity.
@@ -75,16 +83,12 @@ def skidpad(
     car, car_model: str, steer: float, speed: float, dt: float = 0.01, duration: float = 10.0,
     substep: float = 0.005,
 ) -> Circle:  # fmt: skip
-    """Drive at fixed ``steer`` (rad) and ``speed`` (m/s) for ``duration`` seconds from rest and
-    measure the circle at the end (the kinematic car's centre of gravity is ``cg_to_rear`` ahead
-    of its rear axle, slipping at ``atan(cg_to_rear tan(steer) / wheelbase)``)."""
+    """Drive at fixed ``steer`` (rad) and wheel ``speed`` (m/s) for ``duration`` seconds from rest
+    and measure the circle of the centre of gravity at the end."""
     n = max(2, round(duration / dt))
     rows = drive(car, car_model, np.tile([steer, speed], (n, 1)), dt, substep)
     last = rows[-max(2, round(1.0 / dt)) :]
-    v, beta, r = rows[-1, 4], rows[-1, 5], rows[-1, 6]
-    if car_model == "kinematic":  # its speed is the rear axle's; its centre of gravity slips
-        beta = math.atan(car.cg_to_rear * math.tan(rows[-1, 3]) / car.wheelbase)
-        v = v / math.cos(beta)
+    v, beta, r = rows[-1, 7], rows[-1, 5], rows[-1, 6]
     spread = float(np.ptp(last[:, 6]))
     steady = spread <= 0.01 * max(abs(float(np.mean(last[:, 6]))), 1e-9)
     radius = v / r if r != 0 else math.inf

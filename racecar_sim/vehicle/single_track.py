@@ -1,16 +1,16 @@
 """The single-track (bicycle) model with tire slip and a tire that saturates at the friction limit.
 
-States (besides the pose): steering angle ``steer`` (rad), speed of the centre of gravity ``v``
-(m/s, along the velocity), body slip angle ``beta`` (rad, between heading and velocity, positive
-left) and yaw rate ``r`` (rad/s). The equations are those of the CommonRoad single-track model
-(Althoff et al., *CommonRoad: Vehicle Models*, section 7, as used by f1tenth_gym) with the slip
-angles and force directions kept exact instead of linearised, and the linear tire replaced by a
-brush (Fiala) tire whose force saturates at the friction it has left::
+States (besides the pose): steering angle ``steer`` (rad), the car-frame velocity of the centre of
+gravity, forward ``u`` (which is also the rear wheels' rolling speed, what the speed command
+controls) and left ``vy`` (m/s), and the yaw rate ``r`` (rad/s); the body slip angle is
+``atan2(vy, u)``. The forces are those of the CommonRoad single-track model (Althoff et al.,
+*CommonRoad: Vehicle Models*, section 7, as used by f1tenth_gym) with the slip angles and force
+directions kept exact instead of linearised, and the linear tire replaced by a brush (Fiala) tire
+whose force saturates at the friction it has left::
 
-    v'    = (Fxf cos(steer - beta) - Fyf sin(steer - beta) + Fxr cos(beta) + Fyr sin(beta)) / m
-    beta' = (Fxf sin(steer - beta) + Fyf cos(steer - beta) - Fxr sin(beta) + Fyr cos(beta)) / (m v)
-            - r
-    r'    = (lf (Fxf sin(steer) + Fyf cos(steer)) - lr Fyr) / I
+    u'  = (Fxf cos(steer) - Fyf sin(steer) + Fxr) / m + vy r
+    vy' = (Fxf sin(steer) + Fyf cos(steer) + Fyr) / m - u r
+    r'  = (lf (Fxf sin(steer) + Fyf cos(steer)) - lr Fyr) / I
     Fzf = m (g lr - a h) / L        Fzr = m (g lf + a h) / L        (longitudinal load transfer)
     Fxf = a Fzf / g                 Fxr = a Fzr / g                 (drive and brakes: m a in all)
     tan(alpha) = -(lateral / |longitudinal|) velocity of the axle in its wheel's frame
@@ -23,28 +23,28 @@ slip: the drive's (or brakes') force ``m a`` acts along the wheels, shared betwe
 proportion to their load (four-wheel drive and brakes), so each axle's lateral force is left
 ``Fz sqrt(mu^2 - (a/g)^2)`` and no axle's force exceeds ``mu Fz`` when the car accelerates or
 brakes in a turn. A wheel rolling backwards or not at all is sliding: its force opposes its lateral
-velocity, so a spinning car stays well defined (its slip angle is kept in [-pi, pi)).
+velocity, so a spinning or reversing car stays well defined.
 
 The speed servo: the command [steer, speed] goes through the steering-rate and acceleration
-limits of :func:`racecar_sim.vehicle.kinematic.actuate`, as the kinematic car's; its speed step
-over a substep becomes ``a``, plus what makes up for the tires' drag (the lateral forces' part
-along the velocity) within the limits. ``a`` is limited by the friction (``mu g``) and, above
-``v_switch``, by the motor's power (``max_accel v_switch / v``, as CommonRoad). ``v`` is the speed
-of the centre of gravity; the rear wheels roll at ``v cos(beta)``.
+limits of :func:`racecar_sim.vehicle.kinematic.actuate`, as the kinematic car's, acting on the
+wheel speed ``u`` (as a VESC's speed control does); its step over a substep becomes ``a``, plus
+what makes up for the tires and the turn (their part of ``u'``) within the limits. ``a`` is
+limited by the friction (``mu g``) and, above ``v_switch``, by the motor's power
+(``max_accel v_switch / u``, as CommonRoad).
 
-Low speed: the equations divide by ``v``. Below ``kinematic_below`` the car is the kinematic
-bicycle (``beta = atan(lr tan(steer) / L)``, ``r = v cos(beta) tan(steer) / L``); up to
-``dynamic_above`` the rates are blended, with a smoothstep weight of the speed, from the dynamic
-ones to the kinematic states' own rates plus a pull towards them (time constant
-:data:`KINEMATIC_PULL`), as CommonRoad's drift model blends its dynamic and kinematic rates
-(f1tenth_gym switches at 0.5 m/s without blending). Reversing (at most ``max_reverse_speed``) is
-kinematic.
+Low speed: the slip angles divide by the wheels' speeds and the lateral dynamics get stiff. Below
+``kinematic_below`` (speed of the centre of gravity) the car is the kinematic bicycle (the rear axle
+does not slide: ``r = u tan(steer) / L``, ``vy = lr r``); up to ``dynamic_above`` the rates are
+blended, with a smoothstep weight of the speed, from the dynamic ones to the kinematic states' own
+rates plus a pull towards them (time constant :data:`KINEMATIC_PULL`), as CommonRoad's drift model
+blends its dynamic and kinematic rates (f1tenth_gym switches at 0.5 m/s without blending).
 
-Integration: each substep of ``h`` seconds the actuators move first; then ``(v, beta, r)`` are
+Integration: each substep of ``h`` seconds the actuators move first; then ``(u, vy, r)`` are
 integrated over it by the classical Runge-Kutta method (RK4), the steering angle moving linearly
-from its old to its new value. The rear axle moves by the mean of its start and end car-frame
-velocities along the chord of the arc of the mean yaw rate. See ``docs/dynamics.md`` for the
-step-size error.
+from its old to its new value, in as many equal pieces as the stiffness of the lateral dynamics
+needs for RK4 to be stable (one at speed). The rear axle moves by the mean of its start and end
+car-frame velocities along the chord of the arc of the mean yaw rate. See ``docs/dynamics.md`` for
+the step-size error.
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ import numpy as np
 
 from racecar_sim.vehicle.kinematic import actuate
 
-__all__ = ["GRAVITY", "PARAM_FIELDS", "params_array", "substep"]
+__all__ = ["GRAVITY", "KINEMATIC_PULL", "PARAM_FIELDS", "params_array", "settle", "substep"]
 
 GRAVITY = 9.81
 """m/s², as CommonRoad and f1tenth_gym."""
@@ -68,7 +68,7 @@ PARAM_FIELDS = ("wheelbase", "lf", "lr", "cg_height", "mass_over_inertia", "fric
 m/s, rad/s, m/s², m/s²)."""
 
 # State indices, as racecar_sim.free_steps.STATE_FIELDS.
-_STEER, _SPEED, _OMEGA, _BETA, _YAW_RATE, _UX, _UY = 6, 7, 8, 9, 10, 11, 12
+_STEER, _SPEED, _OMEGA, _LATERAL, _YAW_RATE, _UX, _UY = 6, 7, 8, 9, 10, 11, 12
 KINEMATIC_PULL = 0.02
 """Seconds: how fast the states are pulled to the kinematic bicycle's where it takes over."""
 _TINY_FRICTION = 1e-6  # friction left to a tire when the car brakes at the friction limit
@@ -101,20 +101,18 @@ def fiala(z, c, d):
 
 
 @nb.njit(cache=True)
-def rates(v, beta, r, a, cos_d, sin_d, p):
-    """(v', beta', r') of the single-track model (module docstring) at speed ``v`` > 0 (m/s),
-    body slip ``beta`` (rad), yaw rate ``r`` (rad/s), drive acceleration ``a`` (m/s²) and the
-    steering angle's cos and sin."""
+def rates(u, vy, r, a, cos_d, sin_d, p):
+    """(u', vy', r') of the single-track model (module docstring): car-frame velocity of the centre
+    of gravity ``u`` (forward), ``vy`` (left), m/s, yaw rate ``r`` (rad/s), drive acceleration
+    ``a`` (m/s²) and the steering angle's cos and sin."""
     lf, lr, hcg, mu = p[1], p[2], p[3], p[5]
-    cb, sb = math.cos(beta), math.sin(beta)
-    vx, vy = v * cb, v * sb
     vyf, vyr = vy + lf * r, vy - lr * r  # lateral velocity of the axles, car frame
     # tan(slip angle) = -(lateral / longitudinal velocity) in each wheel's frame; a wheel that
-    # rolls backwards or not at all slides (saturated), its force against its lateral velocity.
-    along_f = vx * cos_d + vyf * sin_d
-    across_f = vyf * cos_d - vx * sin_d
+    # rolls backwards slides the same way, one that does not roll at all is saturated.
+    along_f = u * cos_d + vyf * sin_d
+    across_f = vyf * cos_d - u * sin_d
     zf = -across_f / max(abs(along_f), 1e-9)
-    zr = -vyr / max(abs(vx), 1e-9)
+    zr = -vyr / max(abs(u), 1e-9)
     ag = a / GRAVITY
     left = math.sqrt(max(mu * mu - ag * ag, _TINY_FRICTION))
     inv_l = 1.0 / p[0]
@@ -123,112 +121,122 @@ def rates(v, beta, r, a, cos_d, sin_d, p):
     fyf = zf_load * fiala(zf, mu * p[6], left)  # lateral forces / m, m/s², in the wheels' frames
     fyr = zr_load * fiala(zr, mu * p[7], left)
     xf, xr = zf_load * ag, zr_load * ag  # longitudinal forces / m (the drive shared by load)
-    # cos / sin of (steer - beta): the front wheel's heading seen from the velocity
-    c_fb, s_fb = cos_d * cb + sin_d * sb, sin_d * cb - cos_d * sb
-    dv = xf * c_fb - fyf * s_fb + xr * cb + fyr * sb
-    dbeta = (xf * s_fb + fyf * c_fb - xr * sb + fyr * cb) / v - r
+    du = xf * cos_d - fyf * sin_d + xr + vy * r
+    dvy = xf * sin_d + fyf * cos_d + fyr - u * r
     dr = p[4] * (lf * (xf * sin_d + fyf * cos_d) - lr * fyr)
-    return dv, dbeta, dr
+    return du, dvy, dr
 
 
 @nb.njit(cache=True)
-def blend_weight(v, p):
-    """Weight of the dynamic states at speed ``v``: 0 below ``kinematic_below``, 1 above
-    ``dynamic_above``, a smoothstep between."""
+def blend_weight(speed, p):
+    """Weight of the dynamic rates at ``speed`` (of the centre of gravity, m/s): 0 below
+    ``kinematic_below``, 1 above ``dynamic_above``, a smoothstep between."""
     lo, hi = p[9], p[10]
-    if v <= lo:
+    if speed <= lo:
         return 0.0
-    if v >= hi:
+    if speed >= hi:
         return 1.0
-    s = (v - lo) / (hi - lo)
+    s = (speed - lo) / (hi - lo)
     return s * s * (3.0 - 2.0 * s)
 
 
 @nb.njit(cache=True)
-def blended_rates(v, beta, r, a, cos_d, sin_d, tan_d, dsteer, p):
-    """(v', beta', r'): the dynamic rates weighted by :func:`blend_weight` at ``v``, the rest the
-    kinematic bicycle's (its states' rates at steering rate ``dsteer`` rad/s, plus a pull towards
-    them with time constant :data:`KINEMATIC_PULL`)."""
-    w = blend_weight(v, p)
-    dv, dbeta, dr = a, 0.0, 0.0
+def blended_rates(u, vy, r, a, cos_d, sin_d, tan_d, dsteer, p):
+    """(u', vy', r'): the dynamic rates weighted by :func:`blend_weight`, the rest the kinematic
+    bicycle's (its states' rates at steering rate ``dsteer`` rad/s, plus a pull towards them with
+    time constant :data:`KINEMATIC_PULL`)."""
+    w = blend_weight(math.sqrt(u * u + vy * vy), p)
+    du, dvy, dr = a, 0.0, 0.0
     if w > 0.0:
-        dv, dbeta, dr = rates(v, beta, r, a, cos_d, sin_d, p)
+        du, dvy, dr = rates(u, vy, r, a, cos_d, sin_d, p)
         if w == 1.0:
-            return dv, dbeta, dr
-    q = p[2] / p[0]  # lr / L
-    qt = q * tan_d
-    beta_k = math.atan(qt)
-    sec2 = 1.0 / (cos_d * cos_d)
-    dbeta_k = q * sec2 * dsteer / (1.0 + qt * qt)
-    cb = math.cos(beta_k)
-    r_k = v * cb * tan_d / p[0]
-    dr_k = (a * cb * tan_d - v * math.sin(beta_k) * dbeta_k * tan_d + v * cb * sec2 * dsteer) / p[0]
-    u = 1.0 - w
+            return du, dvy, dr
+    inv_l = 1.0 / p[0]
+    lr = p[2]
+    r_k = u * tan_d * inv_l  # the kinematic bicycle: the rear axle does not slide
+    dr_k = (a * tan_d + u * dsteer / (cos_d * cos_d)) * inv_l
+    k = 1.0 - w
     inv_tau = 1.0 / KINEMATIC_PULL
-    return (w * dv + u * a, w * dbeta + u * (dbeta_k + (beta_k - beta) * inv_tau),
-            w * dr + u * (dr_k + (r_k - r) * inv_tau))  # fmt: skip
+    return (w * du + k * a, w * dvy + k * (lr * dr_k + (lr * r_k - vy) * inv_tau),
+            w * dr + k * (dr_k + (r_k - r) * inv_tau))  # fmt: skip
+
+
+@nb.njit(cache=True)
+def _stiffness(u, p):
+    """A bound on the fastest rate (1/s) of the lateral dynamics at forward speed ``u``."""
+    lf, lr = p[1], p[2]
+    axle = p[5] * GRAVITY * (p[6] * lr + p[7] * lf) / p[0]  # m/s² per rad, both axles
+    return axle * (1.0 + p[4] * max(lf, lr) ** 2) / max(abs(u), 0.05)
 
 
 @nb.njit(cache=True)
 def substep(state, target_steer, target_speed, p, h):
     """Advance the model states of ``state`` (racecar_sim.free_steps layout) by ``h`` seconds.
 
-    Writes the new steer, speed, beta, yaw rate, and the rear axle's car-frame velocity for the
-    substep (``ux``, ``uy``, m/s, chord-corrected) and turn rate (``omega``, rad/s).
+    Writes the new steer, speed (the rear wheels' rolling speed = the car-frame forward velocity),
+    lateral velocity of the centre of gravity, yaw rate, and the rear axle's car-frame velocity
+    for the substep (``ux``, ``uy``, m/s, along the chord) and turn rate (``omega``, rad/s).
     """
-    steer0, v0 = state[_STEER], state[_SPEED]
-    beta0, r0 = state[_BETA], state[_YAW_RATE]
+    steer0, u0 = state[_STEER], state[_SPEED]
+    vy0, r0 = state[_LATERAL], state[_YAW_RATE]
     mu_g = p[5] * GRAVITY
     accel = min(p[12], mu_g)
-    if v0 > p[8]:
-        accel = min(accel, p[12] * p[8] / v0)  # the motor's power limit above v_switch
+    if u0 > p[8]:
+        accel = min(accel, p[12] * p[8] / u0)  # the motor's power limit above v_switch
     decel = min(p[13], mu_g)
-    steer1, v_servo = actuate(steer0, v0, target_steer, target_speed, p[11] * h, accel * h,
+    steer1, u_servo = actuate(steer0, u0, target_steer, target_speed, p[11] * h, accel * h,
                               decel * h)  # fmt: skip
     dsteer = (steer1 - steer0) / h
-    steerm = 0.5 * (steer0 + steer1)
     c0, s0, t0 = math.cos(steer0), math.sin(steer0), math.tan(steer0)
-    cm, sm, tm = math.cos(steerm), math.sin(steerm), math.tan(steerm)
     c1, s1, t1 = math.cos(steer1), math.sin(steer1), math.tan(steer1)
-    # The drive's (or brakes') acceleration: the servo's step, making up for the tires' drag as it
-    # is now, within its limits.
-    a = (v_servo - v0) / h
-    w0 = blend_weight(v0, p)
-    if w0 > 0.0:
-        drag = rates(v0, beta0, r0, a, c0, s0, p)[0] - a
-        a = min(max(a - w0 * drag, -decel), accel)
-    hh = 0.5 * h
-    k1v, k1b, k1r = blended_rates(v0, beta0, r0, a, c0, s0, t0, dsteer, p)
-    k2v, k2b, k2r = blended_rates(v0 + hh * k1v, beta0 + hh * k1b, r0 + hh * k1r, a, cm, sm, tm,
-                                  dsteer, p)  # fmt: skip
-    k3v, k3b, k3r = blended_rates(v0 + hh * k2v, beta0 + hh * k2b, r0 + hh * k2r, a, cm, sm, tm,
-                                  dsteer, p)  # fmt: skip
-    k4v, k4b, k4r = blended_rates(v0 + h * k3v, beta0 + h * k3b, r0 + h * k3r, a, c1, s1, t1,
-                                  dsteer, p)  # fmt: skip
-    v1 = v0 + h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v)
-    beta1 = beta0 + h / 6.0 * (k1b + 2.0 * k2b + 2.0 * k3b + k4b)
-    r1 = r0 + h / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
-    if not -math.pi <= beta1 < math.pi:  # a spin: keep the slip angle in [-pi, pi)
-        beta1 = (beta1 + math.pi) % (2.0 * math.pi) - math.pi
+    # The drive's (or brakes') acceleration: the servo's step of the wheel speed, making up for
+    # what the tires and the turn do to it now, within the limits.
+    a = (u_servo - u0) / h
+    if blend_weight(math.sqrt(u0 * u0 + vy0 * vy0), p) > 0.0:
+        other = blended_rates(u0, vy0, r0, a, c0, s0, t0, dsteer, p)[0] - a
+        a = min(max(a - other, -decel), accel)
+    # RK4 in as many equal pieces as the lateral dynamics' stiffness needs (one at speed).
+    n = min(16, max(1, math.ceil(h * _stiffness(min(abs(u0), abs(u_servo)), p) / 2.0)))
+    k = h / n
+    u, vy, r = u0, vy0, r0
+    for i in range(n):
+        da = steer0 + (steer1 - steer0) * i / n
+        dm = da + 0.5 * (steer1 - steer0) / n
+        db = steer0 + (steer1 - steer0) * (i + 1) / n
+        if n == 1:
+            ca, sa, ta, cb, sb, tb = c0, s0, t0, c1, s1, t1
+        else:
+            ca, sa, ta = math.cos(da), math.sin(da), math.tan(da)
+            cb, sb, tb = math.cos(db), math.sin(db), math.tan(db)
+        cm, sm, tm = math.cos(dm), math.sin(dm), math.tan(dm)
+        hk = 0.5 * k
+        k1u, k1y, k1r = blended_rates(u, vy, r, a, ca, sa, ta, dsteer, p)
+        k2u, k2y, k2r = blended_rates(u + hk * k1u, vy + hk * k1y, r + hk * k1r, a, cm, sm, tm,
+                                      dsteer, p)  # fmt: skip
+        k3u, k3y, k3r = blended_rates(u + hk * k2u, vy + hk * k2y, r + hk * k2r, a, cm, sm, tm,
+                                      dsteer, p)  # fmt: skip
+        k4u, k4y, k4r = blended_rates(u + k * k3u, vy + k * k3y, r + k * k3r, a, cb, sb, tb,
+                                      dsteer, p)  # fmt: skip
+        u += k / 6.0 * (k1u + 2.0 * k2u + 2.0 * k3u + k4u)
+        vy += k / 6.0 * (k1y + 2.0 * k2y + 2.0 * k3y + k4y)
+        r += k / 6.0 * (k1r + 2.0 * k2r + 2.0 * k3r + k4r)
     lr = p[2]
-    ux = 0.5 * (v0 * math.cos(beta0) + v1 * math.cos(beta1))
-    uy = 0.5 * (v0 * math.sin(beta0) - lr * r0 + v1 * math.sin(beta1) - lr * r1)
-    omega = 0.5 * (r0 + r1)
+    ux = 0.5 * (u0 + u)
+    uy = 0.5 * (vy0 - lr * r0 + vy - lr * r)
+    omega = 0.5 * (r0 + r)
     x = 0.5 * omega * h
     chord = 1.0 - x * x / 6.0 if abs(x) < 1e-4 else math.sin(x) / x
-    state[_STEER], state[_SPEED], state[_OMEGA] = steer1, v1, omega
-    state[_BETA], state[_YAW_RATE] = beta1, r1
+    state[_STEER], state[_SPEED], state[_OMEGA] = steer1, u, omega
+    state[_LATERAL], state[_YAW_RATE] = vy, r
     state[_UX], state[_UY] = ux * chord, uy * chord
 
 
 @nb.njit(cache=True)
 def settle(state, p):
-    """Set beta, yaw rate and the rear axle's velocity of ``state`` to the kinematic bicycle's at
-    its steer and speed (a car placed by a reset)."""
+    """Set the lateral velocity, yaw rate and the rear axle's velocity of ``state`` to the
+    kinematic bicycle's at its steer and speed (a car placed by a reset)."""
     tan_d = math.tan(state[_STEER])
-    inv_l = 1.0 / p[0]
-    beta = math.atan(p[2] * tan_d * inv_l)
-    v = state[_SPEED]
-    r = v * math.cos(beta) * tan_d * inv_l
-    state[_BETA], state[_YAW_RATE], state[_OMEGA] = beta, r, r
-    state[_UX], state[_UY] = v * math.cos(beta), 0.0
+    u = state[_SPEED]
+    r = u * tan_d / p[0]
+    state[_LATERAL], state[_YAW_RATE], state[_OMEGA] = p[2] * r, r, r
+    state[_UX], state[_UY] = u, 0.0

@@ -15,11 +15,15 @@ from hypothesis import strategies as st
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
 from racecar_sim.config import CarParams, EnvConfig, load_config
 from racecar_sim.env import RacecarEnv
+from racecar_sim.maps import OccupancyMap
+from racecar_sim.physics import RacecarPhysics
 from racecar_sim.vector_env import RacecarVectorEnv
 from racecar_sim.vehicle.manoeuvres import drive, skidpad
 
 G = 9.81
 CAR = CarParams()
+OPEN_FIELD = OccupancyMap(occupied=np.pad(np.zeros((396, 396), bool), 2, constant_values=True),
+                          resolution=0.05)  # fmt: skip
 
 
 def understeer_gradient(car: CarParams) -> float:
@@ -73,7 +77,7 @@ def test_braking_in_a_turn_shares_the_friction_circle() -> None:
     dt = 0.01
     commands = np.array([[0.25, 4.0]] * 600 + [[0.25, 0.0]] * 40)
     rows = drive(car, "single_track", commands, dt)
-    v, beta = rows[:, 4], rows[:, 5]
+    v, beta = rows[:, 7], rows[:, 5]  # speed and slip angle of the centre of gravity
     heading = rows[:, 2] + beta  # direction of the velocity of the centre of gravity
     along = np.gradient(v, dt)
     across = v * np.gradient(np.unwrap(heading), dt)
@@ -105,20 +109,20 @@ def test_step_size_error_is_small(name: str) -> None:
 
 
 def test_wheel_speed_and_steer_of_both_models() -> None:
+    slips = {}
     for model in ("kinematic", "single_track"):
-        env = RacecarEnv("corridor", car_model=model, terminate_on_collision=False)
-        env.reset(seed=0)
-        phys = env.physics
+        phys = RacecarPhysics(OPEN_FIELD, car_model=model)
+        phys.reset(np.array([10.0, 10.0, 0.0]))
         for _ in range(40):
-            env.step(np.array([0.3, 4.0], dtype=np.float32))
+            assert not phys.step((0.3, 4.0), 0.025)
         assert phys.steer == pytest.approx(0.3)
-        if model == "kinematic":
-            assert phys.wheel_speed == phys.speed
-        else:
-            assert phys.wheel_speed == pytest.approx(phys.speed * math.cos(phys.slip_angle))
-            assert phys.wheel_speed != phys.speed
+        assert phys.wheel_speed == phys.speed == pytest.approx(4.0, abs=0.05)
+        slips[model] = phys.slip_angle
         with pytest.raises(AttributeError):
             phys.wheel_speed = 1.0  # type: ignore[misc]
+    geometric = math.atan(CAR.cg_to_rear * math.tan(0.3) / CAR.wheelbase)
+    assert slips["kinematic"] == pytest.approx(geometric)
+    assert slips["single_track"] < geometric - 0.05  # at 4 m/s the rear tires slip outwards
 
 
 def test_car_model_is_a_setting_everywhere(tmp_path) -> None:

@@ -1,0 +1,8 @@
+"""Thin wrapper: ``racecar-sim bench dynamics`` (see :mod:`mcl.bench.dynamics`)."""
+
+import sys
+
+from mcl.cli.bench import run_script
+
+if __name__ == "__main__":
+    sys.exit(run_script("dynamics"))
