@@ -209,7 +209,8 @@ def test_odometry_yaw_rate_differs_from_the_truth_as_the_slip_angles_say() -> No
     gradient K = (1 / C_Sf - 1 / C_Sr) / (mu g) radians per m/s²)."""
     env = _single_track_env()
     car = env.car_params
-    steer, speed = 0.1, 4.0
+    # 0.17 mu g: the brush tires' slip grows 2-3 % faster than linear here (at 0.4 mu g, 20 %)
+    steer, speed = 0.05, 3.5
     rows = _steady(env, steer, speed)
     odo_om, tw_vx, tw_vy, tw_om = rows[:, 2], rows[:, 3], rows[:, 4], rows[:, 5]
     wheel, beta = rows[:, 6], rows[:, 7]
