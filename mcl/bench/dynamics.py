@@ -50,14 +50,16 @@ def _t(n: int = 500) -> np.ndarray:
 OPEN_LOOP: dict[str, Any] = {
     "steer steps +-0.1 rad every 1 s, 3 m/s": lambda t: np.c_[
         np.where(t < 0.5, 0.0, np.where((t - 0.5) % 2 < 1, 0.1, -0.1)), np.full_like(t, 3.0)],
-    "speed steps 2-5-7-4 m/s, steer 0.05 rad": lambda t: np.c_[
-        np.full_like(t, 0.05), np.select([t < 1.25, t < 2.5, t < 3.75], [2.0, 5.0, 7.0], 4.0)],
-    "steer sine 0.15 rad 0.5 Hz, 5 m/s": lambda t: np.c_[
+    "speed steps 2-4-6-4 m/s, steer 0.03 rad": lambda t: np.c_[
+        np.full_like(t, 0.03), np.select([t < 1.25, t < 2.5, t < 3.75], [2.0, 4.0, 6.0], 4.0)],
+    "steer sine 0.06 rad 0.5 Hz, 5 m/s": lambda t: np.c_[
+        0.06 * np.sin(math.pi * t), np.full_like(t, 5.0)],
+    "steer sine 0.03 rad 1 Hz, 7 m/s": lambda t: np.c_[
+        0.03 * np.sin(2 * math.pi * t), np.full_like(t, 7.0)],
+    "speed sine 4 +- 3 m/s 0.4 Hz, steer 0.03 rad": lambda t: np.c_[
+        np.full_like(t, 0.03), 4.0 + 3.0 * np.sin(0.8 * math.pi * t)],
+    "steer sine 0.15 rad 0.5 Hz, 5 m/s (near the grip)": lambda t: np.c_[
         0.15 * np.sin(math.pi * t), np.full_like(t, 5.0)],
-    "steer sine 0.05 rad 1 Hz, 7 m/s": lambda t: np.c_[
-        0.05 * np.sin(2 * math.pi * t), np.full_like(t, 7.0)],
-    "speed sine 4 +- 3 m/s 0.4 Hz, steer 0.1 rad": lambda t: np.c_[
-        np.full_like(t, 0.1), 4.0 + 3.0 * np.sin(0.8 * math.pi * t)],
     "steer sine 0.3 rad 0.5 Hz, 6 m/s (beyond the grip)": lambda t: np.c_[
         0.3 * np.sin(math.pi * t), np.full_like(t, 6.0)],
 }  # fmt: skip
@@ -135,7 +137,7 @@ def open_loop(car: CarParams, peer=None) -> dict[str, dict[str, float]]:
     print(f"open loop: 5 s, dt {DT} s in {SUBSTEPS} substeps, both cars from rest, the same "
           "actuator inputs (steering rate <= 3.2 rad/s, |accel| <= 9.51 m/s^2); differences "
           "after 5 s (ours - theirs), centre of gravity")  # fmt: skip
-    print("| manoeuvre | theirs peak a_y | position m | heading rad | speed m/s | "
+    print("| manoeuvre | theirs peak v r | position m | heading rad | speed m/s | "
           "yaw rate rad/s | slip rad | largest position gap m |")  # fmt: skip
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
     out = {}

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
+import pytest
+
 from mcl.bench import dynamics
 from racecar_sim.config import CarParams
 from racecar_sim.maps import bundled
@@ -28,9 +33,37 @@ def test_speed_part_measures_both_models(capsys) -> None:
 
 
 def test_bad_flags_are_one_line_errors(capsys) -> None:
-    import pytest
-
     with pytest.raises(SystemExit) as exc:
         dynamics.main(["--f1tenth-python", "/nonexistent/python"])
     assert exc.value.code == 2
     assert "both --f1tenth-python and --f1tenth-path" in capsys.readouterr().err
+
+
+PEERS = Path(__file__).resolve().parents[3] / "peers"  # ../peers beside the checkout
+PEER_PYTHON = Path(os.environ.get("F1TENTH_PYTHON", PEERS / "f1tenth-venv" / "bin" / "python"))
+PEER_PATH = Path(os.environ.get("F1TENTH_PATH", PEERS / "f1tenth_gym"))
+
+
+@pytest.mark.skipif(not (PEER_PYTHON.exists() and PEER_PATH.is_dir()),
+                    reason="f1tenth_gym and its venv are not in ../peers (or $F1TENTH_PYTHON, $F1TENTH_PATH)")  # fmt: skip
+def test_skidpad_agrees_with_f1tenth_gym_where_its_tires_are_linear(capsys) -> None:
+    from mcl.bench.peer_dynamics import PeerDynamics
+
+    peer = PeerDynamics(str(PEER_PYTHON), str(PEER_PATH))
+    try:
+        car = CarParams.f1tenth()
+        assert peer.params["mu"] == car.friction and peer.params["C_Sf"] == car.cornering_front
+        rows = dynamics.skidpad_table(car, peer)
+    finally:
+        peer.close()
+    limit = car.friction * 9.81
+    linear = 0
+    for row in rows.values():
+        theirs, ours = row["theirs"], row["ours"]
+        if theirs["lateral_accel"] < 0.5 * limit:
+            linear += 1
+            assert ours.radius == pytest.approx(theirs["radius"], rel=0.10)
+        else:  # theirs corners on, ours is held by the friction
+            assert ours.lateral_accel <= 1.01 * limit < 2 * theirs["lateral_accel"]
+    assert linear >= 4
+    assert "radii agree" in capsys.readouterr().out
