@@ -1,6 +1,6 @@
 """The single-track car against f1tenth_gym's, and what it costs: ``racecar-sim bench dynamics``.
 
-Three parts (``--only`` picks one), each printing a Markdown table with its workload:
+Four parts (``--only`` picks one), each printing a Markdown table with its workload:
 
 * ``skidpad``: steady circles at fixed steer (0.2 and 0.35 rad) for 1-7 m/s, 10 s from rest at
   dt 0.01 s (5 ms substeps): radius, yaw rate, lateral acceleration and slip angle of the centre
@@ -10,6 +10,8 @@ Three parts (``--only`` picks one), each printing a Markdown table with its work
 * ``openloop``: the same command sequences (steps and sines of steer and speed, up to 7 m/s, 5 s
   at dt 0.01 s) through both models: the state differences after 5 s and the largest lateral
   acceleration f1tenth_gym's car reached.
+* ``stepsize``: the open-loop manoeuvres within the grip at substeps of 10, 5, 2.5 and 1.25 ms,
+  each against the same at 0.156 ms: the largest differences in position, heading and slip angle.
 * ``speed``: steps per second of our single env and vector env (``--num-envs`` cars) with each
   car model, on f1tenth_gym's workload (:data:`mcl.bench.peer_f1tenth.WORKLOAD`), rounds
   interleaved model by model; the cost is the median of the per-round ratios of time per step.
@@ -161,6 +163,36 @@ def open_loop(car: CarParams, peer=None) -> dict[str, dict[str, float]]:
     return out
 
 
+STEP_SIZES = (0.01, 0.005, 0.0025, 0.00125)
+"""Substeps (s) of the step-size part, each against a reference at 1/8 of the smallest."""
+
+
+def step_size_error(car: CarParams) -> dict[str, dict[float, tuple[float, float, float]]]:
+    """Print the step-size table: the open-loop manoeuvres within the grip at each substep of
+    :data:`STEP_SIZES` against the same at a substep of 1/8 of the smallest (dt 0.02 s, 5 s);
+    largest differences over the run in position (m), heading and slip angle (rad)."""
+    reference_h = STEP_SIZES[-1] / 8
+    print(f"step size: single_track, F1TENTH parameters, 5 s at dt 0.02 s; the largest difference "
+          f"over the run against a {reference_h * 1e3:.3f} ms substep")  # fmt: skip
+    print("| manoeuvre | " + " | ".join(f"{h * 1e3:g} ms: position m / heading rad / slip rad"
+                                       for h in STEP_SIZES) + " |")  # fmt: skip
+    print("|---|" + "---:|" * len(STEP_SIZES))
+    out: dict[str, dict[float, tuple[float, float, float]]] = {}
+    t = np.arange(250) * 0.02
+    for name in list(OPEN_LOOP)[:4]:  # the car keeps its grip (the others slide or half spin)
+        commands = OPEN_LOOP[name](t)
+        ref = drive(car, "single_track", commands, 0.02, substep=reference_h)
+        cells, out[name] = [], {}
+        for h in STEP_SIZES:
+            d = drive(car, "single_track", commands, 0.02, substep=h) - ref
+            err = (float(np.hypot(d[:, 0], d[:, 1]).max()), float(abs(d[:, 2]).max()),
+                   float(abs(d[:, 5]).max()))  # fmt: skip
+            out[name][h] = err
+            cells.append(f"{err[0]:.1e} / {err[1]:.1e} / {err[2]:.1e}")
+        print(f"| {name} | " + " | ".join(cells) + " |")
+    return out
+
+
 def speed_cost(map_yaml: Path, steps: int, vector_steps: int, runs: int, num_envs: int) -> dict:
     """Print steps/s of each model (single env, vector env) on f1tenth_gym's workload, rounds
     interleaved; returns the medians and the median per-round cost (time per step ratio)."""
@@ -217,7 +249,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawTextHelpFormatter
     )
-    parser.add_argument("--only", choices=("skidpad", "openloop", "speed"), help="one part only")
+    parser.add_argument("--only", choices=("skidpad", "openloop", "stepsize", "speed"),
+                        help="one part only")  # fmt: skip
     parser.add_argument("--f1tenth-python", help="python of a venv with f1tenth_gym installed")
     parser.add_argument("--f1tenth-path", help="the f1tenth_gym checkout (branch dev-dynamics)")
     parser.add_argument("--map", type=Path, default=STATA,
@@ -237,7 +270,7 @@ def main(argv: list[str] | None = None) -> int:
                         ("--f1tenth-path", args.f1tenth_path)):  # fmt: skip
         if value and not Path(value).exists():
             parser.error(f"{flag} {value} does not exist")
-    parts = [args.only] if args.only else ["skidpad", "openloop", "speed"]
+    parts = [args.only] if args.only else ["skidpad", "openloop", "stepsize", "speed"]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"{os.cpu_count()} CPUs, load average {load:.1f} before the run")
     car = CarParams.f1tenth()
@@ -259,6 +292,9 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if peer is not None:
             peer.close()
+    if "stepsize" in parts:
+        print("\n== step size ==")
+        step_size_error(car)
     if "speed" in parts:
         print("\n== speed ==")
         map_yaml = args.map

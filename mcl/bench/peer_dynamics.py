@@ -19,9 +19,10 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-from typing import Any
 
 import numpy as np
+
+from mcl.bench.peer_process import PeerProcess
 
 __all__ = ["PEER_SCRIPT", "PeerDynamics"]
 
@@ -59,7 +60,7 @@ for line in sys.stdin:
 ...]}`` (the start first, then one row per command)."""
 
 
-class PeerDynamics:
+class PeerDynamics(PeerProcess):
     """The f1tenth_gym subprocess of :data:`PEER_SCRIPT` (``python``: its venv's interpreter,
     ``path``: its checkout)."""
 
@@ -72,16 +73,6 @@ class PeerDynamics:
         self.info = self._answer("ready")
         self.params: dict[str, float] = self.info["params"]
 
-    def _answer(self, key: str) -> dict[str, Any]:
-        assert self.proc.stdout is not None
-        for line in self.proc.stdout:  # f1tenth_gym may print its own lines first
-            if line.startswith("{"):
-                msg = json.loads(line)
-                if key in msg:
-                    return msg
-        err = self.proc.stderr.read() if self.proc.stderr else ""
-        raise RuntimeError(f"f1tenth_gym subprocess ended: {err.strip()[-2000:]}")
-
     def drive(self, commands: np.ndarray, dt: float, substeps: int) -> np.ndarray:
         """(K + 1, 7) their states after each command of ``commands`` (K, 2), the start first."""
         assert self.proc.stdin is not None
@@ -90,13 +81,3 @@ class PeerDynamics:
         self.proc.stdin.write(json.dumps(job) + "\n")
         self.proc.stdin.flush()
         return np.array(self._answer("states")["states"])
-
-    def close(self) -> None:
-        if self.proc.poll() is None:
-            try:
-                assert self.proc.stdin is not None
-                self.proc.stdin.write(json.dumps({"op": "quit"}) + "\n")
-                self.proc.stdin.close()
-                self.proc.wait(timeout=30)
-            except (OSError, subprocess.TimeoutExpired):
-                self.proc.kill()

@@ -38,6 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
+from mcl.bench.peer_process import PeerProcess
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
 
@@ -139,7 +140,7 @@ for line in sys.stdin:
 ``{"op": "run", "steps": N}`` line on stdin and answers with one JSON line."""
 
 
-class _Peer:
+class _Peer(PeerProcess):
     """The f1tenth_gym subprocess (see :data:`PEER_SCRIPT`)."""
 
     def __init__(
@@ -154,31 +155,11 @@ class _Peer:
         )  # fmt: skip
         self.info = self._answer("ready")
 
-    def _answer(self, key: str) -> dict[str, Any]:
-        assert self.proc.stdout is not None
-        for line in self.proc.stdout:  # f1tenth_gym may print its own lines first
-            if line.startswith("{"):
-                msg = json.loads(line)
-                if key in msg:
-                    return msg
-        err = self.proc.stderr.read() if self.proc.stderr else ""
-        raise RuntimeError(f"f1tenth_gym subprocess ended: {err.strip()[-2000:]}")
-
     def run(self, steps: int) -> dict[str, Any]:
         assert self.proc.stdin is not None
         self.proc.stdin.write(json.dumps({"op": "run", "steps": steps}) + "\n")
         self.proc.stdin.flush()
         return self._answer("wall")
-
-    def close(self) -> None:
-        if self.proc.poll() is None:
-            try:
-                assert self.proc.stdin is not None
-                self.proc.stdin.write(json.dumps({"op": "quit"}) + "\n")
-                self.proc.stdin.close()
-                self.proc.wait(timeout=30)
-            except (OSError, subprocess.TimeoutExpired):
-                self.proc.kill()
 
 
 def run_ours(env, steps: int, seed: int, pose: np.ndarray, cars: int = 0) -> dict[str, Any]:
