@@ -22,7 +22,6 @@ from racecar_sim.obstacles import ObstacleParams
 from racecar_sim.scan_effects import OdometryBias, ScanEffects
 from racecar_sim.validation import check_number, read_yaml_mapping
 from racecar_sim.vehicle import check_car_model
-from racecar_sim.vesc import ImuParams
 
 __all__ = [
     "CarParams",

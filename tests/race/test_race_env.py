@@ -221,3 +221,22 @@ def test_bad_actions_name_the_agent():
         env.step({"car_0": [0.0, 1.0]})
     with pytest.raises(ValueError, match="not alive"):
         env.step({"car_0": [0.0, 1.0], "car_1": [0.0, 1.0], "car_9": [0.0, 0.0]})
+
+
+def test_single_track_cars_race_and_pass_the_api_test():
+    env = RaceEnv(HALL, n_cars=3, n_beams=61, max_episode_steps=150, car_model="single_track")
+    assert {car.physics.car_model for car in env.world.cars} == {"single_track"}
+    parallel_api_test(env, num_cycles=200)
+
+
+def test_single_track_cars_driven_into_each_other_do_not_overlap():
+    env = quiet_race(n_beams=61, terminate_on_collision=False, car_model="single_track")
+    env.reset(seed=0, options={"poses": np.array([[10.0, 5.0, 0.0], [14.0, 5.1, math.pi]])})
+    touched = False
+    for _ in range(120):  # 3 s at 3 m/s head on
+        _, _, _, _, info = env.step({"car_0": [0.0, 3.0], "car_1": [0.0, 3.0]})
+        touched = touched or "car_1" in info["car_0"]["contacts"]
+        boxes = env.world.boxes()
+        assert penetration(boxes[0], boxes[1]) <= 2 * 3.0 * env.config.substep + 1e-9
+        assert info["car_0"]["pose"][0] < info["car_1"]["pose"][0]
+    assert touched
