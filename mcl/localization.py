@@ -20,7 +20,7 @@ from gymnasium import spaces
 
 from mcl.adaptive import AdaptiveParams
 from mcl.angles import wrap_angle
-from mcl.motion_model import MotionModelParams
+from mcl.motion_model import MotionModel, MotionModelParams
 from mcl.particle_filter import ParticleFilter, ParticleFilterParams
 from mcl.sensor_model import SensorModel, SensorModelParams
 from racecar_sim.config import from_mapping, nested
@@ -38,6 +38,8 @@ __all__ = [
     "pose_error",
     "pose_estimate_space",
     "sensor_model_for_lidar",
+    "shared_models",
+    "start_filter",
 ]
 
 INIT_MODES: tuple[str, ...] = ("pose", "global")
@@ -176,6 +178,51 @@ def sensor_model_for_lidar(
         replace(params, mount_offset=float(lidar.params.mount_offset)),
         beam_angles=np.asarray(lidar.angles, dtype=np.float64),
     )
+
+
+def shared_models(
+    config: LocalizationConfig | Mapping[str, Any] | None,
+    occupancy_map: OccupancyMap,
+    lidar: Any,
+    owner: str,
+) -> tuple[LocalizationConfig, SensorModel, MotionModel]:
+    """The checked config, and the one sensor model and motion model that many cars' filters
+    share (the wrappers of the vector env and of the race).
+
+    Raises:
+        ValueError: the config asks for the adaptive filter (``owner`` names the wrapper).
+    """
+    config = as_localization_config(config)
+    if config.adaptive is not None:
+        raise ValueError(f"{owner} does not run the adaptive filter; set adaptive=None")
+    sensor = sensor_model_for_lidar(occupancy_map, config.sensor, lidar)
+    return config, sensor, MotionModel(config.motion)
+
+
+def start_filter(
+    occupancy_map: OccupancyMap,
+    config: LocalizationConfig,
+    sensor_model: SensorModel,
+    motion_model: MotionModel,
+    rng: np.random.Generator,
+    init: str,
+    centre: np.ndarray,
+    spread: Any,
+) -> ParticleFilter:
+    """A new filter on ``rng``: uniform over free space (``init="global"``) or Gaussian around
+    ``centre`` (world [x, y, theta]) with ``spread`` (None: ``config.filter.init_spread``)."""
+    pf = ParticleFilter(
+        occupancy_map,
+        motion_model=motion_model,
+        sensor_model=sensor_model,
+        params=config.filter,
+        rng=rng,
+    )
+    if init == "global":
+        pf.initialize_global()
+    else:
+        pf.initialize(np.asarray(centre, dtype=np.float64), spread)
+    return pf
 
 
 def pose_error(estimate: np.ndarray, truth: np.ndarray) -> tuple[float, float]:

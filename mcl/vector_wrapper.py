@@ -39,14 +39,13 @@ from mcl.localization import (
     INIT_MODES,
     RESET_OPTIONS,
     LocalizationConfig,
-    as_localization_config,
     correct_with_scan,
     filter_rng,
     pose_error,
     pose_estimate_space,
-    sensor_model_for_lidar,
+    shared_models,
+    start_filter,
 )
-from mcl.motion_model import MotionModel
 from mcl.particle_filter import ParticleFilter
 from racecar_sim.vector_env import car_seeds
 
@@ -89,16 +88,14 @@ class LocalizedVectorEnv(VectorWrapper):
             )
         if inner.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP) != AutoresetMode.NEXT_STEP:
             raise ValueError("LocalizedVectorEnv needs the vector env's next-step autoreset mode")
-        config = as_localization_config(config)
-        if config.adaptive is not None:
-            raise ValueError("LocalizedVectorEnv does not run the adaptive filter; set adaptive=None")
-        self.config: LocalizationConfig = config
         self.map = inner.map
         self.dt = float(inner.dt)
         lidar = cars[0].lidar
         self._lidar_max_range = float(lidar.params.max_range)
-        self.sensor_model = sensor_model_for_lidar(self.map, config.sensor, lidar)
-        self.motion_model = MotionModel(config.motion)
+        self.config: LocalizationConfig
+        self.config, self.sensor_model, self.motion_model = shared_models(
+            config, self.map, lidar, "LocalizedVectorEnv"
+        )
         self.uncertainty = bool(uncertainty)
         self._clock = clock
         n = self.num_envs
@@ -190,18 +187,11 @@ class LocalizedVectorEnv(VectorWrapper):
 
     def _start(self, i: int, init: str, centre: np.ndarray, spread: Any) -> None:
         """A new filter for car ``i`` (as the single wrapper's reset), on the car's generator."""
-        pf = ParticleFilter(
-            self.map,
-            motion_model=self.motion_model,
-            sensor_model=self.sensor_model,
-            params=self.config.filter,
-            rng=self._rngs[i],
+        rng = self._rngs[i]
+        assert rng is not None
+        self.filters[i] = start_filter(
+            self.map, self.config, self.sensor_model, self.motion_model, rng, init, centre, spread
         )
-        if init == "global":
-            pf.initialize_global()
-        else:
-            pf.initialize(np.asarray(centre, dtype=np.float64), spread)
-        self.filters[i] = pf
 
     def _correct(self, i: int, scan: np.ndarray) -> float:
         return correct_with_scan(self._pf(i), scan, self._lidar_max_range)

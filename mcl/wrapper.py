@@ -46,12 +46,32 @@ from mcl.motion_model import MotionModel
 from mcl.particle_filter import ParticleFilter
 from mcl.sensor_model import SensorModel
 from racecar_sim.maps import OccupancyMap, resolve_map
+from racecar_sim.render import MapRenderer
 
 if TYPE_CHECKING:
     from mcl.io.bag_writer import DriveRecorder
     from mcl.io.live import LiveServer
 
-__all__ = ["LocalizationWrapper"]
+__all__ = ["LocalizationWrapper", "car_of"]
+
+
+def car_of(inner: Any) -> Any:
+    """The localized car of an unwrapped env: the env itself for ``RacecarSim-v0`` (it has
+    ``map``, ``lidar`` and ``dt``), car 0 of the race for ``RacecarRace-v0`` (``inner.race``).
+
+    Raises:
+        TypeError: the env is neither.
+    """
+    if all(hasattr(inner, a) for a in ("map", "lidar", "dt")):
+        return inner
+    race = getattr(inner, "race", None)
+    cars = getattr(race, "cars", None)
+    if cars and all(hasattr(cars[0], a) for a in ("map", "lidar", "dt")):
+        return cars[0]
+    raise TypeError(
+        f"LocalizationWrapper needs a RacecarSim-v0 or RacecarRace-v0 env; {type(inner).__name__} "
+        "has no map, lidar and dt (nor a race whose car 0 has them)"
+    )
 
 
 class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -59,7 +79,8 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     Args:
         env: a ``RacecarSim-v0`` env (``gymnasium.make`` or :class:`racecar_sim.env.RacecarEnv`,
-            with any wrappers that keep its observations).
+            with any wrappers that keep its observations), or ``RacecarRace-v0`` (the filter
+            localizes car 0 among the opponents; :func:`car_of`).
         config: :class:`LocalizationConfig` or a mapping of its fields.
         log_path: when given, a CSV error log (:mod:`mcl.error_log`) is written there, one row per
             step, flushed as it goes; episodes follow one another in the same file, ``step``
@@ -114,24 +135,19 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         )  # fmt: skip
         gym.Wrapper.__init__(self, env)
         inner = env.unwrapped
-        for attr in ("map", "lidar", "dt", "renderer"):
-            if not hasattr(inner, attr):
-                raise TypeError(
-                    f"LocalizationWrapper needs a RacecarSim-v0 env; {type(inner).__name__} has "
-                    f"no {attr!r}"
-                )
+        car = car_of(inner)
         if not isinstance(env.observation_space, spaces.Dict) or not {"scan", "odom"} <= set(
             env.observation_space.spaces
         ):
             raise TypeError("LocalizationWrapper needs observations with 'scan' and 'odom'")
         config = as_localization_config(config)
         self.config: LocalizationConfig = config
-        self.world_map = inner.map
+        self.world_map = car.map
         """The map the env simulates (the world)."""
-        self.map = inner.map if filter_map is None else resolve_map(filter_map)
+        self.map = car.map if filter_map is None else resolve_map(filter_map)
         """The map the filter holds."""
-        self.dt = float(inner.dt)
-        lidar = inner.lidar
+        self.dt = float(car.dt)
+        lidar = car.lidar
         self._lidar_max_range = float(lidar.params.max_range)
         angles = np.asarray(lidar.angles, dtype=np.float64)
         if sensor_model is None:
@@ -150,6 +166,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._clock = clock
         self.filter: ParticleFilter | None = None
         self._rng: np.random.Generator | None = None
+        self._renderer: MapRenderer | None = None
 
         self.observation_space = spaces.Dict(
             {
@@ -230,7 +247,11 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         img = self.env.render()
         if img is None or self.filter is None:
             return img
-        renderer = self.env.unwrapped.renderer
+        renderer = getattr(self.env.unwrapped, "renderer", None)
+        if renderer is None:  # a race: its frame is drawn on the same map
+            if self._renderer is None:
+                self._renderer = MapRenderer(self.world_map)
+            renderer = self._renderer
         particles = self.filter.particles
         stride = max(1, math.ceil(len(particles) / max(self.config.render_particles, 1)))
         if self.config.render_particles > 0:

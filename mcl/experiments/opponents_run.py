@@ -5,7 +5,9 @@ settings never change the trajectory) round the map's loop at ``speed``, startin
 the loop picked by the seed, with :class:`~mcl.wrapper.LocalizationWrapper` in the loop, and logs
 the position error against the truth every step. The opponents are
 :class:`~mcl.experiments.opponents.OpponentsScenario`'s car-sized boxes held ``gaps`` metres
-ahead on the same line (``backend="boxes"``).
+ahead on the same line (``backend="boxes"``), or ``RacecarRace-v0``'s scripted cars
+(``backend="race"``: every car on pure pursuit along the race's centerline at ``speed``, the
+opponents starting ``gaps`` ahead of car 0, which the filter localizes).
 
 :func:`opponents_table` pools the steps of every seed of one (opponents, method) cell: mean,
 median and 95th percentile of the position error (metres), the fraction of steps over
@@ -41,8 +43,8 @@ METHODS: dict[str, dict[str, Any]] = {
 }
 """Sensor-model settings of each method of the table (:class:`SensorModelParams` fields)."""
 
-BACKENDS: tuple[str, ...] = ("boxes",)
-"""Where the opponents come from: car-sized boxes held ahead."""
+BACKENDS: tuple[str, ...] = ("boxes", "race")
+"""Where the opponents come from: car-sized boxes held ahead, or ``RacecarRace-v0``'s cars."""
 
 _GOLDEN = 0.6180339887498949  # start points of successive seeds spread round the loop
 
@@ -132,6 +134,8 @@ def run_opponents(run: OpponentRun, log_path: str | Path) -> OpponentRunResult:
     t0 = time.perf_counter()
     track = track_for_map(run.map)
     start = _start_pose(track, run.seed)
+    if run.backend == "race":
+        return _run_race(run, log_path, t0)
     settings: dict[str, Any] = {"terminate_on_collision": False}
     if run.opponents:
         settings["obstacles"] = {"boxes": run.opponents}
@@ -142,6 +146,33 @@ def run_opponents(run: OpponentRun, log_path: str | Path) -> OpponentRunResult:
     options = {**scenario.reset_options(), "pose": start}
     return _drive(run, wrapped, options, lambda obs, info: pursuit(obs, info["pose"]),
                   lambda k: scenario.before_step(wrapped, k, 0.0, None), log_path, t0)  # fmt: skip
+
+
+def _run_race(run: OpponentRun, log_path: str | Path, t0: float) -> OpponentRunResult:
+    """The race backend (module docstring): ``LocalizationWrapper(gym.make("RacecarRace-v0"))``."""
+    import gymnasium as gym
+
+    import racecar_sim  # noqa: F401  (registers RacecarRace-v0)
+    from racecar_sim.drivers import PurePursuit
+
+    k = run.opponents
+    env = gym.make(
+        "RacecarRace-v0",
+        map=run.map,
+        opponents=k,
+        opponent_driver="pure_pursuit",
+        opponent_speeds=[run.speed] * k,
+        terminate_on_collision=False,
+    )
+    line = env.unwrapped.track
+    s0 = line.length * ((run.seed * _GOLDEN) % 1.0)
+    arc = [s0, *(s0 + g for g in run.gaps[:k])]
+    poses = np.array([[*line.point_at(s), line.heading_at(s)] for s in arc])
+    pursuit = PurePursuit(line.points, speed=run.speed, loop=True, car=env.unwrapped.car_params)
+    wrapped = LocalizationWrapper(env, run.config(), log_path=log_path)
+    options = {"poses": poses, "init": "pose", "init_spread": (0.25, 0.25, 0.1)}
+    return _drive(run, wrapped, options, lambda obs, info: pursuit(obs, info["pose"]),
+                  lambda step: None, log_path, t0)  # fmt: skip
 
 
 def _drive(run, wrapped, options, driver, before_step, log_path, t0) -> OpponentRunResult:

@@ -1,0 +1,85 @@
+"""LocalizedRaceEnv: a filter per car of a race, sharing one sensor model, seeded per car."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pettingzoo", reason="the race env needs the [race] extra (pettingzoo)")
+
+from pettingzoo.test import parallel_api_test
+
+from mcl.race_wrapper import LocalizedRaceEnv
+from racecar_sim import RaceEnv
+
+CONFIG = {"filter": {"n_particles": 300}}
+
+
+def _race(n_cars: int = 3) -> LocalizedRaceEnv:
+    return LocalizedRaceEnv(RaceEnv("basement_loop", n_cars=n_cars), CONFIG, clock=lambda: 0.0)
+
+
+def _drive(env: LocalizedRaceEnv, steps: int, seed: int) -> list[dict]:
+    _, infos = env.reset(seed=seed)
+    out = [infos]
+    for _ in range(steps):
+        actions = {a: np.array([0.0, 1.0]) for a in env.agents}
+        _, _, _, _, infos = env.step(actions)
+        out.append(infos)
+    return out
+
+
+def test_parallel_api() -> None:
+    parallel_api_test(_race(3), num_cycles=30)
+
+
+def test_every_car_is_localized_with_one_shared_sensor_model() -> None:
+    env = _race(3)
+    infos = _drive(env, 40, seed=1)[-1]
+    assert set(env.filters) == {"car_0", "car_1", "car_2"}
+    assert all(pf.sensor_model is env.sensor_model for pf in env.filters.values())
+    for agent, info in infos.items():
+        loc = info["localization"]
+        assert loc["position_error"] < 0.25, agent
+        err = np.hypot(*(loc["estimate"][:2] - info["pose"][:2]))
+        assert loc["position_error"] == pytest.approx(err)
+
+
+def test_the_same_seed_gives_the_same_estimates() -> None:
+    a = _drive(_race(2), 20, seed=4)
+    b = _drive(_race(2), 20, seed=4)
+    for ia, ib in zip(a, b, strict=True):
+        for agent in ia:
+            np.testing.assert_array_equal(
+                ia[agent]["localization"]["estimate"], ib[agent]["localization"]["estimate"]
+            )
+
+
+def test_bad_init_pose_is_refused() -> None:
+    env = _race(2)
+    with pytest.raises(ValueError, match="init_pose"):
+        env.reset(seed=0, options={"init_pose": np.zeros(3)})
+
+
+# ---------------------------------------------------------------------- RacecarRace-v0, car 0
+def test_localization_wrapper_localizes_car_0_of_racecar_race() -> None:
+    import gymnasium as gym
+    from gymnasium.utils.env_checker import check_env
+
+    from mcl.wrapper import LocalizationWrapper
+
+    env = LocalizationWrapper(
+        gym.make("RacecarRace-v0", map="basement_loop", opponents=2), CONFIG, clock=lambda: 0.0
+    )
+    check_env(env, skip_render_check=True)
+    obs, info = env.reset(seed=3)
+    assert "pose_estimate" in obs
+    for _ in range(30):
+        obs, _, terminated, truncated, info = env.step(np.array([0.0, 1.0]))
+        if terminated or truncated:
+            break
+    loc = info["localization"]
+    assert loc["position_error"] < 0.25
+    np.testing.assert_allclose(loc["estimate"], obs["pose_estimate"])
+    # the opponents are in car 0's scan, not in the filter's map
+    assert info["opponent_poses"].shape == (2, 3)
