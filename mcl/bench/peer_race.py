@@ -77,7 +77,9 @@ def column_poses(start: np.ndarray, n: int, spacing: float) -> np.ndarray:
     return out
 
 
-RACE_PEER_SCRIPT = PEER_PREAMBLE + r"""
+RACE_PEER_SCRIPT = (
+    PEER_PREAMBLE
+    + r"""
 envs = {}
 print(json.dumps({"ready": True, "module": f1tenth_gym.__file__,
                   "gymnasium": gym.__version__}), flush=True)
@@ -105,6 +107,7 @@ for line in sys.stdin:
     print(json.dumps({"wall": wall, "cpu": cpu, "steps": cmd["steps"] * n, "collided": hit}),
           flush=True)
 """
+)
 """Run by the peer's Python (``-c``): loads the map once, makes one env per agent count, and times
 one episode per ``{"op": "run", "steps": S, "agents": N, "poses": [[x, y, theta], ...]}`` line."""
 
@@ -216,29 +219,37 @@ def _rate(res: dict[str, Any], clock: str = "wall") -> float:
 
 
 def _report(rows, extra, max_cars: int, biggest: int) -> dict[int, dict[str, float]]:
-    print("| cars | f1tenth_gym agent-steps/s | ours agent-steps/s | x f1tenth_gym (rounds) | "
-          "ours race steps/s | collisions (peer, ours) |")  # fmt: skip
-    print("|---:|---:|---:|---:|---:|---:|")
+    """The table: medians of agent-steps/s by the wall clock and by CPU time, and the medians of
+    the per-round ratios (the rounds share the machine's load)."""
+    print("| cars | f1tenth_gym agent-steps/s (wall, CPU) | ours agent-steps/s (wall, CPU) | "
+          "x f1tenth_gym, wall (rounds) | x f1tenth_gym, CPU | ours race steps/s | "
+          "collisions (peer, ours) |")  # fmt: skip
+    print("|---:|---:|---:|---:|---:|---:|---:|")
     out: dict[int, dict[str, float]] = {}
     for n, r in rows.items():
         ours = statistics.median(_rate(x) for x in r["ours"])
-        peer = statistics.median(_rate(x) for x in r["peer"]) if r["peer"] else math.nan
+        ours_cpu = statistics.median(_rate(x, "cpu") for x in r["ours"])
+        peer = peer_cpu = ratio = ratio_cpu = math.nan
         ratio_text = "-"
-        ratio = math.nan
         if r["peer"]:
-            ratios = [_rate(a) / _rate(b) for a, b in zip(r["ours"], r["peer"], strict=True)]
+            peer = statistics.median(_rate(x) for x in r["peer"])
+            peer_cpu = statistics.median(_rate(x, "cpu") for x in r["peer"])
+            pairs = list(zip(r["ours"], r["peer"], strict=True))
+            ratios = [_rate(a) / _rate(b) for a, b in pairs]
             ratio = statistics.median(ratios)
+            ratio_cpu = statistics.median(_rate(a, "cpu") / _rate(b, "cpu") for a, b in pairs)
             ratio_text = f"{ratio:.1f} ({min(ratios):.1f}-{max(ratios):.1f})"
         hits = (sum(x["collided"] for x in r["peer"]), sum(x["collided"] for x in r["ours"]))
-        print(
-            f"| {n} | {peer:.0f} | {ours:.0f} | {ratio_text} | {ours / n:.0f} | {hits[0]}, {hits[1]} |"
-        )
-        out[n] = {"peer": peer, "ours": ours, "ratio": ratio}
+        print(f"| {n} | {peer:.0f}, {peer_cpu:.0f} | {ours:.0f}, {ours_cpu:.0f} | {ratio_text} | "
+              f"{ratio_cpu:.1f} | {ours / n:.0f} | {hits[0]}, {hits[1]} |")  # fmt: skip
+        out[n] = {"peer": peer, "ours": ours, "ratio": ratio, "ratio_cpu": ratio_cpu}
     if extra:
         ours = statistics.median(_rate(x) for x in extra)
+        ours_cpu = statistics.median(_rate(x, "cpu") for x in extra)
         hits = sum(x["collided"] for x in extra)
-        print(f"| {max_cars} | not run | {ours:.0f} | - | {ours / max_cars:.0f} | -, {hits} |")
-        out[max_cars] = {"peer": math.nan, "ours": ours, "ratio": math.nan}
+        print(f"| {max_cars} | not run | {ours:.0f}, {ours_cpu:.0f} | - | - | {ours / max_cars:.0f} | "
+              f"-, {hits} |")  # fmt: skip
+        out[max_cars] = {"peer": math.nan, "ours": ours, "ratio": math.nan, "ratio_cpu": math.nan}
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     print(
         f"load average {load:.1f} on {os.cpu_count()} CPUs after the run; a race step is "

@@ -224,21 +224,17 @@ class RaceEnv(ParallelEnv):
         extra = sorted(set(actions) - set(alive))
         if extra:
             raise ValueError(f"actions for agents not alive: {extra}; alive: {alive}")
+        missing = [a for a in alive if a not in actions]
+        if missing:
+            raise ValueError(f"no action for live agent {missing[0]!r}")
         acts = np.zeros((n, 2))
-        for agent in alive:
-            if agent not in actions:
-                raise ValueError(f"no action for live agent {agent!r}")
-            try:
-                a = np.asarray(actions[agent], dtype=np.float64).reshape(2)
-            except (TypeError, ValueError):
-                raise ValueError(
-                    f"action of {agent} must be two numbers [steer, speed], got {actions[agent]!r}"
-                ) from None
-            if not np.isfinite(a).all():
-                raise ValueError(
-                    f"action of {agent} must be finite [steer, speed], got {a.tolist()}"
-                )
-            acts[self._index[agent]] = a
+        try:
+            given = np.array([actions[a] for a in alive], dtype=np.float64)
+        except (TypeError, ValueError):
+            given = None
+        if given is None or given.shape != (len(alive), 2) or not np.isfinite(given).all():
+            self._check_actions(alive, actions)  # names the agent
+        acts[[self._index[a] for a in alive]] = given
         acts = np.minimum(np.maximum(acts, self._low), self._high)
         collided = self.world.step(acts, self._active)
         self._n_steps += 1
@@ -259,6 +255,22 @@ class RaceEnv(ParallelEnv):
         self._active[:] = False
         self._active[[self._index[a] for a in self.agents]] = True
         return obs, rew, terminations, truncations, infos
+
+    @staticmethod
+    def _check_actions(alive: list[str], actions: dict[str, Any]) -> None:
+        """Raise ValueError naming the first agent whose action is not two finite numbers."""
+        for agent in alive:
+            try:
+                a = np.asarray(actions[agent], dtype=np.float64).reshape(2)
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"action of {agent} must be two numbers [steer, speed], got {actions[agent]!r}"
+                ) from None
+            if not np.isfinite(a).all():
+                raise ValueError(
+                    f"action of {agent} must be finite [steer, speed], got {a.tolist()}"
+                )
+        raise ValueError(f"actions must be two numbers [steer, speed] per agent, got {actions!r}")
 
     def render(self) -> np.ndarray | None:
         """RGB uint8 (H, W, 3): the map, every car's last scan hits and its box in its own colour

@@ -265,8 +265,9 @@ class RaceWorld:
             raise RuntimeError(f"lidar cast failed for cars {due[status != 0]}")
         self.ranges[due] = ranges
         self.scans[due] = out
-        for j, i in enumerate(due.tolist()):
-            self.cars[i]._store_scan(self.poses[i], out[j])
+        cars = self.cars
+        for j, (i, pose) in enumerate(zip(due.tolist(), self.poses[due], strict=True)):
+            cars[i]._store_scan(pose, out[j])
 
     def _measure_odometry(self, cars: np.ndarray) -> None:
         """The odometry (and IMU) of ``cars`` after their scans, as the single env measures it

@@ -32,4 +32,4 @@ def test_the_race_workload_runs_without_crashes(capsys):
     text = capsys.readouterr().out
     assert "f1tenth_gym: not measured" in text
     assert set(out) == {2, 3, 4} and all(v["ours"] > 0 for v in out.values())
-    assert "| 3 | nan |" in text and "0, 0 |" in text  # no peer, no collisions
+    assert "| 3 | nan, nan |" in text and "| 0, 0 |" in text  # no peer, no collisions
