@@ -161,3 +161,26 @@ def test_drive_bag_round_trip(tmp_path, capsys, default_map):
     assert result.position_error is not None and result.heading_error is not None
     assert np.median(result.position_error) < 0.03
     assert np.max(result.position_error) < 0.15
+
+
+def test_the_replay_pictures_draw_the_map_as_a_map() -> None:
+    """trajectory.png's background: free space light, walls (non-free cells beside free space)
+    dark, solid or unknown space mid grey, on a world-aligned raster at the map's resolution."""
+    from mcl.experiments.replay_output import map_image
+    from racecar_sim.maps import resolve_map
+
+    m = resolve_map("office")
+    w, h = m.extent
+    view = (0.0, w, 0.0, h)
+    img, extent = map_image(m, view)
+    assert extent[0] == 0.0 and extent[3] == h and img.shape[2] == 3
+    res = m.resolution
+    rows, cols = img.shape[:2]
+    xs = extent[0] + (np.arange(cols) + 0.5) * res
+    ys = extent[3] - (np.arange(rows) + 0.5) * res
+    gx, gy = np.meshgrid(xs, ys)
+    free = m.is_free(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
+    assert free.any() and (~free).any()
+    np.testing.assert_array_equal(img[free, 0], 0.97)
+    shade = img[~free, 0]
+    assert set(np.unique(shade)) == {0.18, 0.72}  # walls beside free space, and the rest
