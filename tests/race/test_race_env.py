@@ -240,3 +240,30 @@ def test_single_track_cars_driven_into_each_other_do_not_overlap():
         assert penetration(boxes[0], boxes[1]) <= 2 * 3.0 * env.config.substep + 1e-9
         assert info["car_0"]["pose"][0] < info["car_1"]["pose"][0]
     assert touched
+
+
+def test_scans_cast_on_two_threads_are_the_same_race():
+    poses = np.array([[3.0 + 1.5 * (i % 8), 3.5 + 3.0 * (i // 8), 0.1 * i] for i in range(16)])
+    races = [RaceEnv(HALL, n_cars=16, n_beams=1080, workers=w) for w in (1, 2)]
+    assert races[1].world._threaded  # 16 x 1080 rays: above the threading threshold
+    outs = [r.reset(seed=3, options={"poses": poses})[0] for r in races]
+    for _ in range(10):
+        outs = [r.step(dict.fromkeys(r.agents, [0.1, 1.0]))[0] for r in races]
+    for a in races[0].agents:
+        np.testing.assert_array_equal(outs[0][a]["scan"], outs[1][a]["scan"])
+
+
+def test_a_one_car_race_with_an_imu_and_odometry_lead_is_the_single_env():
+    settings = {"n_beams": 61, "imu": True, "odom_lead": 0.05}
+    race = RaceEnv(HALL, n_cars=1, **settings)
+    single = RacecarEnv(HALL, **settings)
+    pose = np.array([5.0, 5.0, 0.0])
+    ro, _ = race.reset(seed=2, options={"poses": pose[None]})
+    so, _ = single.reset(seed=2, options={"pose": pose})
+    for k in range(30):
+        a = np.array([0.3 * math.sin(0.2 * k), 2.0])
+        ro, _, _, _, ri = race.step({"car_0": a})
+        so, _, _, _, si = single.step(a)
+        for key in ("scan", "odom", "imu"):
+            np.testing.assert_array_equal(ro["car_0"][key], so[key])
+        np.testing.assert_array_equal(ri["car_0"]["pose"], si["pose"])
