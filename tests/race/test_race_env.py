@@ -248,7 +248,7 @@ def test_scans_cast_on_two_threads_are_the_same_race():
     assert races[1].world._threaded  # 16 x 1080 rays: above the threading threshold
     outs = [r.reset(seed=3, options={"poses": poses})[0] for r in races]
     for _ in range(10):
-        outs = [r.step(dict.fromkeys(r.agents, [0.1, 1.0]))[0] for r in races]
+        outs = [r.step({a: (0.1, 1.0) for a in r.agents})[0] for r in races]
     for a in races[0].agents:
         np.testing.assert_array_equal(outs[0][a]["scan"], outs[1][a]["scan"])
 
