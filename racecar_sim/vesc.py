@@ -37,6 +37,7 @@ from collections import deque
 
 from racecar_sim.config import CarParams
 from racecar_sim.imu import ImuParams
+from racecar_sim.vehicle.kinematic import actuate as substep_actuate
 
 __all__ = ["CommandDelay", "ImuParams", "actuate", "lead_steps", "wheel_twist"]
 
@@ -58,21 +59,19 @@ def actuate(
 ) -> tuple[float, float]:
     """The wheel angle (rad) and wheel speed (m/s) after ``dt`` seconds of a command already
     clipped to the car's limits, from ``steer``, ``speed``: the steering-rate, acceleration and
-    braking limits of :meth:`racecar_sim.physics.RacecarPhysics.step`, substep by substep, with the
-    same floating-point operations (no wall is known here)."""
+    braking limits (:func:`racecar_sim.vehicle.kinematic.actuate`) substep by substep, as
+    :meth:`racecar_sim.physics.RacecarPhysics.step` applies them (no wall is known here). The
+    kinematic car's wheels follow exactly this; the single-track car's speed servo also meets the
+    friction and motor-power limits, which this leaves out."""
     n_sub = max(1, math.ceil(dt / substep - 1e-9))
     h = dt / n_sub
     max_dsteer = car.max_steer_rate * h
     accel = car.max_accel * h
     decel = car.max_decel * h
     for _ in range(n_sub):
-        steer += min(max(target_steer - steer, -max_dsteer), max_dsteer)
-        if speed > 0.0 and target_speed < speed:  # braking forwards: stop before reversing
-            speed = max(speed - decel, target_speed, 0.0)
-        elif speed < 0.0 and target_speed > speed:  # braking backwards
-            speed = min(speed + decel, target_speed, 0.0)
-        else:
-            speed += min(max(target_speed - speed, -accel), accel)
+        steer, speed = substep_actuate(
+            steer, speed, target_steer, target_speed, max_dsteer, accel, decel
+        )
     return steer, speed
 
 
