@@ -109,8 +109,8 @@ class CarParams:
 
     The single-track car (``car_model="single_track"``, :mod:`racecar_sim.vehicle.single_track`)
     also uses the following; their defaults are F1TENTH's as f1tenth_gym gives them
-    (``f1tenth_gym/envs/f110_env.py``, from the CommonRoad vehicle models' parameter sets fitted to
-    the F1TENTH car). The fields above keep their values (the kinematic car's are unchanged); for
+    (``F110Env.f1tenth_vehicle_params`` in ``f1tenth_gym/envs/f110_env.py``, branch dev-dynamics,
+    for the CommonRoad single-track model). The fields above keep their values (the kinematic car's are unchanged); for
     the F1TENTH car throughout (wheelbase 0.3302, mass 3.74, ...) use :meth:`f1tenth`.
 
     Attributes:

@@ -29,10 +29,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numba as nb
 import numpy as np
 
 from mcl.bench import STATA
 from racecar_sim.config import CarParams
+from racecar_sim.free_steps import advance
 from racecar_sim.vehicle.manoeuvres import drive, skidpad
 
 __all__ = ["OPEN_LOOP", "main", "open_loop", "skidpad_table", "speed_cost"]
@@ -240,9 +242,45 @@ def speed_cost(map_yaml: Path, steps: int, vector_steps: int, runs: int, num_env
                      "cost": cost}  # fmt: skip
         print(f"| {label} | {out[kind]['kinematic']:.0f} | {out[kind]['single_track']:.0f} | "
               f"{cost:.3f} ({min(ratios):.3f}-{max(ratios):.3f}) |")  # fmt: skip
+    out["physics"] = _physics_cost(runs)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     print(f"load average {load:.1f} on {os.cpu_count()} CPUs after the run")
     return out
+
+
+@nb.njit(cache=True)
+def _drive_free(const, state, commands, dt, twist):  # pragma: no cover - numba
+    for k in range(commands.shape[0]):
+        advance(const, state, commands[k, 0], commands[k, 1], 2, dt / 2, dt, twist)
+
+
+def _physics_cost(runs: int, steps: int = 20_000) -> dict[str, float]:
+    """Print microseconds per free physics step (dt 0.01 s, two substeps, no walls near) of each
+    model, in one numba loop, rounds interleaved; returns the medians and the median per-round
+    ratio."""
+    import time
+
+    from racecar_sim.free_steps import STATE_FIELDS, free_constants
+
+    car = CarParams()
+    t = np.arange(steps) * DT
+    commands = np.c_[0.3 * np.cos(math.pi * t), np.full_like(t, 3.0)]
+    times: dict[str, list[float]] = {"kinematic": [], "single_track": []}
+    for r in range(runs + 1):
+        for model in ("kinematic", "single_track") if r % 2 else ("single_track", "kinematic"):
+            const = free_constants(car, None, 0.0, model)
+            state, twist = np.zeros(len(STATE_FIELDS)), np.zeros(3)
+            t0 = time.perf_counter()
+            _drive_free(const, state, commands, DT, twist)
+            if r:
+                times[model].append((time.perf_counter() - t0) / steps * 1e6)
+    ratio = statistics.median(s / k for k, s in zip(times["kinematic"], times["single_track"],
+                                                     strict=True))  # fmt: skip
+    kin, st = statistics.median(times["kinematic"]), statistics.median(times["single_track"])
+    print(f"\nthe car model alone (one free physics step of dt {DT} s in 2 substeps, in a numba "
+          f"loop, 3 m/s slalom): kinematic {kin:.2f} us, single_track {st:.2f} us, "
+          f"{ratio:.2f}x (median of {runs} rounds)")  # fmt: skip
+    return {"kinematic_us": kin, "single_track_us": st, "ratio": ratio}
 
 
 def main(argv: list[str] | None = None) -> int:
