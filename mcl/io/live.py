@@ -14,6 +14,10 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterable
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
 
 __all__ = ["DEFAULT_HOST", "LATCHED", "LiveServer", "parse_live_address"]
 
@@ -58,7 +62,11 @@ class LiveServer:
     """
 
     def __init__(
-        self, address: str | int, types: dict[str, str], typestore, name: str = "racecar-sim"
+        self,
+        address: str | int,
+        types: dict[str, str],
+        typestore: Typestore,
+        name: str = "racecar-sim",
     ) -> None:
         self.host, port = parse_live_address(address)
         try:
