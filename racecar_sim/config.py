@@ -307,6 +307,9 @@ class EnvConfig:
             ``"auto"`` (derived from a loop map) or a ``Track``; None = no track.
         car_model: ``"kinematic"`` (the kinematic bicycle) or ``"single_track"`` (tire slip, a
             friction limit): :mod:`racecar_sim.vehicle`.
+        max_map_cells: the most cells (width x height) a map may have; None = the default
+            (:func:`racecar_sim.maps.limits.max_map_cells`, 16 million). Checked before the map's
+            image is decoded.
     """
 
     map: str | os.PathLike[str] | OccupancyMap | None = None
@@ -336,9 +339,12 @@ class EnvConfig:
     imu: Any = None
     track: Any = None
     car_model: str = "kinematic"
+    max_map_cells: int | None = None
 
     def __post_init__(self) -> None:
         check_car_model(self.car_model)
+        if self.max_map_cells is not None:
+            check_number("", "max_map_cells", self.max_map_cells, low=1, integer=True)
         track = self.track
         if not (track is None or isinstance(track, str | os.PathLike) or type(track).__name__ == "Track"):
             raise ValueError(f"track must be a CSV path, 'auto', a Track or None, got {track!r}")

@@ -131,7 +131,7 @@ class RacecarEnv(gym.Env):
         self.config = merge_settings(config, {"map": map, **settings})
         self.render_mode = render_mode
         cfg = self.config
-        self.map: OccupancyMap = resolve_map(cfg.map)
+        self.map: OccupancyMap = resolve_map(cfg.map, cfg.max_map_cells)
         self.car_params: CarParams = cfg.car
         self.lidar_params: LidarParams = cfg.lidar_params()
         self.odometry_noise: OdometryNoise = cfg.odometry_noise()
@@ -189,7 +189,7 @@ class RacecarEnv(gym.Env):
 
             self.track = resolve_track(cfg.track, self.map)
             self._laps = LapCounter(self.track, 1)
-        self._start_centres: np.ndarray | None = None  # world (K, 2) centres for random starts
+        self._start_centres: np.ndarray | None = None  # flat cell indices (K,) for random starts
         self._render_hooks: list[RenderHook] = []
         self._renderer: MapRenderer | None = None
         self._n_steps = 0
@@ -429,8 +429,11 @@ class RacecarEnv(gym.Env):
         rng = self.np_random
         centres = self._start_centres
         res = self.map.resolution
+        width = self.map.width
         for _ in range(_START_TRIES):
-            cx, cy = centres[rng.integers(len(centres))] + (rng.random(2) - 0.5) * res
+            row, col = divmod(int(centres[rng.integers(len(centres))]), width)
+            centre = self.map.grid_to_world(np.array([row, col]))
+            cx, cy = centre + (rng.random(2) - 0.5) * res
             theta = rng.uniform(-math.pi, math.pi)
             pose = np.array([cx - ahead * math.cos(theta), cy - ahead * math.sin(theta), theta])
             if self.physics.pose_is_free(pose):
@@ -440,15 +443,23 @@ class RacecarEnv(gym.Env):
         )
 
     def _start_cells(self) -> np.ndarray:
-        """World (K, 2) centres of the cells where the car's box fits at any heading."""
+        """Row-major flat indices (K,) of the cells where the car's box fits at any heading with
+        ``start_clearance`` of room (8 bytes a cell, not a (K, 2) array of centres)."""
         car = self.car_params
         half_diagonal = 0.5 * math.hypot(car.length, car.width)
         slack = math.sqrt(2.0) * self.map.resolution  # cell-centre distances vs points in cells
         need = half_diagonal + slack
-        for clearance in (need + self.config.start_clearance, need):
-            cells = np.argwhere(self.map.distance >= clearance)
-            if len(cells):
-                return self.map.grid_to_world(cells)
+        clearance = self.config.start_clearance
+        cells = np.flatnonzero(self.map.distance >= need + clearance)
+        if len(cells):
+            return cells
+        if clearance > 0 and np.any(self.map.distance >= need):
+            most = float(self.map.distance.max()) - need
+            raise MapError(
+                f"map {self.map.name!r} has no place where the car has start_clearance = "
+                f"{clearance:g} m of room around it (at most {max(most, 0.0):.2f} m here); "
+                "lower start_clearance"
+            )
         raise MapError(
             f"map {self.map.name!r} has no place {2 * need:.2f} m wide where the car fits"
         )

@@ -195,10 +195,12 @@ class RacecarPhysics:
     def _first_free_pose(self) -> np.ndarray:
         """Some pose where the car fits, for the state before the first reset."""
         need = math.hypot(self.car.length, self.car.width)
-        cells = np.argwhere(self.map.distance >= need)
-        if len(cells) == 0:
-            cells = np.argwhere(self.map.distance == self.map.distance.max())
-        xy = self.map.grid_to_world(cells[0])
+        distance = self.map.distance
+        # The first cell in row-major order with room (else the roomiest), without a (K, 2) copy.
+        room = distance >= need
+        flat = int(np.argmax(room)) if room.any() else int(np.argmax(distance))
+        del room
+        xy = self.map.grid_to_world(np.array(np.unravel_index(flat, distance.shape)))
         return np.array([xy[0], xy[1], 0.0])
 
     # ------------------------------------------------------------------ pymunk callbacks

@@ -9,12 +9,85 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-__all__ = ["check_number", "read_yaml_mapping"]
+__all__ = [
+    "MAX_YAML_BYTES",
+    "YAMLRefused",
+    "check_number",
+    "load_yaml",
+    "read_text",
+    "read_yaml_mapping",
+    "short",
+    "yaml_problem",
+]
+
+MAX_YAML_BYTES = 1_000_000
+"""Longest YAML text of settings or a map that is read (bytes): a settings file or a map_server
+YAML is a few hundred bytes; more is refused before parsing, so parsing stays bounded."""
+
+_SHORT = 40
+
+
+def short(value: Any, limit: int = _SHORT) -> str:
+    """``repr(value)`` cut to about ``limit`` characters (``...`` marks the cut), for messages that
+    quote a value given by a user, however large it is."""
+    if isinstance(value, list | tuple | dict | set) and len(value) > 16:
+        text = f"<{type(value).__name__} of {len(value)} items>"
+    else:
+        text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+class YAMLRefused(yaml.YAMLError):
+    """A YAML text this project does not read: an anchor or alias, or one too long or too deep."""
+
+
+# A number with an exponent but no dot (``1e12``, ``-2E-3``) is a float here, as in YAML 1.2;
+# PyYAML (YAML 1.1) would read it as text.
+_EXP_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$")
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader without anchors and aliases (no "billion laughs": every node is read
+    once), with ``1e12`` read as a number."""
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+            mark = event.start_mark
+            raise YAMLRefused(
+                f"anchors and aliases (&name, *name) are not read (line {mark.line + 1})"
+            )
+        return super().compose_node(parent, index)
+
+
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _EXP_FLOAT, list("-+0123456789"))
+
+
+def load_yaml(text: str) -> Any:
+    """The value of a YAML text read safely and in bounded work: no anchors or aliases, at most
+    :data:`MAX_YAML_BYTES`, nesting no deeper than Python's recursion allows; ``1e12`` is a float.
+
+    Raises:
+        yaml.YAMLError: not valid YAML, or refused (:class:`YAMLRefused`, one line).
+    """
+    if len(text) > MAX_YAML_BYTES:
+        raise YAMLRefused(f"{len(text)} characters, more than the {MAX_YAML_BYTES} read")
+    try:
+        return yaml.load(text, Loader=_Loader)
+    except RecursionError:
+        raise YAMLRefused("nested too deeply") from None
+
+
+def yaml_problem(exc: yaml.YAMLError) -> str:
+    """One short line saying what is wrong with a YAML text."""
+    first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return first if len(first) <= 160 else first[:157] + "..."
 
 
 def _interval(low: float, high: float, low_open: bool, high_open: bool) -> str:
@@ -62,15 +135,25 @@ def check_number(
     else:
         need = f"{kind} {what}"
     ok_type = isinstance(value, int | float) and not isinstance(value, bool)
+    shown = short(value)
     if integer:
         ok_type = ok_type and float(value).is_integer() if ok_type else False
     if not ok_type or math.isnan(value) or (math.isinf(value) and not allow_inf):
-        raise ValueError(f"{field} = {value!r} must be {need}")
+        raise ValueError(f"{field} = {shown} must be {need}")
     below = value <= low if low_open else value < low
     above = value >= high if high_open else value > high
     if below or above:
-        raise ValueError(f"{field} = {value!r} must be {need}")
+        raise ValueError(f"{field} = {shown} must be {need}")
     return int(value) if integer else float(value)
+
+
+def read_text(path: Path, limit: int = MAX_YAML_BYTES) -> str:
+    """The text of a small file, refusing (:class:`YAMLRefused`) one longer than ``limit`` bytes
+    before reading it; bytes that are not UTF-8 are replaced."""
+    size = path.stat().st_size
+    if size > limit:
+        raise YAMLRefused(f"{size} bytes, more than the {limit} read")
+    return path.read_text(encoding="utf-8", errors="replace")
 
 
 def read_yaml_mapping(path: str | os.PathLike[str], what: str = "parameter file") -> dict[str, Any]:
@@ -83,10 +166,9 @@ def read_yaml_mapping(path: str | os.PathLike[str], what: str = "parameter file"
     if not path.is_file():
         raise ValueError(f"{what} {path} not found")
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = load_yaml(read_text(path))
     except yaml.YAMLError as exc:
-        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise ValueError(f"{what} {path}: not valid YAML ({first})") from exc
+        raise ValueError(f"{what} {path}: not valid YAML ({yaml_problem(exc)})") from exc
     if data is None:
         return {}
     if not isinstance(data, dict):

@@ -228,34 +228,39 @@ def _env_fields() -> dict[str, tuple[str, Any]]:
 def _env_value(text: str, kind: str, default: Any) -> Any:
     """A setting's value from its text, by its annotation ``kind`` (or the type of its default);
     ValueError says what was expected."""
+    from racecar_sim.validation import YAMLRefused, load_yaml, short
+
     try:
-        value = yaml.safe_load(text)
+        value = load_yaml(text)  # no aliases; 1e12 is a number
+    except YAMLRefused as exc:
+        raise ValueError(str(exc)) from None
     except yaml.YAMLError:
         value = text
+    shown = short(text)
     if kind == "bool" or (kind not in ("int", "float") and isinstance(default, bool)):
         if not isinstance(value, bool):
-            raise ValueError(f"must be true or false, got {text!r}")
+            raise ValueError(f"must be true or false, got {shown}")
     elif kind == "int" or (kind != "float" and isinstance(default, int)):
         if isinstance(value, str):
             with contextlib.suppress(ValueError):
                 value = int(value)
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError(f"must be a whole number, got {text!r}")
+            raise ValueError(f"must be a whole number, got {shown}")
     elif kind == "float" or isinstance(default, float):
         if isinstance(value, str):  # YAML reads 1e3 as text
             with contextlib.suppress(ValueError):
                 value = float(value)
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ValueError(f"must be a number, got {text!r}")
+            raise ValueError(f"must be a number, got {shown}")
     elif isinstance(default, tuple):
         ok = isinstance(value, list | tuple) and len(value) == len(default)
         if not ok or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
             example = "[" + ", ".join(f"{v:g}" for v in default) + "]"
-            raise ValueError(f"must be {len(default)} numbers like {example}, got {text!r}")
+            raise ValueError(f"must be {len(default)} numbers like {example}, got {shown}")
         value = tuple(value)
     elif dataclasses.is_dataclass(default):
         if not isinstance(value, dict):
-            raise ValueError(f"must be a mapping like {{wheelbase: 0.33}}, got {text!r}")
+            raise ValueError(f"must be a mapping like {{wheelbase: 0.33}}, got {shown}")
     return value
 
 
@@ -269,6 +274,7 @@ def check_env(
     together.
     """
     from racecar_sim.config import EnvConfig
+    from racecar_sim.validation import short
 
     fields = _env_fields()
     settings: dict[str, Any] = {}
@@ -276,7 +282,9 @@ def check_env(
         name, sep, text = item.partition("=")
         name = name.strip()
         if not sep or not name:
-            parser.fail(flag, f"expected NAME=VALUE, e.g. {flag} lidar_rate=20, got {item!r}")
+            parser.fail(flag, f"expected NAME=VALUE, e.g. {flag} lidar_rate=20, got {short(item)}")
+        if len(name) > 40:
+            name = name[:37] + "..."
         if name == "map":
             parser.fail(f"{flag} map", "set the map with --map")
         if name not in fields:

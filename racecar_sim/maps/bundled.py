@@ -11,7 +11,9 @@ import os
 from pathlib import Path
 
 from racecar_sim.maps.grid import MapError, OccupancyMap
+from racecar_sim.maps.limits import check_cells
 from racecar_sim.maps.loader import load_map
+from racecar_sim.validation import short
 
 __all__ = ["DEFAULT_MAP", "bundled", "bundled_names", "maps_dir", "resolve_map"]
 
@@ -64,13 +66,23 @@ def bundled(name: str = DEFAULT_MAP) -> Path:
     return path
 
 
-def resolve_map(spec: str | os.PathLike[str] | OccupancyMap | None) -> OccupancyMap:
-    """A map from a bundled name, a YAML path, an :class:`OccupancyMap`, or None (the default)."""
+def resolve_map(
+    spec: str | os.PathLike[str] | OccupancyMap | None, max_cells: int | None = None
+) -> OccupancyMap:
+    """A map from a bundled name, a YAML path, an :class:`OccupancyMap`, or None (the default).
+
+    Raises:
+        MapError: the map cannot be loaded, or has more cells than ``max_cells`` (None: the
+            default limit, :func:`racecar_sim.maps.limits.max_map_cells`).
+    """
     if isinstance(spec, OccupancyMap):
+        check_cells(f"map {spec.name!r}", spec.width, spec.height, max_cells)
         return spec
     if spec is None:
-        return load_map(bundled(DEFAULT_MAP))
+        return load_map(bundled(DEFAULT_MAP), max_cells)
+    if not isinstance(spec, str | os.PathLike):
+        raise MapError(f"map must be a bundled name, a YAML path or an OccupancyMap, got {short(spec)}")
     text = os.fspath(spec)
     if text.endswith((".yaml", ".yml")) or os.sep in text or Path(text).is_file():
-        return load_map(text)
-    return load_map(bundled(text))
+        return load_map(text, max_cells)
+    return load_map(bundled(text), max_cells)

@@ -21,6 +21,8 @@ from typing import Any
 
 import yaml
 
+from racecar_sim.validation import load_yaml, read_text, yaml_problem
+
 __all__ = ["load_profile", "profile_document", "profile_names", "profile_path"]
 
 
@@ -53,7 +55,10 @@ def profile_path(name: str | os.PathLike[str]) -> Path:
 
 @lru_cache(maxsize=16)
 def _read(path: str) -> dict[str, Any]:
-    data = yaml.safe_load(Path(path).read_text())
+    try:
+        data = load_yaml(read_text(Path(path)))
+    except yaml.YAMLError as exc:
+        raise ValueError(f"noise profile {path}: not valid YAML ({yaml_problem(exc)})") from None
     if not isinstance(data, dict) or not isinstance(data.get("settings"), dict):
         raise ValueError(f"noise profile {path}: expected a mapping with a 'settings' mapping")
     return data
