@@ -12,10 +12,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mcl.augmented import AugmentedParams
+from mcl.filter_bounds import check_filter
 from mcl.kld import KLDParams
 from mcl.resampling import RESAMPLERS
 from mcl.uncertainty import ClusterParams
 from racecar_sim.config import nested
+from racecar_sim.validation import short
 
 __all__ = ["DEFAULT_PARTICLES", "ParticleFilterParams", "spread_sd"]
 
@@ -72,9 +74,13 @@ class ParticleFilterParams:
     clusters: ClusterParams = field(default_factory=ClusterParams)
 
     def __post_init__(self) -> None:
-        n = self.n_particles
-        if isinstance(n, bool) or not isinstance(n, int) or n < 1:
-            raise ValueError(f"ParticleFilterParams.n_particles = {n!r} must be a positive integer")
+        owner = "ParticleFilterParams"  # bounds and their reasons: mcl.filter_bounds
+        check_filter(owner, "n_particles", self.n_particles, "filter.n_particles")
+        if self.global_particles is not None:
+            check_filter(owner, "global_particles", self.global_particles, "filter.global_particles")
+        for name in ("global_max_particles", "global_density", "global_clearance",
+                     "update_min_distance", "update_min_angle"):  # fmt: skip
+            check_filter(owner, name, getattr(self, name), f"filter.{name}")
         if self.resampling not in RESAMPLERS:
             raise ValueError(
                 f"ParticleFilterParams.resampling = {self.resampling!r}; "
@@ -95,6 +101,8 @@ class ParticleFilterParams:
                 f"choose one of {list(_ON_DEGENERATE)}"
             )
         object.__setattr__(self, "init_spread", spread_sd(self.init_spread, "init_spread"))
+        for v in self.init_spread:
+            check_filter(owner, "init_spread", v, "filter.init_spread")
         c = self.global_clearance
         if (
             isinstance(c, bool)
@@ -130,9 +138,12 @@ def spread_sd(
     value: float | tuple[float, ...] | np.ndarray, name: str
 ) -> tuple[float, float, float]:
     """One number (all three) or three standard deviations (x m, y m, theta rad), non-negative."""
-    arr = np.asarray(value, dtype=np.float64).reshape(-1)
+    try:
+        arr = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        arr = np.zeros(0)
     if arr.size == 1:
         arr = np.repeat(arr, 3)
     if arr.size != 3 or not (np.isfinite(arr).all() and (arr >= 0).all()):
-        raise ValueError(f"{name} must be one or three non-negative numbers, got {value!r}")
+        raise ValueError(f"{name} must be one or three non-negative numbers, got {short(value)}")
     return (float(arr[0]), float(arr[1]), float(arr[2]))

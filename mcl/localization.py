@@ -20,6 +20,7 @@ from gymnasium import spaces
 
 from mcl.adaptive import AdaptiveParams
 from mcl.angles import wrap_angle
+from mcl.filter_bounds import MAX_CASTS, check_filter
 from mcl.motion_model import MotionModel, MotionModelParams
 from mcl.particle_filter import ParticleFilter, ParticleFilterParams
 from mcl.sensor_model import SensorModel, SensorModelParams
@@ -102,10 +103,15 @@ class LocalizationConfig:
                 "adaptive",
                 nested(self.adaptive, AdaptiveParams, "LocalizationConfig.adaptive"),
             )
-        n = self.render_particles
-        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+        check_filter("LocalizationConfig", "render_particles", self.render_particles,
+                     "render_particles")  # fmt: skip
+        most = max(self.filter.n_particles, self.filter.global_particles or 0)
+        casts = most * self.sensor.num_beams_per_particle
+        if casts > MAX_CASTS:
             raise ValueError(
-                f"LocalizationConfig.render_particles = {n!r} must be a non-negative integer"
+                f"LocalizationConfig: {most} particles x {self.sensor.num_beams_per_particle} "
+                f"beams per particle = {casts:,} casts an update, more than {MAX_CASTS:,}; use "
+                "fewer particles or beams"
             )
 
     def with_particles(self, n_particles: int) -> LocalizationConfig:

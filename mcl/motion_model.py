@@ -23,8 +23,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mcl.alpha_motion import alpha_odometry_into
+from mcl.filter_bounds import check_filter
 from mcl.step_kernels import compose_into, move_noisy, noise_into
 from racecar_sim.rand import seed_from
+from racecar_sim.validation import short
 
 __all__ = [
     "SCHEMES",
@@ -63,13 +65,15 @@ def _three(name: str, value: float | tuple[float, ...] | list[float]) -> tuple[f
             values = tuple(float(v) for v in value)  # type: ignore[union-attr]
         except (TypeError, ValueError):
             raise ValueError(
-                f"MotionModelParams.{name} must be a number or three numbers, got {value!r}"
+                f"MotionModelParams.{name} must be a number or three numbers, got {short(value)}"
             ) from None
     if len(values) != 3 or not all(math.isfinite(v) and v >= 0 for v in values):
         raise ValueError(
             f"MotionModelParams.{name} must be one or three non-negative finite numbers "
-            f"(x, y, theta), got {value!r}"
+            f"(x, y, theta), got {short(value)}"
         )
+    for v in values:  # bounds and their reasons: mcl.filter_bounds
+        check_filter("MotionModelParams", name, v, f"motion.{name}")
     return values  # type: ignore[return-value]
 
 

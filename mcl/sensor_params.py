@@ -9,7 +9,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from mcl.filter_bounds import check_filter
 from racecar_sim.config import LidarParams
+from racecar_sim.validation import short
 
 __all__ = ["MODELS", "SensorModelParams"]
 
@@ -98,7 +100,7 @@ class SensorModelParams:
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
-            return ValueError(f"SensorModelParams.{name} = {getattr(self, name)!r}: {why}")
+            return ValueError(f"SensorModelParams.{name} = {short(getattr(self, name))}: {why}")
 
         alphas = ("alpha_hit", "alpha_short", "alpha_max", "alpha_rand")
         for name in (
@@ -156,6 +158,16 @@ class SensorModelParams:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise bad(name, f"must be an integer >= {low}")
+        # bounds and their reasons: mcl.filter_bounds
+        for name in ("table_width", "num_beams_per_particle", "sigma_hit", "squash_exponent",
+                     "lidar_scale_to_map_scale", "mount_offset", "fov", "likelihood_sigma",
+                     "likelihood_z_hit", "likelihood_z_rand", "likelihood_max_distance",
+                     "likelihood_max_range"):  # fmt: skip
+            check_filter("SensorModelParams", name, getattr(self, name), f"sensor.{name}")
+        for name in alphas:
+            check_filter("SensorModelParams", name, getattr(self, name), "sensor.alpha")
+        if self.max_range is not None:
+            check_filter("SensorModelParams", "max_range", self.max_range, "sensor.max_range")
         if not isinstance(self.raycast_method, str):
             raise bad("raycast_method", "must be a method name")
         if self.parallel is not None and not isinstance(self.parallel, bool):

@@ -15,12 +15,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
+from racecar_sim.bounds import BOUNDS, MAX_SUBSTEPS, check
 from racecar_sim.imu import ImuParams
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.noise_profiles import profile_document
 from racecar_sim.obstacles import ObstacleParams
 from racecar_sim.scan_effects import OdometryBias, ScanEffects
-from racecar_sim.validation import check_number, read_yaml_mapping
+from racecar_sim.validation import check_number, read_yaml_mapping, short
 from racecar_sim.vehicle import check_car_model
 
 __all__ = [
@@ -162,6 +163,10 @@ class CarParams:
         return cls(**values)
 
     def __post_init__(self) -> None:
+        # racecar_sim.bounds holds the fields' bounds and their reason
+        for f in dataclasses.fields(self):
+            if f"car.{f.name}" in BOUNDS and getattr(self, f.name) is not None:
+                check("CarParams", f.name, getattr(self, f.name), f"car.{f.name}")
         _positive("CarParams", self, "wheelbase", "max_steer_rate", "max_speed", "max_accel")
         _positive("CarParams", self, "max_decel", "length", "width", "mass")
         _positive("CarParams", self, "cg_height", "yaw_inertia", "friction", "cornering_front")
@@ -217,13 +222,14 @@ class LidarParams:
     p_rand: float = 0.005
 
     def __post_init__(self) -> None:
-        check_number("LidarParams", "n_beams", self.n_beams, low=1, integer=True)
-        check_number("LidarParams", "fov", self.fov, low=0, high=2 * math.pi, low_open=True)
-        _positive("LidarParams", self, "max_range", "rate", "short_lambda")
-        check_number("LidarParams", "mount_offset", self.mount_offset)
-        check_number("LidarParams", "sigma", self.sigma, low=0)
-        for name in ("p_short", "p_max", "p_rand"):
-            check_number("LidarParams", name, getattr(self, name), low=0, high=1)
+        for f in dataclasses.fields(self):  # bounds and reasons: racecar_sim.bounds
+            key = "lidar_rate" if f.name == "rate" else f.name
+            check("LidarParams", f.name, getattr(self, f.name), key)
+        if self.sigma > self.max_range:
+            raise ValueError(
+                f"LidarParams.sigma = {self.sigma:g} m must not exceed max_range = "
+                f"{self.max_range:g} m"
+            )
         if self.p_short + self.p_max + self.p_rand > 1:
             raise ValueError("LidarParams: p_short + p_max + p_rand must not exceed 1")
 
@@ -253,11 +259,15 @@ class OdometryNoise:
 
     def __post_init__(self) -> None:
         for name in ("proportional", "additive"):
-            value = tuple(float(v) for v in getattr(self, name))
-            if len(value) != 3 or not all(math.isfinite(v) and v >= 0 for v in value):
-                raise ValueError(
-                    f"OdometryNoise.{name} must be three non-negative numbers, got {value!r}"
-                )
+            given = getattr(self, name)
+            try:
+                value = tuple(float(v) for v in given)
+            except (TypeError, ValueError):
+                value = ()
+            if len(value) != 3:
+                raise ValueError(f"OdometryNoise.{name} must be three numbers, got {short(given)}")
+            for v in value:  # bounds and reasons: racecar_sim.bounds
+                check("OdometryNoise", name, v, f"odom_{name}")
             object.__setattr__(self, name, value)
 
 
@@ -363,16 +373,24 @@ class EnvConfig:
             object.__setattr__(self, "car", from_mapping(CarParams, dict(self.car)))
         elif not isinstance(self.car, CarParams):
             raise ValueError(f"car must be a CarParams or a mapping, got {self.car!r}")
-        # The env's own names in messages (``lidar_rate``, not ``LidarParams.rate``).
-        check_number("", "n_beams", self.n_beams, low=1, integer=True)
-        for name in ("dt", "substep", "max_range", "lidar_rate", "short_lambda"):
-            check_number("", name, getattr(self, name), low=0, low_open=True)
-        for name in ("collision_penalty", "start_clearance", "range_sigma"):
-            check_number("", name, getattr(self, name), low=0)
-        for name in ("p_short", "p_max", "p_rand"):
-            check_number("", name, getattr(self, name), low=0, high=1)
-        check_number("", "fov", self.fov, low=0, high=2 * math.pi, low_open=True)
-        check_number("", "mount_offset", self.mount_offset)
+        # The env's own names in messages (``lidar_rate``, not ``LidarParams.rate``); bounds and
+        # their reasons: racecar_sim.bounds.
+        for name in ("n_beams", "dt", "substep", "max_range", "lidar_rate", "short_lambda",
+                     "collision_penalty", "start_clearance", "range_sigma", "p_short", "p_max",
+                     "p_rand", "fov", "mount_offset"):  # fmt: skip
+            check("", name, getattr(self, name))
+        if math.ceil(self.dt / self.substep - 1e-9) > MAX_SUBSTEPS:
+            raise ValueError(
+                f"dt / substep = {self.dt:g} / {self.substep:g} s needs more than {MAX_SUBSTEPS} "
+                "physics substeps a step; raise substep or lower dt"
+            )
+        car = self.car
+        if not -car.rear_overhang <= self.mount_offset <= car.length - car.rear_overhang:
+            raise ValueError(
+                f"mount_offset = {self.mount_offset:g} m puts the lidar off the car: it must lie "
+                f"in [{-car.rear_overhang:g}, {car.length - car.rear_overhang:g}] m from the rear "
+                "axle (car.length, car.rear_overhang)"
+            )
         if not isinstance(self.terminate_on_collision, bool):
             raise ValueError(
                 f"terminate_on_collision must be true or false, got {self.terminate_on_collision!r}"

@@ -10,6 +10,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 
 from racecar_sim.config import (
     CarParams,
@@ -24,6 +25,7 @@ from racecar_sim.obstacles import Obstacles
 from racecar_sim.physics import RacecarPhysics
 from racecar_sim.render import MapRenderer
 from racecar_sim.sensors import Lidar, Odometry
+from racecar_sim.validation import check_action, short
 from racecar_sim.vesc import CommandDelay, lead_steps, wheel_twist
 
 __all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
@@ -193,6 +195,7 @@ class RacecarEnv(gym.Env):
         self._render_hooks: list[RenderHook] = []
         self._renderer: MapRenderer | None = None
         self._n_steps = 0
+        self._needs_reset = True  # until the first reset
         self._next_scan = 0.0
         self.time = 0.0
         self._scan = np.zeros(self.lidar_params.n_beams, dtype=np.float32)
@@ -242,6 +245,7 @@ class RacecarEnv(gym.Env):
             obstacle_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
             self.obstacles.spawn(obstacle_rng, self.physics.pose)
         self._n_steps = 0
+        self._needs_reset = False
         self.time = 0.0
         pose = self.physics.pose
         self._take_scan(pose)
@@ -259,16 +263,18 @@ class RacecarEnv(gym.Env):
         """Drive ``dt`` seconds towards ``action`` = [steer (rad), speed (m/s)] (clipped to the box).
 
         Raises:
-            ValueError: the action is not two finite numbers.
+            ValueError: the action is not two finite numbers (a numeric array of shape (2,), or a
+                list / tuple of two ints or floats; strings, bools and mappings are refused).
+            gymnasium.error.ResetNeeded: :meth:`reset` was never called.
         """
-        try:
-            steer, speed = action
-            steer = float(steer)
-            speed = float(speed)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be two numbers [steer, speed], got {action!r}") from None
+        if self._needs_reset:
+            raise ResetNeeded("call reset() before step(): the env has no state yet")
+        if type(action) is np.ndarray and action.shape == (2,) and action.dtype.kind in "fiu":
+            steer, speed = action.tolist()  # the usual case: one cheap check
+        else:
+            steer, speed = check_action(action, (2,)).tolist()
         if not (math.isfinite(steer) and math.isfinite(speed)):
-            raise ValueError(f"action must be finite [steer, speed], got {action!r}")
+            raise ValueError(f"action must be finite [steer, speed], got {short(action)}")
         steer = min(max(steer, self._steer_lo), self._steer_hi)
         speed = min(max(speed, self._speed_lo), self._speed_hi)
         if self.command_delay.n:

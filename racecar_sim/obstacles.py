@@ -23,8 +23,9 @@ import numba as nb
 import numpy as np
 import pymunk
 
-from racecar_sim.maps import OccupancyMap
-from racecar_sim.validation import check_number
+from racecar_sim.bounds import check
+from racecar_sim.maps import MapError, OccupancyMap
+from racecar_sim.validation import short
 
 __all__ = ["ObstacleParams", "Obstacles", "obstacle_ranges", "ray_segment"]
 
@@ -57,18 +58,21 @@ class ObstacleParams:
     keep_out: float = 2.0
 
     def __post_init__(self) -> None:
-        name = "obstacles"
-        check_number(name, "boxes", self.boxes, low=0, integer=True)
-        check_number(name, "people", self.people, low=0, integer=True)
-        size = tuple(float(v) for v in self.box_size)
-        if len(size) != 2 or not (0 < size[0] <= size[1]):
-            raise ValueError(f"obstacles.box_size must be (smallest, largest) > 0, got {size}")
+        name = "obstacles"  # bounds and their reasons: racecar_sim.bounds
+        for f in ("boxes", "people", "person_speed", "person_radius", "leg_radius",
+                  "stop_distance", "keep_out"):  # fmt: skip
+            check(name, f, getattr(self, f), f"obstacles.{f}")
+        try:
+            size = tuple(float(v) for v in self.box_size)
+        except (TypeError, ValueError):
+            size = ()
+        if len(size) != 2 or not size[0] <= size[1]:
+            raise ValueError(
+                f"obstacles.box_size must be (smallest, largest) metres, got {short(self.box_size)}"
+            )
+        for v in size:
+            check(name, "box_size", v, "obstacles.box_size")
         object.__setattr__(self, "box_size", size)
-        check_number(name, "person_speed", self.person_speed, low=0)
-        for f in ("person_radius", "leg_radius"):
-            check_number(name, f, getattr(self, f), low=0, low_open=True)
-        for f in ("stop_distance", "keep_out"):
-            check_number(name, f, getattr(self, f), low=0)
 
     @classmethod
     def from_setting(cls, value: Any) -> ObstacleParams | None:
@@ -164,7 +168,7 @@ class Obstacles:
             cells = np.argwhere((dist >= low) & (dist <= high))
             self._cells[key] = cells
         if len(cells) == 0:
-            raise ValueError(f"map {self.map.name!r}: no room for obstacles")
+            raise MapError(f"map {self.map.name!r}: no room for obstacles")
         pick = cells[rng.integers(0, len(cells), size=n)]
         jitter = (rng.random((n, 2)) - 0.5) * self.map.resolution
         return self.map.grid_to_world(pick) + jitter

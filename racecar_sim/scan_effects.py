@@ -29,7 +29,9 @@ from typing import Any
 import numba as nb
 import numpy as np
 
-from racecar_sim.validation import check_number
+from racecar_sim.validation import check_number, short
+
+_MAX_BINS = 100  # no-return probability bins by range (a fitted profile has about ten)
 
 __all__ = ["OdometryBias", "ScanEffects"]
 
@@ -68,16 +70,27 @@ class ScanEffects:
 
     def __post_init__(self) -> None:
         name = "ScanEffects"
-        check_number(name, "hit_bias", self.hit_bias)
-        check_number(name, "hit_sigma", self.hit_sigma, low=0)
+        # a metre of bias or noise is far beyond any lidar's; runs longer than a scan's beams
+        check_number(name, "hit_bias", self.hit_bias, low=-1, high=1)
+        check_number(name, "hit_sigma", self.hit_sigma, low=0, high=1)
         for f in ("short_fraction", "long_fraction"):
             check_number(name, f, getattr(self, f), low=0, high=1)
         for f in ("short_run", "long_run", "noreturn_run"):
-            check_number(name, f, getattr(self, f), low=1)
+            check_number(name, f, getattr(self, f), low=1, high=10_000)
         check_number(name, "short_ratio_min", self.short_ratio_min, low=0, high=1)
-        check_number(name, "long_excess", self.long_excess, low=0, low_open=True)
-        edges = tuple(float(v) for v in self.noreturn_edges)
-        probs = tuple(float(v) for v in self.noreturn_probability)
+        check_number(name, "long_excess", self.long_excess, low=0, high=1000, low_open=True)
+        try:
+            edges = tuple(float(v) for v in self.noreturn_edges)
+            probs = tuple(float(v) for v in self.noreturn_probability)
+        except (TypeError, ValueError):
+            raise ValueError(
+                "ScanEffects.noreturn_edges and noreturn_probability must be lists of numbers, "
+                f"got {short(self.noreturn_edges)} and {short(self.noreturn_probability)}"
+            ) from None
+        if len(probs) > _MAX_BINS:
+            raise ValueError(f"ScanEffects: at most {_MAX_BINS} no-return range bins, got {len(probs)}")
+        if not all(math.isfinite(v) for v in edges):
+            raise ValueError("ScanEffects.noreturn_edges must be finite numbers")
         if len(edges) != len(probs) + 1 or len(probs) < 1:
             raise ValueError(
                 "ScanEffects.noreturn_edges must have one more entry than noreturn_probability"
@@ -193,10 +206,17 @@ class OdometryBias:
     offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        for name in ("scale", "offset"):
-            value = tuple(float(v) for v in getattr(self, name))
-            if len(value) != 3 or not all(math.isfinite(v) for v in value):
-                raise ValueError(f"odometry bias {name} must be three finite numbers, got {value}")
+        for name, most in (("scale", 1.0), ("offset", 10.0)):  # a 100 % / 10 m/s bias at most
+            given = getattr(self, name)
+            try:
+                value = tuple(float(v) for v in given)
+            except (TypeError, ValueError):
+                value = ()
+            if len(value) != 3 or not all(math.isfinite(v) and abs(v) <= most for v in value):
+                raise ValueError(
+                    f"odometry bias {name} must be three numbers in [-{most:g}, {most:g}], "
+                    f"got {short(given)}"
+                )
             object.__setattr__(self, name, value)
 
     def apply(self, odom: np.ndarray) -> np.ndarray:

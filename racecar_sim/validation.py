@@ -13,11 +13,13 @@ import re
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 __all__ = [
     "MAX_YAML_BYTES",
     "YAMLRefused",
+    "check_action",
     "check_number",
     "load_yaml",
     "read_text",
@@ -38,6 +40,8 @@ def short(value: Any, limit: int = _SHORT) -> str:
     quote a value given by a user, however large it is."""
     if isinstance(value, list | tuple | dict | set) and len(value) > 16:
         text = f"<{type(value).__name__} of {len(value)} items>"
+    elif isinstance(value, float) and len(repr(value)) > 12:
+        text = f"{value:.6g}"  # 1e+12, not 1000000000000.0
     else:
         text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
@@ -174,3 +178,54 @@ def read_yaml_mapping(path: str | os.PathLike[str], what: str = "parameter file"
     if not isinstance(data, dict):
         raise ValueError(f"{what} {path}: expected a mapping of settings, got {type(data).__name__}")
     return data
+
+
+def _what(value: Any) -> str:
+    """A value's kind and a short quote of it, for messages (``str '12'``, ``float64 array (3,)``)."""
+    if isinstance(value, np.ndarray):
+        return f"a {value.dtype} array of shape {value.shape}"
+    return f"{type(value).__name__} {short(value)}"
+
+
+def _has_bool_or_text(value: Any, depth: int = 0) -> bool:
+    """Whether a (nested) list / tuple holds a bool, a string or bytes anywhere (depth <= 2)."""
+    for v in value:
+        if isinstance(v, bool | np.bool_ | str | bytes):
+            return True
+        if depth < 1 and isinstance(v, list | tuple) and _has_bool_or_text(v, depth + 1):
+            return True
+    return False
+
+
+def check_action(action: Any, shape: tuple[int, ...], what: str = "action") -> np.ndarray:
+    """``action`` as a float64 array of ``shape`` if it is numbers of that shape, all finite.
+
+    Accepted: a numpy array of integer or float dtype, or a list / tuple (nested for 2-D) of ints
+    and floats. Refused, naming what was given: strings and bytes (``"12"`` is not [1, 2]),
+    booleans, mappings, other shapes, NaN and infinity.
+
+    Raises:
+        ValueError: one line, ``"action must be ... got <kind> <value>"``.
+    """
+    per_car = " per car" if len(shape) > 1 else ""
+    need = f"{what} must be numbers of shape {shape} ([steer rad, speed m/s]{per_car})"
+    ok = isinstance(action, np.ndarray) or (
+        isinstance(action, list | tuple) and not _has_bool_or_text(action)
+    )
+    arr = None
+    if ok:
+        try:
+            arr = np.asarray(action)
+        except (TypeError, ValueError):
+            arr = None
+    if arr is None or arr.dtype.kind not in "fiu":
+        raise ValueError(f"{need}, got {_what(action)}")
+    if arr.shape != shape:
+        given = _what(action)
+        if not isinstance(action, np.ndarray):
+            given += f" of shape {arr.shape}"
+        raise ValueError(f"{need}, got {given}")
+    out = arr.astype(np.float64)
+    if not np.isfinite(out).all():
+        raise ValueError(f"{what} must be finite, got {_what(action)}")
+    return out

@@ -26,6 +26,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -37,6 +38,7 @@ from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil, scans_shared
 from racecar_sim.raycast.shared_work import run_shared
+from racecar_sim.validation import check_action
 from racecar_sim.vesc import wheel_twist
 
 __all__ = ["PROBE_EVERY", "RacecarVectorEnv", "car_seeds"]
@@ -170,6 +172,7 @@ class RacecarVectorEnv(VectorEnv):
         self._penalty = float(cfg.collision_penalty)
         self._terminate = bool(cfg.terminate_on_collision)
         self._autoreset = np.zeros(num_envs, dtype=np.bool_)
+        self._never_reset = np.ones(num_envs, dtype=np.bool_)  # cars with no state yet
         self._last_odom = np.zeros((num_envs, 3), dtype=np.float32)
         self._workers = max(1, int(workers if workers is not None else (os.cpu_count() or 1)))
         self._physics = FreeStepBatch([env.physics for env in self.envs])
@@ -200,6 +203,7 @@ class RacecarVectorEnv(VectorEnv):
                 )
         obs = self._empty_obs()
         infos: dict[str, Any] = {}
+        self._never_reset &= ~mask
         for i, env in enumerate(self.envs):
             if mask[i]:
                 o, info = env.reset(seed=seeds[i], options=options or None)
@@ -222,14 +226,12 @@ class RacecarVectorEnv(VectorEnv):
             ValueError: ``actions`` is not an (N, 2) array of finite numbers.
         """
         n = self.num_envs
-        try:
-            acts = np.asarray(actions, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"actions must be an ({n}, 2) array of numbers") from None
-        if acts.shape != (n, 2):
-            raise ValueError(f"actions must have shape ({n}, 2), got {acts.shape}")
-        if not np.isfinite(acts).all():
-            raise ValueError("actions must be finite [steer, speed] per car")
+        if self._never_reset.any():
+            raise ResetNeeded(
+                f"call reset() before step(): car(s) {np.flatnonzero(self._never_reset).tolist()[:8]} "
+                "have no state yet"
+            )
+        acts = check_action(actions, (n, 2), "actions")
         acts = np.minimum(np.maximum(acts, self._low), self._high)
 
         envs = self.envs

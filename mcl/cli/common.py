@@ -34,6 +34,7 @@ __all__ = [
     "Parser",
     "accept_negative_numbers",
     "check_env",
+    "check_env_builds",
     "check_map",
     "check_out",
     "check_resume",
@@ -191,12 +192,15 @@ def _did_you_mean(word: str, choices: Sequence[str]) -> str:
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
-def check_map(parser: Parser, spec: str, flag: str = "--map") -> str:
-    """Load the map ``spec`` (bundled name or YAML path) once, or stop naming ``flag``."""
+def check_map(
+    parser: Parser, spec: str, flag: str = "--map", env: Sequence[tuple[str, Any]] = ()
+) -> str:
+    """Load the map ``spec`` (bundled name or YAML path) once, or stop naming ``flag``; the
+    ``max_map_cells`` of the ``env`` settings (from :func:`check_env`) applies."""
     from racecar_sim.maps import MapError, bundled_names, resolve_map
 
     try:
-        resolve_map(spec)
+        resolve_map(spec, dict(env).get("max_map_cells"))
     except (MapError, OSError, ValueError) as exc:
         hint = (
             ""
@@ -305,6 +309,23 @@ def check_env(
     return tuple(settings.items())
 
 
+def check_env_builds(
+    parser: Parser, spec: str, env: Sequence[tuple[str, Any]], seed: int | None = 0
+) -> None:
+    """Build the env on map ``spec`` with the ``env`` settings and reset it once (``seed``), or
+    stop with one line: the problems found only then (no room for the car on the map, no start
+    pose with ``start_clearance``, no room for obstacles) are a user's mistake too."""
+    from racecar_sim.env import RacecarEnv
+    from racecar_sim.maps import MapError
+
+    try:
+        RacecarEnv(spec, **dict(env)).reset(seed=seed)
+    except MapError as exc:
+        parser.fail("--map", str(exc))
+    except ValueError as exc:
+        parser.fail("--env", str(exc))
+
+
 def check_out(parser: Parser, path: Path, flag: str = "--out") -> Path:
     """Check that folder ``path`` can be created or written into (nothing is created here)."""
     if path.exists() and not path.is_dir():
@@ -340,7 +361,14 @@ def check_resume(parser: Parser, config: object, out: Path, resume: bool) -> Non
 def output_folder(parser: Parser, path: Path, flag: str = "--out") -> Iterator[Path]:
     """Create folder ``path`` (and its parents) for the body (stop naming ``flag`` if it cannot be
     made); if the body raises while nothing was written into the folders it created, remove them
-    again. Whatever was written is kept."""
+    again. Whatever was written is kept.
+
+    A map problem found only when the env is built or reset (:class:`racecar_sim.maps.MapError`:
+    no room for the car, no free start pose, no room for obstacles) ends the command like any
+    other mistake: one line and exit code 2.
+    """
+    from racecar_sim.maps import MapError
+
     first_new: Path | None = None
     for folder in [path, *path.parents]:
         if folder.exists():
@@ -352,9 +380,11 @@ def output_folder(parser: Parser, path: Path, flag: str = "--out") -> Iterator[P
         parser.fail(flag, f"cannot create folder {path}: {exc.strerror or exc}")
     try:
         yield path
-    except BaseException:
+    except BaseException as exc:
         if first_new is not None and not any(p.is_file() for p in first_new.rglob("*")):
             shutil.rmtree(first_new, ignore_errors=True)
+        if isinstance(exc, MapError):
+            parser.error(str(exc))
         raise
 
 

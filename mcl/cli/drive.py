@@ -34,6 +34,7 @@ from mcl.cli.common import (
     MAP_HELP,
     Parser,
     check_env,
+    check_env_builds,
     check_map,
     check_out,
     compile_notice,
@@ -143,12 +144,13 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``racecar-sim drive``; returns the exit code (a user mistake exits with 2)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    check_map(parser, args.map)
-    if args.filter_map is not None:
-        check_map(parser, args.filter_map, "--filter-map")
     if args.noise_profile is not None:
         args.env.append(f"noise_profile={args.noise_profile}")
     env = check_env(parser, args.env)
+    check_map(parser, args.map, env=env)
+    if args.filter_map is not None:
+        check_map(parser, args.filter_map, "--filter-map", env=env)
+    check_env_builds(parser, args.map, env, args.seed)
     out: Path = check_out(parser, args.out)
     if args.bag is not None:
         check_out(parser, args.bag, "--bag")
