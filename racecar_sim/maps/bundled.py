@@ -62,7 +62,7 @@ def bundled(name: str = DEFAULT_MAP) -> Path:
     """
     path = maps_dir() / f"{name}.yaml"
     if not path.is_file():
-        raise MapError(f"no bundled map named {name!r}; bundled maps: {', '.join(bundled_names())}")
+        raise MapError(f"no bundled map named {short(name)}; bundled maps: {', '.join(bundled_names())}")
     return path
 
 
@@ -83,6 +83,9 @@ def resolve_map(
     if not isinstance(spec, str | os.PathLike):
         raise MapError(f"map must be a bundled name, a YAML path or an OccupancyMap, got {short(spec)}")
     text = os.fspath(spec)
-    if text.endswith((".yaml", ".yml")) or os.sep in text or Path(text).is_file():
-        return load_map(text, max_cells)
-    return load_map(bundled(text), max_cells)
+    try:
+        if text.endswith((".yaml", ".yml")) or os.sep in text or Path(text).is_file():
+            return load_map(text, max_cells)
+        return load_map(bundled(text), max_cells)
+    except OSError as exc:  # a name too long for a path, a folder given as the image, ...
+        raise MapError(f"map {short(text)}: {exc.strerror or exc}") from None

@@ -21,7 +21,7 @@ from typing import Any
 
 import yaml
 
-from racecar_sim.validation import load_yaml, read_text, yaml_problem
+from racecar_sim.validation import load_yaml, read_text, short, yaml_problem
 
 __all__ = ["load_profile", "profile_document", "profile_names", "profile_path"]
 
@@ -41,6 +41,13 @@ def profile_path(name: str | os.PathLike[str]) -> Path:
     Raises:
         ValueError: neither a bundled profile nor an existing YAML file (lists the names).
     """
+    if not isinstance(name, str | os.PathLike):
+        raise ValueError(
+            f"noise_profile must be a profile name ({', '.join(profile_names())}) or a YAML path, "
+            f"got {short(name)}"
+        )
+    if len(os.fspath(name)) > 255:
+        raise ValueError(f"noise_profile {short(os.fspath(name))} is too long for a name or path")
     path = _data_dir() / f"{name}.yaml"
     if path.is_file():
         return path
@@ -48,8 +55,8 @@ def profile_path(name: str | os.PathLike[str]) -> Path:
     if given.suffix in (".yaml", ".yml") and given.is_file():
         return given
     raise ValueError(
-        f"noise_profile {str(name)!r} is neither a bundled profile ({', '.join(profile_names())}) "
-        "nor a profile YAML file"
+        f"noise_profile {short(str(name))} is neither a bundled profile "
+        f"({', '.join(profile_names())}) nor a profile YAML file"
     )
 
 
