@@ -13,9 +13,10 @@ from racecar_sim.bounds import Bound, check
 __all__ = ["FILTER_BOUNDS", "MAX_CASTS", "check_filter"]
 
 MAX_PARTICLES = 1_000_000
-MAX_CASTS = 50_000_000
-"""Most rays one correction casts (particles x beams per particle): 330 times the default
-1500 x 100; each cast's range and weight are held in memory (about 16 bytes a cast)."""
+MAX_CASTS = 10_000_000
+"""Most rays one correction casts (particles x beams per particle): 66 times the default
+1500 x 100 and 5 times a global start's 20 000 x 100; each cast's range and weight are held in
+memory (about 16 bytes a cast), and a correction of 10 M casts takes about a second."""
 
 _P = "a million particles take seconds an update; the lab uses 1-5 thousand"
 FILTER_BOUNDS: dict[str, Bound] = {

@@ -150,7 +150,6 @@ def main(argv: list[str] | None = None) -> int:
     check_map(parser, args.map, env=env)
     if args.filter_map is not None:
         check_map(parser, args.filter_map, "--filter-map", env=env)
-    check_env_builds(parser, args.map, env, args.seed)
     out: Path = check_out(parser, args.out)
     if args.bag is not None:
         check_out(parser, args.bag, "--bag")
@@ -170,7 +169,10 @@ def main(argv: list[str] | None = None) -> int:
             filter_map=args.filter_map,
         )
     except ValueError as exc:
+        if "particles" in str(exc):
+            parser.fail("--particles", str(exc))
         parser.error(str(exc))
+    check_env_builds(parser, args.map, env, args.seed)
     compile_notice()
     server = start_live_view(parser, live)
     try:

@@ -118,6 +118,8 @@ class RunSpec:
         object.__setattr__(self, "driver_settings", drive)
         if self.config is not None and not isinstance(self.config, LocalizationConfig):
             raise ValueError(f"RunSpec.config = {self.config!r} must be a LocalizationConfig")
+        # the filter's bounds (mcl.filter_bounds) apply now, not when the run starts
+        (self.config or LocalizationConfig()).with_particles(n)
 
     @property
     def env_settings(self) -> dict[str, Any]:

@@ -87,6 +87,8 @@ def judge(case: dict[str, Any], result: dict[str, Any]) -> str | None:
             return f"not a one-line error: {lines[0][:300]}"
         return None
     if outcome == "error":
+        if case.get("kind") == "cli":  # a command must not raise: that is a traceback
+            return f"raised {result['type']}: {result['message'][:300]}\n{result['where']}"
         message = result["message"]
         if not any(name in _CLEAR for name in result["mro"]):
             return f"{result['type']}: {message[:300]}\n{result['where']}"
