@@ -7,6 +7,7 @@ with :func:`from_mapping` / :func:`from_yaml`; unknown keys raise a ``ValueError
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -49,7 +50,7 @@ def from_mapping(cls: type[T], mapping: dict[str, Any] | None) -> T:
     names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     unknown = sorted(set(mapping) - names)
     if unknown:
-        raise ValueError(f"unknown {cls.__name__} parameter(s) {unknown}; known: {sorted(names)}")
+        raise ValueError(f"unknown {cls.__name__} parameter(s) {short(unknown, 200)}; known: {sorted(names)}")
     return cls(**mapping)
 
 
@@ -68,7 +69,7 @@ def nested(value: Any, cls: type[T], owner: str) -> T:
             return from_mapping(cls, dict(value))
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{owner}: {exc}") from exc
-    raise ValueError(f"{owner} must be a {cls.__name__} or a mapping, got {value!r}")
+    raise ValueError(f"{owner} must be a {cls.__name__} or a mapping, got {short(value)}")
 
 
 def from_yaml(cls: type[T], path: str | os.PathLike[str], section: str | None = None) -> T:
@@ -364,7 +365,7 @@ class EnvConfig:
             object.__setattr__(self, "scan_effects", ScanEffects.from_mapping(self.scan_effects))
         if self.odom_bias is not None and not isinstance(self.odom_bias, OdometryBias):
             if not isinstance(self.odom_bias, Mapping) or set(self.odom_bias) - {"scale", "offset"}:
-                raise ValueError(f"odom_bias must be a mapping {{scale, offset}}, got {self.odom_bias!r}")
+                raise ValueError(f"odom_bias must be a mapping {{scale, offset}}, got {short(self.odom_bias)}")
             object.__setattr__(self, "odom_bias", OdometryBias(**dict(self.odom_bias)))
         object.__setattr__(self, "obstacles", ObstacleParams.from_setting(self.obstacles))
         object.__setattr__(self, "imu", ImuParams.from_setting(self.imu))
@@ -372,7 +373,7 @@ class EnvConfig:
         if isinstance(self.car, Mapping):
             object.__setattr__(self, "car", from_mapping(CarParams, dict(self.car)))
         elif not isinstance(self.car, CarParams):
-            raise ValueError(f"car must be a CarParams or a mapping, got {self.car!r}")
+            raise ValueError(f"car must be a CarParams or a mapping, got {short(self.car)}")
         # The env's own names in messages (``lidar_rate``, not ``LidarParams.rate``); bounds and
         # their reasons: racecar_sim.bounds.
         for name in ("n_beams", "dt", "substep", "max_range", "lidar_rate", "short_lambda",
@@ -393,7 +394,7 @@ class EnvConfig:
             )
         if not isinstance(self.terminate_on_collision, bool):
             raise ValueError(
-                f"terminate_on_collision must be true or false, got {self.terminate_on_collision!r}"
+                f"terminate_on_collision must be true or false, got {short(self.terminate_on_collision)}"
             )
         # Build the sensor parameters once so that bad values fail here, naming the setting.
         self.lidar_params()
@@ -449,11 +450,12 @@ def load_config(path: str | os.PathLike[str]) -> dict[str, Any]:
     unknown = sorted(set(data) - _SETTINGS)
     if unknown:
         raise ValueError(
-            f"env config file {path}: unknown setting(s) {unknown}; known: {sorted(_SETTINGS)}"
+            f"env config file {path}: unknown setting(s) {short(unknown, 200)}; known: {sorted(_SETTINGS)}"
         )
     spec = data.get("map")
-    if isinstance(spec, str) and not Path(spec).is_absolute() and (path.parent / spec).is_file():
-        data["map"] = str(path.parent / spec)
+    with contextlib.suppress(OSError):  # a name too long for a path is the map loader's to refuse
+        if isinstance(spec, str) and not Path(spec).is_absolute() and (path.parent / spec).is_file():
+            data["map"] = str(path.parent / spec)
     return data
 
 
@@ -479,6 +481,6 @@ def merge_settings(
     unknown = sorted(set(values) - _SETTINGS)
     if unknown:
         raise ValueError(
-            f"unknown RacecarEnv setting(s) {unknown}; known: {sorted(_SETTINGS | {'config'})}"
+            f"unknown RacecarEnv setting(s) {short(unknown, 200)}; known: {sorted(_SETTINGS | {'config'})}"
         )
     return EnvConfig(**values)

@@ -231,7 +231,7 @@ class RacecarEnv(gym.Env):
         options = dict(options or {})
         unknown = sorted(set(options) - {"pose"})
         if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; known: ['pose']")
+            raise ValueError(f"unknown reset option(s) {short(unknown, 200)}; known: ['pose']")
         if options.get("pose") is None:
             self.physics.reset(self._random_start())
         else:
@@ -239,7 +239,7 @@ class RacecarEnv(gym.Env):
             try:
                 self.physics.reset(pose)
             except ValueError as exc:
-                raise ValueError(f"reset options['pose'] = {pose!r} is not usable: {exc}") from exc
+                raise ValueError(f"reset options['pose'] = {short(pose)} is not usable: {exc}") from exc
         if self.obstacles is not None:
             # Their own stream from the env's: the same seed places the same obstacles.
             obstacle_rng = np.random.default_rng(int(self.np_random.integers(2**63)))

@@ -83,7 +83,7 @@ class ObstacleParams:
             known = set(cls.__dataclass_fields__)
             unknown = sorted(set(value) - known)
             if unknown:
-                raise ValueError(f"unknown obstacles setting(s) {unknown}; known: {sorted(known)}")
+                raise ValueError(f"unknown obstacles setting(s) {short(unknown, 200)}; known: {sorted(known)}")
             return cls(**dict(value))
         raise ValueError(f"obstacles must be a mapping of {sorted(cls.__dataclass_fields__)}")
 

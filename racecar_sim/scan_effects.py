@@ -130,7 +130,7 @@ class ScanEffects:
         known = {f for f in cls.__dataclass_fields__ if not f.startswith("_")}
         unknown = sorted(set(data) - known)
         if unknown:
-            raise ValueError(f"unknown scan_effects setting(s) {unknown}; known: {sorted(known)}")
+            raise ValueError(f"unknown scan_effects setting(s) {short(unknown, 200)}; known: {sorted(known)}")
         return cls(**dict(data))
 
     def apply(self, ranges: np.ndarray, max_range: float, rng: np.random.Generator) -> np.ndarray:

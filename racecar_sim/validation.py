@@ -40,8 +40,8 @@ def short(value: Any, limit: int = _SHORT) -> str:
     quote a value given by a user, however large it is."""
     if isinstance(value, list | tuple | dict | set) and len(value) > 16:
         text = f"<{type(value).__name__} of {len(value)} items>"
-    elif isinstance(value, float) and len(repr(value)) > 12:
-        text = f"{value:.6g}"  # 1e+12, not 1000000000000.0
+    elif isinstance(value, float) and len(repr(value)) > 12 and float(f"{value:g}") == value:
+        text = f"{value:g}"  # 1e+12, not 1000000000000.0 (only when it is the same number)
     else:
         text = repr(value)
     return text if len(text) <= limit else text[: limit - 3] + "..."
