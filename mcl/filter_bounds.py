@@ -50,6 +50,8 @@ FILTER_BOUNDS: dict[str, Bound] = {
     "sensor.likelihood_max_range": Bound(0.0, 1000.0, "m", "as max_range", low_open=True),
     "motion.coefficients": Bound(0.0, 10.0, "m, rad per update", "10 m of noise per update "
                                  "is no odometry"),
+    "motion.alphas": Bound(0.0, 100.0, "variance per motion", "amcl's defaults are 0.2 and "
+                           "below; 100 spreads a metre's move over ten metres"),
     "render_particles": Bound(0, MAX_PARTICLES, "particles", "as n_particles", integer=True),
 }
 """Filter setting (``filter.``, ``sensor.``, ``motion.``) -> its bound."""

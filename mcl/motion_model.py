@@ -109,8 +109,10 @@ class MotionModelParams:
         if len(alphas) != 4 or not all(math.isfinite(a) and a >= 0 for a in alphas):
             raise ValueError(
                 f"MotionModelParams.alphas must be four non-negative numbers (a1..a4), "
-                f"got {self.alphas!r}"
+                f"got {short(self.alphas)}"
             )
+        for a in alphas:  # bounds and their reasons: mcl.filter_bounds
+            check_filter("MotionModelParams", "alphas", a, "motion.alphas")
         object.__setattr__(self, "alphas", alphas)
 
     def with_scheme(self, scheme: str) -> MotionModelParams:

@@ -79,6 +79,10 @@ BOUNDS: dict[str, Bound] = {
     "odom_proportional": Bound(0.0, 1.0, "fraction", "noise of 100 % of the true speed"),
     "odom_additive": Bound(0.0, 10.0, "m/s, rad/s", "noise of 10 m/s is more than the top speed"),
     "max_map_cells": Bound(1, 1e10, "cells", "see the map limits", integer=True),
+    "odom_lead": Bound(0.0, 1.0, "s", "a VESC's odometry leads by about 0.13 s; each step of lead "
+                       "is a command held in a queue"),
+    "imu.sigma": Bound(0.0, 10.0, "rad/s", "noise beyond the car's fastest turn"),
+    "imu.bias": Bound(-10.0, 10.0, "rad/s", "a bias beyond the car's fastest turn"),
     # the car
     "car.wheelbase": Bound(0.05, 10.0, "m", "from a 1/18 model car to a bus"),
     "car.max_steer": Bound(0.0, math.pi / 2, "rad", "a wheel turned 90 degrees is not steering",

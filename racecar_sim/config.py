@@ -369,7 +369,7 @@ class EnvConfig:
             object.__setattr__(self, "odom_bias", OdometryBias(**dict(self.odom_bias)))
         object.__setattr__(self, "obstacles", ObstacleParams.from_setting(self.obstacles))
         object.__setattr__(self, "imu", ImuParams.from_setting(self.imu))
-        check_number("", "odom_lead", self.odom_lead, low=0)
+        check("", "odom_lead", self.odom_lead)  # bounds and their reason: racecar_sim.bounds
         if isinstance(self.car, Mapping):
             object.__setattr__(self, "car", from_mapping(CarParams, dict(self.car)))
         elif not isinstance(self.car, CarParams):

@@ -11,7 +11,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from racecar_sim.validation import check_number
+from racecar_sim.bounds import check
+from racecar_sim.validation import short
 
 __all__ = ["ImuParams"]
 
@@ -29,8 +30,8 @@ class ImuParams:
     bias: float = 0.0
 
     def __post_init__(self) -> None:
-        check_number("ImuParams", "sigma", self.sigma, low=0)
-        check_number("ImuParams", "bias", self.bias)
+        check("ImuParams", "sigma", self.sigma, "imu.sigma")  # bounds: racecar_sim.bounds
+        check("ImuParams", "bias", self.bias, "imu.bias")
 
     @classmethod
     def from_setting(cls, value: Any) -> ImuParams | None:
@@ -43,4 +44,4 @@ class ImuParams:
             return value
         if isinstance(value, Mapping) and not set(value) - {"sigma", "bias"}:
             return cls(**dict(value))
-        raise ValueError(f"imu must be true, false, or a mapping {{sigma, bias}}, got {value!r}")
+        raise ValueError(f"imu must be true, false, or a mapping {{sigma, bias}}, got {short(value)}")
