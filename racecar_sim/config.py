@@ -319,7 +319,7 @@ class EnvConfig:
         car_model: ``"kinematic"`` (the kinematic bicycle) or ``"single_track"`` (tire slip, a
             friction limit): :mod:`racecar_sim.vehicle`.
         max_map_cells: the most cells (width x height) a map may have; None = the default
-            (:func:`racecar_sim.maps.limits.max_map_cells`, 16 million). Checked before the map's
+            (:func:`racecar_sim.maps.limits.max_map_cells`, 4 million). Checked before the map's
             image is decoded.
     """
 

@@ -1,10 +1,10 @@
 """The limits on a map, checked before anything of its size is allocated.
 
 A map's memory grows with its cell count: the image while it is read, the occupancy grid, the
-distance field, the wall segments, the casters' tables. :data:`MAX_MAP_CELLS` (16 million cells,
-e.g. 4000 x 4000, a 200 m square at 5 cm) keeps a map and an env on it within a few GB (see
-docs/settings.md for the measured memory); the largest real map shipped with the project's data
-has 2.25 million. Raise it per env with the setting ``max_map_cells``
+distance field, the wall segments, the casters' tables. :data:`MAX_MAP_CELLS` (4 million cells,
+e.g. 2000 x 2000, a 100 m square at 5 cm) keeps a map, an env on it and a particle filter's
+lookup table within a few GB (docs/settings.md has the measured memory); the largest real map in
+the project's shared data has 2.25 million. Raise it per env with the setting ``max_map_cells``
 (``RacecarEnv(max_map_cells=...)``, ``--env max_map_cells=...``) or for every command with the
 environment variable ``RACECAR_SIM_MAX_MAP_CELLS``.
 """
@@ -27,7 +27,7 @@ __all__ = [
     "max_map_cells",
 ]
 
-MAX_MAP_CELLS = 16_000_000
+MAX_MAP_CELLS = 4_000_000
 """Default limit on a map's cells (width x height)."""
 MIN_RESOLUTION = 1e-3
 """metres per cell: a millimetre cell is finer than any lidar measures."""
