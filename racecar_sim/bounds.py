@@ -130,7 +130,6 @@ RULES: tuple[tuple[str, str], ...] = (
     ("ceil(dt / substep) <= 1000", "a step runs at most 1000 physics substeps"),
     ("-rear_overhang <= mount_offset <= length - rear_overhang",
      "the lidar sits on the car (rear axle frame)"),
-    ("range_sigma <= max_range", "noise no wider than the range"),
     ("p_short + p_max + p_rand <= 1", "probabilities of one beam's outcomes"),
     ("rear_overhang < length", "the rear axle lies on the car"),
     ("box_size: smallest <= largest", "an interval"),

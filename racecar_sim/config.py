@@ -226,11 +226,6 @@ class LidarParams:
         for f in dataclasses.fields(self):  # bounds and reasons: racecar_sim.bounds
             key = "lidar_rate" if f.name == "rate" else f.name
             check("LidarParams", f.name, getattr(self, f.name), key)
-        if self.sigma > self.max_range:
-            raise ValueError(
-                f"LidarParams.sigma = {self.sigma:g} m must not exceed max_range = "
-                f"{self.max_range:g} m"
-            )
         if self.p_short + self.p_max + self.p_rand > 1:
             raise ValueError("LidarParams: p_short + p_max + p_rand must not exceed 1")
 
