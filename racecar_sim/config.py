@@ -353,7 +353,7 @@ class EnvConfig:
             check_number("", "max_map_cells", self.max_map_cells, low=1, integer=True)
         track = self.track
         if not (track is None or isinstance(track, str | os.PathLike) or type(track).__name__ == "Track"):
-            raise ValueError(f"track must be a CSV path, 'auto', a Track or None, got {track!r}")
+            raise ValueError(f"track must be a CSV path, 'auto', a Track or None, got {short(track)}")
         if self.noise_profile is not None:
             profile_document(self.noise_profile)  # an unknown name fails here, listing the profiles
         if self.scan_effects is not None:

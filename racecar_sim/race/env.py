@@ -33,7 +33,12 @@ from racecar_sim.race.loops import centerline_for_map
 from racecar_sim.race.track import LOOP_STARTS, Track, resolve_track
 from racecar_sim.race.world import RaceWorld
 from racecar_sim.render import MapRenderer
+from racecar_sim.validation import check_action, check_number
 from racecar_sim.vector_env import car_seeds
+
+MAX_CARS = 100
+"""Most cars in one race (each car is an env: physics, lidar, odometry; every pair is checked for
+contact each step)."""
 
 __all__ = ["CAR_COLOURS", "RaceEnv"]
 
@@ -118,6 +123,7 @@ class RaceEnv(ParallelEnv):
             raise ValueError(
                 f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}"
             )
+        check_number("RaceEnv", "n_cars", n_cars, low=1, high=MAX_CARS, integer=True)
         cfg = merge_settings(config, {"map": map, "track": track, **settings})
         grid = resolve_map(cfg.map)
         spec = cfg.track
@@ -228,12 +234,18 @@ class RaceEnv(ParallelEnv):
         if missing:
             raise ValueError(f"no action for live agent {missing[0]!r}")
         acts = np.zeros((n, 2))
-        try:
-            given = np.array([actions[a] for a in alive], dtype=np.float64)
-        except (TypeError, ValueError):
+        given_actions = [actions[a] for a in alive]
+        if all(type(v) is np.ndarray and v.shape == (2,) and v.dtype.kind in "fiu"
+               for v in given_actions):  # fmt: skip
+            given = np.array(given_actions, dtype=np.float64)  # the usual case: one cheap check
+        else:
             given = None
-        if given is None or given.shape != (len(alive), 2) or not np.isfinite(given).all():
-            self._check_actions(alive, actions)  # names the agent
+        if given is None or not np.isfinite(given).all():
+            # numbers of shape (2,) only: "12", b"12", ("0.1", "2") and [True, True] are refused,
+            # naming the agent
+            given = np.array(
+                [check_action(v, (2,), f"action of {a}") for a, v in zip(alive, given_actions, strict=True)]
+            )
         acts[[self._index[a] for a in alive]] = given
         acts = np.minimum(np.maximum(acts, self._low), self._high)
         collided = self.world.step(acts, self._active)
@@ -255,22 +267,6 @@ class RaceEnv(ParallelEnv):
         self._active[:] = False
         self._active[[self._index[a] for a in self.agents]] = True
         return obs, rew, terminations, truncations, infos
-
-    @staticmethod
-    def _check_actions(alive: list[str], actions: dict[str, Any]) -> None:
-        """Raise ValueError naming the first agent whose action is not two finite numbers."""
-        for agent in alive:
-            try:
-                a = np.asarray(actions[agent], dtype=np.float64).reshape(2)
-            except (TypeError, ValueError):
-                raise ValueError(
-                    f"action of {agent} must be two numbers [steer, speed], got {actions[agent]!r}"
-                ) from None
-            if not np.isfinite(a).all():
-                raise ValueError(
-                    f"action of {agent} must be finite [steer, speed], got {a.tolist()}"
-                )
-        raise ValueError(f"actions must be two numbers [steer, speed] per agent, got {actions!r}")
 
     def render(self) -> np.ndarray | None:
         """RGB uint8 (H, W, 3): the map, every car's last scan hits and its box in its own colour
