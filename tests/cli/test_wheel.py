@@ -114,3 +114,13 @@ def test_wheel_installs_into_a_fresh_venv_and_drives(tmp_path: Path) -> None:
     assert done.returncode == 2
     assert len(done.stderr.splitlines()) == 1 and "--map" in done.stderr
     assert not out.exists()
+
+    # installed defaults: make-maps draws into ./maps (never into the venv) and says so; a benchmark
+    # whose default map (../shared beside the working directory) is absent names --map in one line
+    done = _run([str(command), "make-maps"], elsewhere, env)
+    assert done.returncode == 0, done.stderr
+    assert "installed, not run from a source checkout" in done.stdout
+    assert (elsewhere / "maps" / "basement_loop.yaml").is_file()
+    done = _run([str(command), "bench", "mcl", "--updates", "1"], elsewhere, env)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert f"--map: {tmp_path / 'shared' / 'maps' / 'stata_basement.yaml'} not found" in done.stderr
