@@ -17,6 +17,9 @@ in the beam model:
 - when ``beam_skip_error_threshold`` of the beams or more would be skipped, the cloud has
   probably converged to a wrong pose and every beam is used (amcl's "integrating all
   observations");
+- with ``beam_skip_short_only`` (this project's variant), a particle also explains a beam that
+  returns beyond its expected range, so only short returns, the ones an occluder makes, can be
+  skipped; long returns (drop-outs, a gap in a wall the map shows) stay with the beam model;
 - nothing is skipped unless the cloud has converged: every particle within
   ``beam_skip_converged_distance`` metres of the particles' unweighted mean in x and in y (amcl's
   ``pf_update_converged`` with its ``dist_threshold``, 0.5 m).
@@ -56,7 +59,9 @@ def cloud_converged(particles: np.ndarray, distance: float) -> bool:
 
 
 @nb.njit(cache=True)
-def beam_skip_mask(expected, z_px, px_per_m, z_max, distance_px, threshold, error_threshold, keep):
+def beam_skip_mask(
+    expected, z_px, px_per_m, z_max, distance_px, threshold, error_threshold, keep, short_only=False
+):
     """Fill ``keep`` (K,) bool with the beams to use; return how many beams nobody explains
     (when that is ``error_threshold`` of them or more, ``keep`` is all True).
 
@@ -68,6 +73,8 @@ def beam_skip_mask(expected, z_px, px_per_m, z_max, distance_px, threshold, erro
         distance_px: ``beam_skip_distance`` in table pixels.
         threshold: fraction of particles that must explain a beam for it to be used.
         error_threshold: fraction of skipped beams at or beyond which every beam is used.
+        short_only: a particle also explains a beam measured beyond its expected range (only
+            short returns, what an occluder makes, can be skipped).
     """
     n, k = expected.shape
     counts = np.zeros(k, dtype=np.int64)
@@ -78,7 +85,7 @@ def beam_skip_mask(expected, z_px, px_per_m, z_max, distance_px, threshold, erro
                 d = z_max
             elif d < 0.0:
                 d = 0.0
-            if abs(z_px[b] - d) < distance_px:
+            if abs(z_px[b] - d) < distance_px or (short_only and z_px[b] > d):
                 counts[b] += 1
     skipped = 0
     for b in range(k):

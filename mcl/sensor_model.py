@@ -303,6 +303,7 @@ class SensorModel:
                 float(p.beam_skip_threshold),
                 float(p.beam_skip_error_threshold),
                 keep,
+                bool(p.beam_skip_short_only),
             )
         )
         skip.forced = bool(keep.all()) and unexplained > 0

@@ -70,6 +70,8 @@ class SensorModelParams:
             would be skipped, every beam is used instead (amcl's default 0.9).
         beam_skip_converged_distance: metres; the cloud counts as converged when every particle
             lies this close to the particles' mean in x and in y (amcl's 0.5).
+        beam_skip_short_only: skip only beams that return short of what the particles expect
+            (what an occluding opponent makes); not in amcl.
     """
 
     alpha_hit: float = 0.74
@@ -97,6 +99,7 @@ class SensorModelParams:
     beam_skip_threshold: float = 0.3
     beam_skip_error_threshold: float = 0.9
     beam_skip_converged_distance: float = 0.5
+    beam_skip_short_only: bool = False
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -172,8 +175,9 @@ class SensorModelParams:
             raise bad("raycast_method", "must be a method name")
         if self.parallel is not None and not isinstance(self.parallel, bool):
             raise bad("parallel", "must be true, false or null")
-        if not isinstance(self.beam_skip, bool):
-            raise bad("beam_skip", "must be true or false")
+        for name in ("beam_skip", "beam_skip_short_only"):
+            if not isinstance(getattr(self, name), bool):
+                raise bad(name, "must be true or false")
         if self.beam_skip and self.model != "beam":
             raise bad("beam_skip", f"is implemented for the beam model only, not {self.model!r}")
         for name in ("beam_skip_distance", "beam_skip_converged_distance"):

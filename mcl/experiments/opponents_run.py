@@ -40,6 +40,7 @@ __all__ = ["BACKENDS", "METHODS", "OpponentRun", "OpponentRunResult", "opponents
 METHODS: dict[str, dict[str, Any]] = {
     "plain": {},
     "beam_skip": {"beam_skip": True},
+    "beam_skip_short": {"beam_skip": True, "beam_skip_short_only": True},
 }
 """Sensor-model settings of each method of the table (:class:`SensorModelParams` fields)."""
 

@@ -47,9 +47,10 @@ def _cloud(rng: np.random.Generator, n: int, sd: float) -> np.ndarray:
     k=st.integers(1, 40),
     threshold=st.floats(0.0, 1.0),
     error_threshold=st.floats(0.0, 1.0),
+    short_only=st.booleans(),
 )
 def test_mask_keeps_beams_explained_by_more_than_the_threshold(
-    seed: int, n: int, k: int, threshold: float, error_threshold: float
+    seed: int, n: int, k: int, threshold: float, error_threshold: float, short_only: bool
 ) -> None:
     rng = np.random.default_rng(seed)
     expected = rng.uniform(0.0, 12.0, size=(n, k))
@@ -57,10 +58,12 @@ def test_mask_keeps_beams_explained_by_more_than_the_threshold(
     keep = np.empty(k, dtype=np.bool_)
     px_per_m, distance_px = 20.0, 10.0
     unexplained = beam_skip_mask(
-        expected, z_px, px_per_m, 200.0, distance_px, threshold, error_threshold, keep
+        expected, z_px, px_per_m, 200.0, distance_px, threshold, error_threshold, keep, short_only
     )
     d = np.clip(expected * px_per_m, 0.0, 200.0)
-    explained = (np.abs(z_px[None, :] - d) < distance_px).sum(axis=0)
+    near = np.abs(z_px[None, :] - d) < distance_px
+    beyond = z_px[None, :] > d  # a long return: never an occluder's
+    explained = (near | (beyond & short_only)).sum(axis=0)
     wanted = explained > threshold * n
     assert unexplained == int((~wanted).sum())
     if unexplained >= error_threshold * k:
@@ -129,6 +132,25 @@ def test_an_opponent_sector_is_left_out(room, models) -> None:
     np.testing.assert_array_equal(got, kept)
     # and the opponent no longer pulls the cloud: the plain model's weights differ
     assert not np.array_equal(got, plain.log_evaluate(particles, scan))
+
+
+def test_short_only_keeps_long_returns(room, models) -> None:
+    params = SensorModelParams(
+        mount_offset=LIDAR.mount_offset, parallel=False, beam_skip=True, beam_skip_short_only=True
+    )
+    model = SensorModel(room, params, beam_angles=LIDAR.angles)
+    particles = _cloud(np.random.default_rng(5), 300, 0.02)
+    scan = _true_scan(room, POSE)
+    scan[100:200] = LIDAR.max_range  # drop-outs: long returns
+    scan[480:600] = 0.9  # an opponent: short returns
+    model.log_evaluate(particles, scan)
+    idx, _ = model._subsample(scan.size)
+    short = int(((idx >= 480) & (idx < 600)).sum())
+    long_ = int(((idx >= 100) & (idx < 200)).sum())
+    skipped = model.last_beam_skip.skipped
+    assert short <= skipped < short + long_  # the opponent's beams go, the drop-outs stay
+    models[1].log_evaluate(particles, scan)  # amcl's rule skips both
+    assert models[1].last_beam_skip.skipped >= short + long_ > skipped
 
 
 def test_a_scan_nothing_explains_uses_every_beam(room, models) -> None:
