@@ -22,6 +22,7 @@ from racecar_sim.maps import OccupancyMap
 from racecar_sim.noise_profiles import profile_document
 from racecar_sim.obstacles import ObstacleParams
 from racecar_sim.scan_effects import OdometryBias, ScanEffects
+from racecar_sim.scenes import scene_obstacles
 from racecar_sim.validation import check_number, read_yaml_mapping, short
 from racecar_sim.vehicle import check_car_model
 
@@ -316,6 +317,10 @@ class EnvConfig:
         max_map_cells: the most cells (width x height) a map may have; None = the default
             (:func:`racecar_sim.maps.limits.max_map_cells`, 4 million). Checked before the map's
             image is decoded.
+        scene: what the room adds to the map (:mod:`racecar_sim.scenes`): ``"clean"`` (openings
+            in the walls: glass, open doors), ``"cluttered"`` (also furniture and people) or
+            ``"none"``; its obstacle settings go under ``obstacles``. None = none (the ideal
+            world); the ``mit_racecar`` profile sets ``"clean"``.
     """
 
     map: str | os.PathLike[str] | OccupancyMap | None = None
@@ -346,6 +351,7 @@ class EnvConfig:
     track: Any = None
     car_model: str = "kinematic"
     max_map_cells: int | None = None
+    scene: str | None = None
 
     def __post_init__(self) -> None:
         check_car_model(self.car_model)
@@ -362,9 +368,10 @@ class EnvConfig:
             if not isinstance(self.odom_bias, Mapping) or set(self.odom_bias) - {"scale", "offset"}:
                 raise ValueError(f"odom_bias must be a mapping {{scale, offset}}, got {short(self.odom_bias)}")
             object.__setattr__(self, "odom_bias", OdometryBias(**dict(self.odom_bias)))
-        object.__setattr__(self, "obstacles", ObstacleParams.from_setting(self.obstacles))
         object.__setattr__(self, "imu", ImuParams.from_setting(self.imu))
         check("", "odom_lead", self.odom_lead)  # bounds and their reason: racecar_sim.bounds
+        obstacles = scene_obstacles(self.scene, self.obstacles)
+        object.__setattr__(self, "obstacles", ObstacleParams.from_setting(obstacles))
         if isinstance(self.car, Mapping):
             object.__setattr__(self, "car", from_mapping(CarParams, dict(self.car)))
         elif not isinstance(self.car, CarParams):

@@ -155,7 +155,7 @@ class RacecarEnv(gym.Env):
         self.scan_effects = cfg.scan_effects
         self.odom_bias = cfg.odom_bias
         self.obstacles: Obstacles | None = None
-        if cfg.obstacles is not None and (cfg.obstacles.boxes or cfg.obstacles.people):
+        if cfg.obstacles is not None and cfg.obstacles.active:
             self.obstacles = Obstacles(cfg.obstacles, self.map, self.physics.space)
 
         car = self.car_params

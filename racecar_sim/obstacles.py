@@ -26,6 +26,8 @@ import pymunk
 from racecar_sim.bounds import check
 from racecar_sim.maps import MapError, OccupancyMap
 from racecar_sim.validation import short
+from racecar_sim.validation import check_number
+from racecar_sim.wall_features import WallPoints, opening_ranges, place_furniture, place_openings
 
 __all__ = ["ObstacleParams", "Obstacles", "obstacle_ranges", "ray_segment"]
 
@@ -46,6 +48,15 @@ class ObstacleParams:
         leg_radius: radius of a leg as the lidar sees it.
         stop_distance: a person stops while the car's rear axle is closer than this.
         keep_out: nothing is placed closer than this to the car's start.
+        crowd: more people, this many per 100 m² of the map's free floor (added to ``people``).
+        furniture: fraction of the map's wall length lined with furniture (boxes with their back
+            against a wall, :mod:`racecar_sim.wall_features`).
+        furniture_width: (smallest, largest) width along the wall, metres.
+        furniture_depth: (smallest, largest) depth out of the wall, metres.
+        openings: fraction of the wall length that is glass or an open door: the lidar sees
+            through it to a surface behind the mapped wall.
+        opening_width: (smallest, largest) width of an opening, metres.
+        opening_depth: metres, mean depth behind the wall (beyond 0.15 m) of what an opening shows.
     """
 
     boxes: int = 0
@@ -56,6 +67,13 @@ class ObstacleParams:
     leg_radius: float = 0.07
     stop_distance: float = 1.2
     keep_out: float = 2.0
+    crowd: float = 0.0
+    furniture: float = 0.0
+    furniture_width: tuple[float, float] = (0.4, 1.6)
+    furniture_depth: tuple[float, float] = (0.3, 0.8)
+    openings: float = 0.0
+    opening_width: tuple[float, float] = (0.6, 1.6)
+    opening_depth: float = 0.5
 
     def __post_init__(self) -> None:
         name = "obstacles"  # bounds and their reasons: racecar_sim.bounds
@@ -73,6 +91,26 @@ class ObstacleParams:
         for v in size:
             check(name, "box_size", v, "obstacles.box_size")
         object.__setattr__(self, "box_size", size)
+        for f in ("furniture_width", "furniture_depth", "opening_width"):
+            try:
+                pair = tuple(float(v) for v in getattr(self, f))
+            except (TypeError, ValueError):
+                pair = ()
+            if len(pair) != 2 or not (0 < pair[0] <= pair[1] <= 10):
+                raise ValueError(
+                    f"obstacles.{f} must be (smallest, largest) metres in (0, 10], "
+                    f"got {short(getattr(self, f))}"
+                )
+            object.__setattr__(self, f, pair)
+        check_number(name, "crowd", self.crowd, low=0, high=100)
+        for f in ("furniture", "openings"):
+            check_number(name, f, getattr(self, f), low=0, high=1)
+        check_number(name, "opening_depth", self.opening_depth, low=0, high=30, low_open=True)
+
+    @property
+    def active(self) -> bool:
+        """Whether these settings put anything into the world."""
+        return bool(self.boxes or self.people or self.crowd or self.furniture or self.openings)
 
     @classmethod
     def from_setting(cls, value: Any) -> ObstacleParams | None:
@@ -158,6 +196,8 @@ class Obstacles:
         self._segments = np.zeros((0, 4))
         self._box_shapes: list[Any] = []
         self._cells: dict[tuple[float, float], np.ndarray] = {}
+        self._walls: WallPoints | None = None
+        self.openings = np.zeros((0, 5))  # [x0, y0, x1, y1, depth] per opening (world)
 
     # ------------------------------------------------------------------ placement
     def _free_points(self, rng: np.random.Generator, n: int, low: float, high: float) -> np.ndarray:
@@ -203,9 +243,20 @@ class Obstacles:
                 local = np.array([[-w, -h], [w, -h], [w, h], [-w, h]]) / 2
                 boxes.append(c + local @ rot.T)
                 break
-        self._set_boxes(np.asarray(boxes, dtype=np.float64).reshape(-1, 4, 2))
+        boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4, 2)
+        if p.furniture or p.openings:
+            if self._walls is None:
+                self._walls = WallPoints(self.map)
+            keep = max(0.6, min(p.keep_out, 1.0))  # the car starts beside furniture in a corridor
+            furniture = place_furniture(self._walls, rng, p.furniture, p.furniture_width,
+                                        p.furniture_depth, car, keep)  # fmt: skip
+            boxes = np.concatenate([boxes, furniture])
+            self.openings = place_openings(self._walls, rng, p.openings, p.opening_width,
+                                           p.opening_depth)  # fmt: skip
+        self._set_boxes(boxes)
         people = []
-        for _ in range(p.people):
+        n_people = p.people + round(p.crowd * self.map.free_area / 100.0)
+        for _ in range(n_people):
             for _ in range(_TRIES):
                 c = self._free_points(rng, 1, p.person_radius + 0.15, np.inf)[0]
                 if np.hypot(*(c - car)) >= p.keep_out + p.person_radius:
@@ -305,8 +356,14 @@ class Obstacles:
 
     # ------------------------------------------------------------------ drawing
     def draw(self, img: np.ndarray, renderer: Any) -> None:
-        """Draw boxes (brown) and people (purple discs) on a :class:`MapRenderer` frame in place."""
+        """Draw boxes (brown), openings (cyan lines) and people (purple discs) on a
+        :class:`MapRenderer` frame in place."""
         import cv2
+
+        for seg in self.openings:
+            ends = renderer.world_to_pixel(seg[:4].reshape(2, 2)).reshape(-1, 2)
+            cv2.line(img, tuple(int(v) for v in ends[0]), tuple(int(v) for v in ends[1]),
+                     (230, 200, 0), 2)  # fmt: skip
 
         for corners in self.boxes:
             cv2.fillPoly(img, [renderer.world_to_pixel(corners)], (150, 90, 40))
@@ -335,9 +392,13 @@ class Obstacles:
 
     def clip_ranges(self, lidar_pose: np.ndarray, angles: np.ndarray, ranges: np.ndarray,
                     max_range: float) -> np.ndarray:  # fmt: skip
-        """``ranges`` (B,) shortened where a beam from ``lidar_pose`` hits an obstacle first."""
+        """``ranges`` (B,) lengthened where a beam's mapped wall is an opening, then shortened where
+        a beam from ``lidar_pose`` hits an obstacle first."""
         out = np.array(ranges, dtype=np.float64)
         x, y, th = (float(v) for v in lidar_pose)
+        if len(self.openings):
+            opening_ranges(x, y, th, np.asarray(angles, dtype=np.float64), self.openings,
+                           float(max_range), out)  # fmt: skip
         obstacle_ranges(x, y, th, np.asarray(angles, dtype=np.float64), self.legs(),
                         self._segments, float(max_range), out)  # fmt: skip
         return out

@@ -5,7 +5,8 @@ drawn), and the range has a bias.
 
 :class:`ScanEffects` replaces the beam noise of :class:`~racecar_sim.sensors.Lidar` when a noise
 profile asks for it (the lidar then casts noise-free). Along the scan (beam index), a Markov chain
-is in one of four states: a *hit* (true range + ``hit_bias`` + N(0, ``hit_sigma``²)), or inside a
+is in one of four states: a *hit* (true range + ``hit_bias`` + an error of standard deviation
+``hit_sigma``, correlated ``hit_corr`` with the previous beam's: an AR(1) along the scan), or inside a
 run of *short* returns (one surface per run, ``ratio`` of the run's first true range, ratio
 uniform in [``short_ratio_min``, 1)), of *long* returns (true range + one excess per run,
 0.15 m + exponential of mean ``long_excess``), or of *no-returns* (reported as ``max_range``).
@@ -13,9 +14,13 @@ From a hit, a run of each kind starts with a probability chosen so that the kind
 fraction of the beams (the chain's stationary fractions: no-returns ``p(r)`` of the beams, short
 and long their fractions of the rest); a run goes on with probability ``1 - 1 / run_length`` (geometric lengths).
 The no-return fraction depends on the true range through a table (``noreturn_edges``,
-``noreturn_probability``). A beam with no surface within ``max_range`` is a no-return.
+``noreturn_probability``); a no-return run ends early where the range falls into a nearer bin. A beam with no surface within ``max_range`` is a no-return.
 
-All draws come from the generator passed in: three uniforms and one standard normal per beam.
+The car's own body blocks a fixed stretch of beams at the scan's end some of the time
+(``body_*``: on the MIT racecar the rear right wheel, read at about 6 cm).
+
+All draws come from the generator passed in: three uniforms and one standard normal per beam,
+then one uniform per body beam.
 """
 
 from __future__ import annotations
@@ -43,6 +48,9 @@ class ScanEffects:
     Attributes:
         hit_bias: metres added to every hit.
         hit_sigma: metres, standard deviation of a hit's range noise.
+        hit_corr: correlation of neighbouring beams' range errors, in [0, 1) (0 = independent;
+            near 1 = an error that varies smoothly along the scan, as a wall a little off the
+            map's).
         short_fraction: fraction of the *returning* beams (with a surface in range) in short-return
             runs.
         short_run: mean run length in beams.
@@ -53,10 +61,16 @@ class ScanEffects:
         noreturn_edges: metres, increasing true-range bin edges (first 0).
         noreturn_probability: no-return fraction per bin (one fewer than the edges).
         noreturn_run: mean no-return run length in beams.
+        body_first, body_last: the beams the car's own body blocks, as fractions of the scan
+            from its first beam (the right end): beams ``[body_first, body_last) x B``.
+        body_probability: how often such a beam sees the body (it reads ``body_range``) instead
+            of the world (a wheel that steers, a cable that moves).
+        body_range: metres, what a beam on the body reads.
     """
 
     hit_bias: float = 0.0
     hit_sigma: float = 0.01
+    hit_corr: float = 0.0
     short_fraction: float = 0.0
     short_run: float = 1.0
     short_ratio_min: float = 0.2
@@ -66,6 +80,10 @@ class ScanEffects:
     noreturn_edges: tuple[float, ...] = (0.0, 1e9)
     noreturn_probability: tuple[float, ...] = (0.0,)
     noreturn_run: float = 1.0
+    body_first: float = 0.0
+    body_last: float = 0.0
+    body_probability: float = 0.0
+    body_range: float = 0.06
     _tables: tuple = field(default=(), repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -73,11 +91,17 @@ class ScanEffects:
         # a metre of bias or noise is far beyond any lidar's; runs longer than a scan's beams
         check_number(name, "hit_bias", self.hit_bias, low=-1, high=1)
         check_number(name, "hit_sigma", self.hit_sigma, low=0, high=1)
+        check_number(name, "hit_corr", self.hit_corr, low=0, high=1, high_open=True)
         for f in ("short_fraction", "long_fraction"):
             check_number(name, f, getattr(self, f), low=0, high=1)
         for f in ("short_run", "long_run", "noreturn_run"):
             check_number(name, f, getattr(self, f), low=1, high=10_000)
         check_number(name, "short_ratio_min", self.short_ratio_min, low=0, high=1)
+        for f in ("body_first", "body_last", "body_probability"):
+            check_number(name, f, getattr(self, f), low=0, high=1)
+        if self.body_last < self.body_first:
+            raise ValueError("ScanEffects.body_last must not be below body_first")
+        check_number(name, "body_range", self.body_range, low=0, high=1000)
         check_number(name, "long_excess", self.long_excess, low=0, high=1000, low_open=True)
         try:
             edges = tuple(float(v) for v in self.noreturn_edges)
@@ -141,23 +165,34 @@ class ScanEffects:
         out = np.empty(r.size, dtype=np.float32)
         edges, starts = self._tables
         _apply(
-            r, u, z, float(max_range), self.hit_bias, self.hit_sigma, self.short_run,
+            r, u, z, float(max_range), self.hit_bias, self.hit_sigma, self.hit_corr, self.short_run,
             self.short_ratio_min, self.long_run, self.long_excess, self.noreturn_run, edges,
             starts, out,
         )  # fmt: skip
+        if self.body_probability > 0 and self.body_last > self.body_first:
+            lo, hi = round(self.body_first * r.size), round(self.body_last * r.size)
+            seen = rng.random(hi - lo) < self.body_probability
+            out[lo:hi][seen] = np.float32(min(self.body_range, max_range))
         return out
 
 
 @nb.njit(cache=True)
-def _apply(r, u, z, max_range, bias, sigma, short_run, ratio_min, long_run, excess_mean,
+def _apply(r, u, z, max_range, bias, sigma, rho, short_run, ratio_min, long_run, excess_mean,
            nr_run, edges, starts, out):  # fmt: skip
     state = 0  # 0 hit, 1 short, 2 long, 3 no-return
+    e = 0.0  # the range error, AR(1) along the scan (rho = 0: independent draws)
+    keep = math.sqrt(1.0 - rho * rho)
     run_value = 0.0
     n_bins = starts.shape[0]
+    run_bin = 0
     for i in range(r.size):
         ri = r[i]
         surface = ri < max_range
-        # continue or end the current run
+        b = 0
+        while b + 1 < n_bins and ri >= edges[b + 1]:
+            b += 1
+        # continue or end the current run (a no-return run also ends where the range falls
+        # into a nearer bin of the table: drop-outs belong to the far surface that started it)
         if state == 1:
             if u[0, i] < 1.0 / short_run or run_value >= ri:
                 state = 0
@@ -165,12 +200,10 @@ def _apply(r, u, z, max_range, bias, sigma, short_run, ratio_min, long_run, exce
             if u[0, i] < 1.0 / long_run:
                 state = 0
         elif state == 3:
-            if u[0, i] < 1.0 / nr_run:
+            if u[0, i] < 1.0 / nr_run or (surface and b < run_bin):
                 state = 0
         if state == 0 and surface:
-            b = 0
-            while b + 1 < n_bins and ri >= edges[b + 1]:
-                b += 1
+            run_bin = b
             v = u[1, i]
             if v < starts[b, 0]:
                 state = 1
@@ -180,16 +213,17 @@ def _apply(r, u, z, max_range, bias, sigma, short_run, ratio_min, long_run, exce
                 run_value = 0.15 - excess_mean * math.log1p(-u[2, i])
             elif v < starts[b, 0] + starts[b, 1] + starts[b, 2]:
                 state = 3
+        e = rho * e + keep * sigma * z[i]
         if not surface:
             val = max_range
         elif state == 1:
-            val = run_value + sigma * z[i]
+            val = run_value + e
         elif state == 2:
-            val = ri + run_value + sigma * z[i]
+            val = ri + run_value + e
         elif state == 3:
             val = max_range
         else:
-            val = ri + bias + sigma * z[i]
+            val = ri + bias + e
         out[i] = min(max(val, 0.0), max_range)
 
 

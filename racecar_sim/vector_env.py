@@ -137,6 +137,7 @@ class RacecarVectorEnv(VectorEnv):
         ]
         if cfg.odom_lead:
             extras.append("odom_lead")
+        extras += ["scene"] if cfg.scene not in (None, "none") else []
         if extras:  # the batched cast and odometry below know the four-part noise only
             raise ValueError(
                 f"RacecarVectorEnv does not support {', '.join(extras)} (set by a noise profile or "

@@ -16,11 +16,19 @@ from typing import Any
 import numpy as np
 
 from mcl.calibration.beam_em import BeamModelFit, fit_beam_model
+from mcl.calibration.judge import judged_recording
 from mcl.calibration.odometry_fit import OdometryFit, best_lag, fit_odometry
 from mcl.calibration.reference_poses import (
     ReferencePoses,
     poses_from_trajectory,
     track_recording,
+)
+from mcl.calibration.room_split import (
+    BodyBlock,
+    body_block,
+    hit_correlation,
+    room_stats,
+    sensor_beams,
 )
 from mcl.calibration.scan_match import ScanMatcher
 from mcl.calibration.scan_stats import RANGE_BINS, ScanFailureStats, failure_stats
@@ -41,8 +49,16 @@ class Calibration:
         bags: file names used.
         poses: the reference poses of each bag.
         beam: the table-6.2 EM fit over every beam with a mapped surface.
-        failures: run lengths, drop-outs by range, long excess, mixed pixels.
-        per_bag: residual fractions of each bag.
+        failures: run lengths, drop-outs by range, long excess, mixed pixels, over every beam
+            with a mapped surface (for the record).
+        sensor: the same over the beams that show the sensor only
+            (:func:`mcl.calibration.room_split.sensor_beams`): what the profile simulates.
+        hit_corr: correlation of neighbouring sensor beams' hit errors.
+        noreturns: failure statistics over every mapped beam off the body: the no-returns by
+            range (a drop-out is the sensor's wherever the beam goes; an opening's or a box's
+            beam drops out at the rate of its own range).
+        body: the beams the car's own body blocks.
+        per_bag: residual fractions of each bag, and what its room adds (``room``).
         odometry: the odometry error model (at the best lag).
         pose_source: how the reference poses were found.
     """
@@ -51,7 +67,11 @@ class Calibration:
     poses: tuple[ReferencePoses, ...]
     beam: BeamModelFit
     failures: ScanFailureStats
-    per_bag: dict[str, dict[str, float]]
+    sensor: ScanFailureStats
+    hit_corr: float
+    noreturns: ScanFailureStats
+    body: BodyBlock
+    per_bag: dict[str, dict[str, Any]]
     odometry: OdometryFit
     pose_source: str
 
@@ -94,7 +114,7 @@ def calibrate(
     occ = load_map(map_path)
     recs: list[BagData] = []
     poses: list[ReferencePoses] = []
-    z_all, zs_all, per_bag = [], [], {}
+    z_all, zs_all, keep_all, per_bag = [], [], [], {}
     guesses = start_guesses or [None] * len(bags)
     files = pose_files or [None] * len(bags)
     for bag, guess, pose_file in zip(bags, guesses, files, strict=True):
@@ -106,15 +126,25 @@ def calibrate(
             rp = poses_from_trajectory(rec, matcher, pose_file, mount_offset)
         else:
             rp = track_recording(rec, matcher, mount_offset, start_guess=guess)
-        cast = matcher.caster.cast(rp.lidar, rec.angles)
-        z_all.append(rec.scans)
+        # each (de-skewed) scan against the exact cast from its pose, refined once more
+        z, cast = judged_recording(rec, rp, matcher, mount_offset)
+        spacing = float(np.median(np.diff(rec.angles)))
+        z_all.append(z)
         zs_all.append(cast)
-        per_bag[rec.name] = failure_stats(rec.scans, cast, LIDAR_MAX_RANGE).fractions.as_dict()
+        keep_all.append(sensor_beams(z, cast, spacing, LIDAR_MAX_RANGE))
+        per_bag[rec.name] = failure_stats(z, cast, LIDAR_MAX_RANGE).fractions.as_dict()
         per_bag[rec.name]["mean_fit15"] = float(rp.fit15.mean())
         recs.append(rec)
         poses.append(rp)
     z = np.vstack(z_all)
     zs = np.vstack(zs_all)
+    body = body_block(z)
+    off_body = ~body.mask(z.shape[1])[None, :]
+    keep = np.vstack(keep_all) & off_body
+    for rec, zb, cb in zip(recs, z_all, zs_all, strict=True):
+        spacing = float(np.median(np.diff(rec.angles)))
+        room = room_stats(zb, np.where(off_body, cb, np.inf), spacing, LIDAR_MAX_RANGE)
+        per_bag[rec.name]["room"] = room.as_dict()
     pairs = list(zip(recs, poses, strict=True))
     lag = best_lag(pairs)
     jitter = stationary_jitter(pairs)
@@ -123,6 +153,10 @@ def calibrate(
         poses=tuple(poses),
         beam=fit_beam_model(z, zs, LIDAR_MAX_RANGE),
         failures=failure_stats(z, zs, LIDAR_MAX_RANGE),
+        sensor=failure_stats(z, np.where(keep, zs, np.inf), LIDAR_MAX_RANGE),
+        hit_corr=hit_correlation(z, zs, keep),
+        noreturns=failure_stats(z, np.where(off_body, zs, np.inf), LIDAR_MAX_RANGE),
+        body=body,
         per_bag=per_bag,
         odometry=fit_odometry(pairs, lag=lag, pose_sd=jitter),
         pose_source=(
@@ -158,13 +192,30 @@ def _r(v: float, nd: int = 4) -> float:
     return float(round(float(v), nd))
 
 
+def _rounded(d: dict[str, Any]) -> dict[str, Any]:
+    return {k: _rounded(v) if isinstance(v, dict) else _r(v) for k, v in d.items()}
+
+
+def _failures_record(f: ScanFailureStats) -> dict[str, Any]:
+    return {
+        "run_length": {k: _r(v, 2) for k, v in f.run_length.items()},
+        "next_same": {k: _r(v, 3) for k, v in f.next_same.items()},
+        "hit_sigma_by_range": [None if math.isnan(v) else _r(v) for v in f.hit_sigma_by_range],
+        "mixed_at_edges": _r(f.mixed_at_edges),
+        "edge_fraction": _r(f.edge_fraction),
+        "short_ratio": _r(f.short_ratio, 3),
+    }
+
+
 def profile_document(cal: Calibration, sim_dt: float = 0.025) -> dict[str, Any]:
     """The noise profile (YAML-ready mapping): ``settings`` for RacecarEnv and ``fit`` for the record."""
-    f = cal.failures
+    f = cal.sensor
     fr = f.fractions
     hit_bias = f.hit_bias
     sigma = hit_sigma_for_ratio(fr.within5 / fr.within15, hit_bias)
-    probs = [min(p, 0.95) for p in f.noreturn_by_range]
+    nr = cal.noreturns
+    probs = [min(p, 0.95) for p in nr.noreturn_by_range]
+    body = cal.body
     od = cal.odometry
     prop, add = od.per_step(sim_dt)
     settings = {
@@ -176,7 +227,8 @@ def profile_document(cal: Calibration, sim_dt: float = 0.025) -> dict[str, Any]:
         "scan_effects": {
             "hit_bias": _r(hit_bias),
             "hit_sigma": _r(sigma),
-            "short_fraction": _r(fr.short / (1.0 - fr.noreturn)),
+            "hit_corr": _r(cal.hit_corr, 3),
+            "short_fraction": _r(fr.short / (1.0 - fr.noreturn)),  # of the sensor's beams
             "short_run": _r(f.run_length["short"], 2),
             "short_ratio_min": _r(max(0.0, 2 * f.short_ratio - 1), 3),
             "long_fraction": _r(fr.long / (1.0 - fr.noreturn)),
@@ -184,13 +236,18 @@ def profile_document(cal: Calibration, sim_dt: float = 0.025) -> dict[str, Any]:
             "long_excess": _r(f.long_excess),
             "noreturn_edges": [float(e) for e in RANGE_BINS],
             "noreturn_probability": [_r(p) for p in probs],
-            "noreturn_run": _r(f.run_length["noreturn"], 2),
+            "noreturn_run": _r(nr.run_length["noreturn"], 2),
+            "body_first": _r(body.first),
+            "body_last": _r(body.last),
+            "body_probability": _r(body.probability, 3),
+            "body_range": _r(body.range, 3),
         },
         "odom_proportional": [_r(v) for v in prop],
         "odom_additive": [_r(v) for v in add],
         "odom_bias": {"scale": [_r(v) for v in od.scale_bias], "offset": [_r(v) for v in od.offset]},
         # The odometry's measured lead over the motion (a lag, negative, has no causal model here).
         "odom_lead": _r(max(od.lag, 0.0), 3),
+        "scene": "clean",
     }
     beam = asdict(cal.beam)
     return {
@@ -208,16 +265,12 @@ def profile_document(cal: Calibration, sim_dt: float = 0.025) -> dict[str, Any]:
         "settings": settings,
         "fit": {
             "beam_model_em": {k: (_r(v, 5) if isinstance(v, float) else v) for k, v in beam.items()},
-            "residuals": {k: _r(v) for k, v in fr.as_dict().items()},
-            "residuals_per_bag": {b: {k: _r(v) for k, v in d.items()} for b, d in cal.per_bag.items()},
-            "failures": {
-                "run_length": {k: _r(v, 2) for k, v in f.run_length.items()},
-                "next_same": {k: _r(v, 3) for k, v in f.next_same.items()},
-                "hit_sigma_by_range": [None if math.isnan(v) else _r(v) for v in f.hit_sigma_by_range],
-                "mixed_at_edges": _r(f.mixed_at_edges),
-                "edge_fraction": _r(f.edge_fraction),
-                "short_ratio": _r(f.short_ratio, 3),
-            },
+            "residuals": {k: _r(v) for k, v in cal.failures.fractions.as_dict().items()},
+            "residuals_sensor": {k: _r(v) for k, v in fr.as_dict().items()},
+            "residuals_per_bag": {b: _rounded(d) for b, d in cal.per_bag.items()},
+            "failures": _failures_record(cal.failures),
+            "failures_sensor": _failures_record(f),
+            "body": {k: _r(v) for k, v in asdict(body).items()},
             "odometry": {
                 "lag_s": _r(od.lag, 3),
                 "window_s": od.window,
@@ -238,6 +291,6 @@ def write_profile(doc: dict[str, Any], path: str | os.PathLike[str]) -> Path:
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    header = "# Written by scripts/calibrate_noise.py; numbers and origin in README 'Honest noise'.\n"
+    header = "# Written by scripts/calibrate_noise.py; numbers and origin in docs/honest_noise.md.\n"
     path.write_text(header + yaml.safe_dump(doc, sort_keys=False, width=100))
     return path

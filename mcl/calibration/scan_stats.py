@@ -143,7 +143,8 @@ def failure_stats(z: np.ndarray, z_star: np.ndarray, max_range: float) -> ScanFa
         nr_bins.append(float(kinds["noreturn"][sel].mean()) if sel.any() else 0.0)
         sh = hit & sel
         sd_bins.append(float(np.nanstd(res[sh])) if sh.sum() > 10 else float("nan"))
-    jump = np.abs(np.diff(z_star, axis=1)) > 0.5
+    with np.errstate(invalid="ignore"):  # inf - inf where beams are left out
+        jump = np.abs(np.diff(z_star, axis=1)) > 0.5
     edge = np.zeros_like(mapped)
     edge[:, :-1] |= jump
     edge[:, 1:] |= jump

@@ -110,3 +110,37 @@ def test_odometry_bias():
     assert np.allclose(out, [2.0 * 0.95 + 0.01, -0.02, 1.1 + 0.03], atol=1e-6)
     with pytest.raises(ValueError, match="scale"):
         OdometryBias(scale=(0.0, 1.0))
+
+
+def test_correlated_hit_error_has_the_asked_correlation_and_spread():
+    fx = ScanEffects(hit_sigma=0.03, hit_corr=0.9)
+    rng = np.random.default_rng(0)
+    e = np.vstack([fx.apply(np.full(1000, 3.0), 30.0, rng) - 3.0 for _ in range(40)])
+    assert e.std() == pytest.approx(0.03, rel=0.1)
+    lag1 = np.mean([np.corrcoef(row[:-1], row[1:])[0, 1] for row in e])
+    assert lag1 == pytest.approx(0.9, abs=0.03)
+    white = np.vstack(
+        [ScanEffects(hit_sigma=0.03).apply(np.full(1000, 3.0), 30.0, rng) - 3.0 for _ in range(40)]
+    )
+    assert abs(np.mean([np.corrcoef(r[:-1], r[1:])[0, 1] for r in white])) < 0.03
+
+
+def test_the_body_blocks_its_beams_only_and_as_often_as_asked():
+    fx = ScanEffects(body_first=0.0, body_last=0.05, body_probability=0.7, body_range=0.06)
+    rng = np.random.default_rng(1)
+    scans = np.vstack([fx.apply(np.full(1000, 4.0), 30.0, rng) for _ in range(200)])
+    on = np.isclose(scans, 0.06)
+    assert on[:, :50].mean() == pytest.approx(0.7, abs=0.03)
+    assert not on[:, 50:].any()
+
+
+def test_a_noreturn_run_ends_where_the_range_gets_nearer():
+    """Beams alternate far (25 m, always a drop-out) and near (1 m, never): a run begun far
+    must not carry into the near beams."""
+    fx = ScanEffects(
+        noreturn_edges=(0.0, 5.0, 30.0), noreturn_probability=(0.0, 0.99), noreturn_run=50.0
+    )
+    r = np.tile(np.r_[np.full(20, 25.0), np.full(20, 1.0)], 25)
+    scan = fx.apply(r, 30.0, np.random.default_rng(2))
+    assert (scan[r < 5] < 30.0).all()
+    assert (scan[r > 5] >= 30.0).mean() > 0.9
