@@ -319,8 +319,7 @@ class EnvConfig:
             image is decoded.
         scene: what the room adds to the map (:mod:`racecar_sim.scenes`): ``"clean"`` (openings
             in the walls: glass, open doors), ``"cluttered"`` (also furniture and people) or
-            ``"none"``; its obstacle settings go under ``obstacles``. None = none (the ideal
-            world); the ``mit_racecar`` profile sets ``"clean"``.
+            ``"none"``; its obstacle settings go under ``obstacles``. None = none.
     """
 
     map: str | os.PathLike[str] | OccupancyMap | None = None

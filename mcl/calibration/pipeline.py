@@ -247,7 +247,6 @@ def profile_document(cal: Calibration, sim_dt: float = 0.025) -> dict[str, Any]:
         "odom_bias": {"scale": [_r(v) for v in od.scale_bias], "offset": [_r(v) for v in od.offset]},
         # The odometry's measured lead over the motion (a lag, negative, has no causal model here).
         "odom_lead": _r(max(od.lag, 0.0), 3),
-        "scene": "clean",
     }
     beam = asdict(cal.beam)
     return {

@@ -21,9 +21,10 @@ def _env(**kw):
     return gym.make("RacecarSim-v0", map="basement_loop", **kw).unwrapped
 
 
-def test_profile_alone_is_the_clean_scene_and_cluttered_adds_furniture_and_people():
-    clean = _env(noise_profile="mit_racecar")
-    assert clean.config.scene == "clean"
+def test_profile_alone_is_the_sensor_and_the_scenes_add_the_room():
+    # the profile is the sensor only; the room is asked for
+    assert _env(noise_profile="mit_racecar").obstacles is None
+    clean = _env(noise_profile="mit_racecar", scene="clean")
     clean.reset(seed=0)
     assert len(clean.obstacles.openings) > 0
     assert len(clean.obstacles.people) == 0
@@ -31,7 +32,6 @@ def test_profile_alone_is_the_clean_scene_and_cluttered_adds_furniture_and_peopl
     busy.reset(seed=0)
     assert len(busy.obstacles.openings) > 0
     assert len(busy.obstacles.boxes) > 3 * len(clean.obstacles.boxes) and len(busy.obstacles.people) > 0
-    # the ideal world has none of it, and "none" turns a profile's scene off
     assert _env().obstacles is None
     assert _env(noise_profile="mit_racecar", scene="none").obstacles is None
 
