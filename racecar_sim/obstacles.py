@@ -25,8 +25,7 @@ import pymunk
 
 from racecar_sim.bounds import check
 from racecar_sim.maps import MapError, OccupancyMap
-from racecar_sim.validation import short
-from racecar_sim.validation import check_number
+from racecar_sim.validation import check_number, short
 from racecar_sim.wall_features import WallPoints, opening_ranges, place_furniture, place_openings
 
 __all__ = ["ObstacleParams", "Obstacles", "obstacle_ranges", "ray_segment"]
