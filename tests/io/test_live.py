@@ -60,9 +60,9 @@ class Client(threading.Thread):
         url = f"ws://127.0.0.1:{self.port}"
         async with websockets.connect(url, subprotocols=[SUBPROTOCOL]) as ws:
             subscriptions: dict[int, str] = {}
-            deadline = time.monotonic() + self.timeout
-            while time.monotonic() < deadline and not self.until(self.messages):
-                frame = await asyncio.wait_for(ws.recv(), deadline - time.monotonic())
+            stop_at = time.monotonic() + self.timeout
+            while time.monotonic() < stop_at and not self.until(self.messages):
+                frame = await asyncio.wait_for(ws.recv(), stop_at - time.monotonic())
                 if isinstance(frame, str):
                     message = json.loads(frame)
                     if message.get("op") != "advertise":
@@ -93,9 +93,9 @@ def test_live_address_parsing() -> None:
 
 
 def _wait(condition, seconds: float = 60.0) -> None:
-    deadline = time.monotonic() + seconds
+    stop_at = time.monotonic() + seconds
     while not condition():
-        assert time.monotonic() < deadline, "timed out"
+        assert time.monotonic() < stop_at, "timed out"
         time.sleep(0.02)
 
 
