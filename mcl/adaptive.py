@@ -33,6 +33,7 @@ import numpy as np
 
 from mcl.motion_model import MotionModel
 from mcl.particle_filter import ParticleFilter
+from racecar_sim.validation import short
 
 __all__ = ["AdaptiveParams", "AdaptiveParticleFilter"]
 
@@ -76,11 +77,11 @@ class AdaptiveParams:
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v < math.inf:
-                raise ValueError(f"AdaptiveParams.{name} = {v!r} must be a positive number")
+                raise ValueError(f"AdaptiveParams.{name} = {short(v)} must be a positive number")
         for name in ("search_min_distance", "search_min_angle"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not 0 <= v < math.inf:
-                raise ValueError(f"AdaptiveParams.{name} = {v!r} must be a number >= 0")
+                raise ValueError(f"AdaptiveParams.{name} = {short(v)} must be a number >= 0")
         for name, low in (
             ("search_max_skipped", 0),
             ("search_min_particles", 1),
@@ -88,7 +89,7 @@ class AdaptiveParams:
         ):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ValueError(f"AdaptiveParams.{name} = {v!r} must be an integer >= {low}")
+                raise ValueError(f"AdaptiveParams.{name} = {short(v)} must be an integer >= {low}")
         if self.lost_position_sd < self.converged_position_sd:
             raise ValueError("AdaptiveParams.lost_position_sd must be >= converged_position_sd")
         if self.lost_heading_sd < self.converged_heading_sd:

@@ -37,6 +37,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from racecar_sim.validation import short
+
 __all__ = ["AugmentedParams", "LikelihoodAverages"]
 
 
@@ -57,7 +59,7 @@ class AugmentedParams:
         for name in ("alpha_slow", "alpha_fast"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1.0:
-                raise ValueError(f"AugmentedParams.{name} = {v!r} must lie in [0, 1]")
+                raise ValueError(f"AugmentedParams.{name} = {short(v)} must lie in [0, 1]")
         if self.enabled and not self.alpha_fast > self.alpha_slow:
             raise ValueError(
                 f"AugmentedParams: alpha_fast ({self.alpha_fast}) must exceed alpha_slow "

@@ -83,7 +83,7 @@ class ParticleFilterParams:
             check_filter(owner, name, getattr(self, name), f"filter.{name}")
         if self.resampling not in RESAMPLERS:
             raise ValueError(
-                f"ParticleFilterParams.resampling = {self.resampling!r}; "
+                f"ParticleFilterParams.resampling = {short(self.resampling)}; "
                 f"choose one of {sorted(RESAMPLERS)}"
             )
         thr = self.resample_threshold
@@ -91,13 +91,13 @@ class ParticleFilterParams:
             thr = _THRESHOLD_WORDS.get(thr, thr)
         if isinstance(thr, bool) or not isinstance(thr, int | float) or not 0.0 <= thr <= 1.0:
             raise ValueError(
-                f"ParticleFilterParams.resample_threshold = {self.resample_threshold!r} must be a "
+                f"ParticleFilterParams.resample_threshold = {short(self.resample_threshold)} must be a "
                 "fraction in [0, 1], 'always' or 'never'"
             )
         object.__setattr__(self, "resample_threshold", float(thr))
         if self.on_degenerate not in _ON_DEGENERATE:
             raise ValueError(
-                f"ParticleFilterParams.on_degenerate = {self.on_degenerate!r}; "
+                f"ParticleFilterParams.on_degenerate = {short(self.on_degenerate)}; "
                 f"choose one of {list(_ON_DEGENERATE)}"
             )
         object.__setattr__(self, "init_spread", spread_sd(self.init_spread, "init_spread"))
@@ -109,20 +109,20 @@ class ParticleFilterParams:
             or not isinstance(c, int | float)
             or not (math.isfinite(c) and c >= 0)
         ):
-            raise ValueError(f"ParticleFilterParams.global_clearance = {c!r} must be >= 0 metres")
+            raise ValueError(f"ParticleFilterParams.global_clearance = {short(c)} must be >= 0 metres")
         g = self.global_particles
         if g is not None and (isinstance(g, bool) or not isinstance(g, int) or g < 1):
             raise ValueError(
-                f"ParticleFilterParams.global_particles = {g!r} must be None or a positive integer"
+                f"ParticleFilterParams.global_particles = {short(g)} must be None or a positive integer"
             )
         for name in ("global_density", "update_min_distance", "update_min_angle"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not 0 <= v < math.inf:
-                raise ValueError(f"ParticleFilterParams.{name} = {v!r} must be a number >= 0")
+                raise ValueError(f"ParticleFilterParams.{name} = {short(v)} must be a number >= 0")
         gmax = self.global_max_particles
         if isinstance(gmax, bool) or not isinstance(gmax, int) or gmax < 1:
             raise ValueError(
-                f"ParticleFilterParams.global_max_particles = {gmax!r} must be a positive integer"
+                f"ParticleFilterParams.global_max_particles = {short(gmax)} must be a positive integer"
             )
         for name, cls in (
             ("augmented", AugmentedParams),

@@ -30,6 +30,7 @@ import numpy as np
 
 from mcl.angles import wrap_angle
 from mcl.resampling import multinomial
+from racecar_sim.validation import short
 
 __all__ = ["KLDParams", "bin_keys", "kld_bound", "kld_count", "kld_stop"]
 
@@ -68,19 +69,19 @@ class KLDParams:
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
-            raise ValueError(f"KLDParams.enabled = {self.enabled!r} must be true or false")
+            raise ValueError(f"KLDParams.enabled = {short(self.enabled)} must be true or false")
         if not (isinstance(self.epsilon, int | float) and 0 < self.epsilon < math.inf):
-            raise ValueError(f"KLDParams.epsilon = {self.epsilon!r} must be a positive number")
+            raise ValueError(f"KLDParams.epsilon = {short(self.epsilon)} must be a positive number")
         if not (isinstance(self.delta, int | float) and 0 < self.delta < 1):
-            raise ValueError(f"KLDParams.delta = {self.delta!r} must lie in (0, 1)")
+            raise ValueError(f"KLDParams.delta = {short(self.delta)} must lie in (0, 1)")
         object.__setattr__(self, "bin_size", _positive_triple(self.bin_size, "KLDParams.bin_size"))
         lo = self.min_particles
         if isinstance(lo, bool) or not isinstance(lo, int) or lo < 1:
-            raise ValueError(f"KLDParams.min_particles = {lo!r} must be a positive integer")
+            raise ValueError(f"KLDParams.min_particles = {short(lo)} must be a positive integer")
         hi = self.max_particles
         if hi is not None and (isinstance(hi, bool) or not isinstance(hi, int) or hi < lo):
             raise ValueError(
-                f"KLDParams.max_particles = {hi!r} must be None or an integer >= min_particles "
+                f"KLDParams.max_particles = {short(hi)} must be None or an integer >= min_particles "
                 f"({lo})"
             )
 

@@ -26,6 +26,7 @@ from mcl.particle_filter import ParticleFilter, ParticleFilterParams
 from mcl.sensor_model import SensorModel, SensorModelParams
 from racecar_sim.config import from_mapping, nested
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.validation import short
 
 __all__ = [
     "INIT_MODES",
@@ -86,7 +87,7 @@ class LocalizationConfig:
     def __post_init__(self) -> None:
         if self.init not in INIT_MODES:
             raise ValueError(
-                f"LocalizationConfig.init = {self.init!r}; choose one of {list(INIT_MODES)}"
+                f"LocalizationConfig.init = {short(self.init)}; choose one of {list(INIT_MODES)}"
             )
         object.__setattr__(
             self, "motion", nested(self.motion, MotionModelParams, "LocalizationConfig.motion")

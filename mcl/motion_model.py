@@ -99,7 +99,7 @@ class MotionModelParams:
     def __post_init__(self) -> None:
         if self.scheme not in SCHEMES:
             raise ValueError(
-                f"MotionModelParams.scheme = {self.scheme!r}; choose one of {list(SCHEMES)}"
+                f"MotionModelParams.scheme = {short(self.scheme)}; choose one of {list(SCHEMES)}"
             )
         object.__setattr__(self, "coefficients", _three("coefficients", self.coefficients))
         try:

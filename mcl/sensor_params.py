@@ -179,7 +179,7 @@ class SensorModelParams:
             if not isinstance(getattr(self, name), bool):
                 raise bad(name, "must be true or false")
         if self.beam_skip and self.model != "beam":
-            raise bad("beam_skip", f"is implemented for the beam model only, not {self.model!r}")
+            raise bad("beam_skip", f"is implemented for the beam model only, not {short(self.model)}")
         for name in ("beam_skip_distance", "beam_skip_converged_distance"):
             if getattr(self, name) <= 0:
                 raise bad(name, "must be > 0 metres")

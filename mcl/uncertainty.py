@@ -26,6 +26,7 @@ import numba as nb
 import numpy as np
 
 from mcl.angles import wrap_angle
+from racecar_sim.validation import short
 
 __all__ = ["ClusterParams", "Clusters", "Uncertainty", "assess", "cluster_particles"]
 
@@ -54,18 +55,18 @@ class ClusterParams:
         size = tuple(float(v) for v in self.bin_size)
         if len(size) != 3 or not all(math.isfinite(v) and v > 0 for v in size):
             raise ValueError(
-                f"ClusterParams.bin_size = {self.bin_size!r} must be three positive numbers "
+                f"ClusterParams.bin_size = {short(self.bin_size)} must be three positive numbers "
                 "(x m, y m, theta rad)"
             )
         object.__setattr__(self, "bin_size", size)
         for name in ("min_weight", "ambiguous_weight"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1.0:
-                raise ValueError(f"ClusterParams.{name} = {v!r} must be a fraction in [0, 1]")
+                raise ValueError(f"ClusterParams.{name} = {short(v)} must be a fraction in [0, 1]")
         for name in ("max_position_sd", "max_heading_sd"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not v > 0:
-                raise ValueError(f"ClusterParams.{name} = {v!r} must be a positive number")
+                raise ValueError(f"ClusterParams.{name} = {short(v)} must be a positive number")
 
 
 @dataclass(frozen=True)
