@@ -130,7 +130,7 @@ class RacecarVectorEnv(VectorEnv):
                 f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}"
             )
         cfg = merge_settings(config, {"map": map, **settings})
-        grid = resolve_map(cfg.map)
+        grid = resolve_map(cfg.map, cfg.max_map_cells)
         cfg = merge_settings(cfg, {"map": grid})
         extras = [
             n for n in ("scan_effects", "odom_bias", "obstacles", "imu") if getattr(cfg, n) is not None

@@ -125,7 +125,7 @@ class RaceEnv(ParallelEnv):
             )
         check_number("RaceEnv", "n_cars", n_cars, low=1, high=MAX_CARS, integer=True)
         cfg = merge_settings(config, {"map": map, "track": track, **settings})
-        grid = resolve_map(cfg.map)
+        grid = resolve_map(cfg.map, cfg.max_map_cells)
         spec = cfg.track
         if spec is None and grid.name in LOOP_STARTS:
             spec = "auto"

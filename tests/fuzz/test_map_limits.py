@@ -159,3 +159,13 @@ def test_a_huge_real_png_stays_under_a_memory_limit(tmp_path: Path) -> None:
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr[-2000:]
     assert "max_map_cells" in run.stdout and "Traceback" not in run.stderr
+
+
+def test_the_vector_and_race_envs_apply_the_setting() -> None:
+    from racecar_sim.race.env import RaceEnv
+    from racecar_sim.vector_env import RacecarVectorEnv
+
+    for make in (lambda: RacecarVectorEnv(2, map="corridor", max_map_cells=100),
+                 lambda: RaceEnv("corridor", 2, max_map_cells=100)):  # fmt: skip
+        with pytest.raises(MapError, match="more than the limit of 100 "):
+            make()
