@@ -309,7 +309,7 @@ class RayCaster:
             lut_rays(
                 self._lut, p.tolerance / res, p.guide / res, self._field,
                 gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a,
-                max_t, res, self.max_range, out, parallel,
+                max_t, res, self.max_range, out, parallel, p.sort_extent / res,
             )  # fmt: skip
         return out
 
@@ -372,5 +372,6 @@ class RayCaster:
             self._lut, p.tolerance / res, p.guide / res, self._field,
             gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a,
             self._max_cells, res, self.max_range, rows, float(per_metre), out, parallel,
+            p.sort_extent / res,
         )  # fmt: skip
         return out
