@@ -4,6 +4,10 @@
   on range_libc's giant lookup table, Stata basement, 4 000 particles x 100 beams by default;
   skipped with a message when ``range_libc`` is not importable.
 
+* spread (:mod:`mcl.bench.peer_spread`): the same update on clouds spread uniformly over the free
+  space (global localization; ``--spread-particles``, 4 000 and 10 000 by default) and on a
+  tracking cloud, interleaved with the GLT update round by round (``--spread-rounds``).
+
 * races (:mod:`mcl.bench.peer_race`): agent-steps per second of ``--race-cars`` cars one behind
   the other, every car scanning every step, against f1tenth_gym's multi-agent env, and our race
   alone at ``--race-max-cars`` cars.
@@ -19,7 +23,7 @@ in :func:`add_arguments`. Every part prints its workload (particles, beams, rang
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
-        [--only rangelibc|f1tenth|race] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
+        [--only rangelibc|spread|f1tenth|race] [--spread-particles 4000 10000] [--spread-rounds 8] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
         [--sim-steps 1000] [--sim-runs 5] [--num-envs 32]
 """
 
@@ -48,8 +52,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
-        "--only", choices=("rangelibc", "f1tenth", "race"), help="run one part only"
+        "--only", choices=("rangelibc", "spread", "f1tenth", "race"), help="run one part only"
     )
+    parser.add_argument(
+        "--spread-particles", type=int, nargs="+", default=[4000, 10000],
+        help="sizes of the clouds spread over free space (spread part)",
+    )  # fmt: skip
+    parser.add_argument("--spread-rounds", type=int, default=8, help="rounds (spread part)")
     parser.add_argument("--f1tenth-python", help="python of a venv with f1tenth_gym installed")
     parser.add_argument("--f1tenth-path", help="the f1tenth_gym checkout (branch dev-dynamics)")
     parser.add_argument("--sim-steps", type=int, default=1000, help="steps per simulator run")
@@ -84,6 +93,24 @@ def rangelibc_part(args: argparse.Namespace) -> int:
         n_beams=args.beams,
         updates=args.updates,
         warmup=args.warmup,
+        seed=args.seed,
+        threads=tuple(args.threads),
+    )
+    return 0
+
+
+def spread_part(args: argparse.Namespace) -> int:
+    """The MCL update on clouds spread over the free space against the GLT update (ours alone
+    when range_libc is missing)."""
+    from mcl.bench import peer_spread
+    from racecar_sim.maps import load_map
+
+    print("== MCL update on spread clouds (global localization) vs range_libc GLT, one run ==")
+    peer_spread.compare_spread(
+        load_map(args.map),
+        sizes=tuple(args.spread_particles),
+        n_beams=args.beams,
+        rounds=args.spread_rounds,
         seed=args.seed,
         threads=tuple(args.threads),
     )
@@ -154,7 +181,12 @@ def race_part(args: argparse.Namespace) -> int:
     return 0
 
 
-PARTS: list[Callable[[argparse.Namespace], int]] = [rangelibc_part, f1tenth_part, race_part]
+PARTS: list[Callable[[argparse.Namespace], int]] = [
+    rangelibc_part,
+    spread_part,
+    f1tenth_part,
+    race_part,
+]
 """The peer comparisons run by :func:`main`, in order."""
 
 
@@ -173,6 +205,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--race-cars and --race-max-cars must be at least 1, --race-spacing positive")
     if args.race_workers < 1:
         parser.error("--race-workers must be at least 1")
+    if any(n < 1 for n in args.spread_particles) or args.spread_rounds < 1:
+        parser.error("--spread-particles and --spread-rounds must be at least 1")
     for name in ("sim_steps", "sim_runs", "num_envs", "vector_steps", "race_steps", "race_runs"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be at least 1")
