@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from racecar_sim.raycast import RayCaster
-from racecar_sim.raycast.morton import cell_extent, morton_codes, spread_order
+from racecar_sim.raycast.morton import cell_extent, morton_codes, radix_order, spread_order
 
 
 def _interleave(x: int, y: int) -> int:
@@ -78,3 +78,8 @@ def test_sorted_casts_equal_unsorted_casts_bit_for_bit(default_map) -> None:
         assert np.array_equal(a, b)
     two = RayCaster(default_map, 10.0, method="lut", parallel=True)
     assert np.array_equal(two.cast(poses, angles), plain.cast(poses, angles))
+
+
+@given(arrays(np.uint64, st.integers(0, 400), elements=st.integers(0, 2**64 - 1)))
+def test_the_radix_sort_orders_like_a_stable_argsort(codes) -> None:
+    assert np.array_equal(radix_order(codes), np.argsort(codes, kind="stable"))
