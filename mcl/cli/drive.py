@@ -37,14 +37,13 @@ from mcl.cli.common import (
     check_env_builds,
     check_map,
     check_out,
-    compile_notice,
-    compile_report,
     non_negative_float,
     non_negative_int,
     output_folder,
     positive_float,
     positive_int,
 )
+from mcl.cli.compile_notice import compile_notice, compile_report
 from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
 from mcl.error_log import read_error_log
 from mcl.experiments.metrics import DIVERGED_M

@@ -19,13 +19,13 @@ from mcl.cli.common import (
     check_map,
     check_out,
     check_resume,
-    compile_notice,
     non_negative_float,
     number_list,
     output_folder,
     positive_float,
     positive_int,
 )
+from mcl.cli.compile_notice import compile_notice
 from mcl.experiments.noise_sweep import (
     GAUSSIAN_SIGMAS,
     UNIFORM_COEFFICIENTS,

@@ -12,10 +12,10 @@ from mcl.cli.common import (
     check_env,
     check_map,
     check_out,
-    compile_notice,
     positive_float,
     positive_int,
 )
+from mcl.cli.compile_notice import compile_notice
 
 EXAMPLE = """examples:
   racecar-sim fast-laps --env car_model=single_track --seeds 5 --duration 60 --out runs/fast_laps

@@ -18,13 +18,13 @@ from mcl.cli.common import (
     Parser,
     check_map,
     check_out,
-    compile_notice,
     non_negative_int,
     number_list,
     output_folder,
     positive_float,
     positive_int,
 )
+from mcl.cli.compile_notice import compile_notice
 from mcl.experiments.opponents_run import (
     BACKENDS,
     METHODS,

@@ -27,10 +27,10 @@ from mcl.cli.common import (
     check_map,
     check_out,
     check_resume,
-    compile_notice,
     output_folder,
     positive_int,
 )
+from mcl.cli.compile_notice import compile_notice
 from mcl.experiments.recovery import RecoveryConfig, recovery_localization, run_recovery_experiment
 from mcl.localization import LocalizationConfig
 from mcl.sensor_model import SensorModelParams

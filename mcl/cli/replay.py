@@ -21,13 +21,12 @@ from mcl.cli.common import (
     Parser,
     check_map,
     check_out,
-    compile_notice,
-    compile_report,
     non_negative_float,
     non_negative_int,
     output_folder,
     positive_int,
 )
+from mcl.cli.compile_notice import compile_notice, compile_report
 from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
 
 EXAMPLES = """\

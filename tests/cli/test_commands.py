@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-import mcl.cli.common as common
+import mcl.cli.compile_notice as compile_notice
 import mcl.cli.drive
 from mcl.cli import drive, experiment, fast_laps, recovery_ablation
 from mcl.cli.bench import BENCHMARKS
@@ -163,20 +163,20 @@ def test_a_drive_that_fails_half_way_keeps_its_log(tmp_path, monkeypatch, capsys
 
 
 def test_compile_notice_only_when_the_cache_is_cold(monkeypatch, capsys) -> None:
-    monkeypatch.setattr(common, "kernels_cached", lambda: False)
-    assert common.compile_notice() is True
+    monkeypatch.setattr(compile_notice, "kernels_cached", lambda: False)
+    assert compile_notice.compile_notice() is True
     err = capsys.readouterr().err
     assert "compiling numba kernels" in err and "first run only" in err
-    monkeypatch.setattr(common, "kernels_cached", lambda: True)
-    assert common.compile_notice() is False
+    monkeypatch.setattr(compile_notice, "kernels_cached", lambda: True)
+    assert compile_notice.compile_notice() is False
     assert capsys.readouterr().err == ""
 
 
 def test_kernel_modules_are_found_and_a_fresh_cache_is_cold(tmp_path) -> None:
-    names = common.kernel_modules()
+    names = compile_notice.kernel_modules()
     assert "mcl.sensor_model" in names and "racecar_sim.raycast.lut" in names
     assert "mcl.cli.common" not in names
-    code = "from mcl.cli.common import kernels_cached; print(kernels_cached())"
+    code = "from mcl.cli.compile_notice import kernels_cached; print(kernels_cached())"
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}  # an empty cache
     done = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
