@@ -1,8 +1,12 @@
-"""Every setting of the simulator: the car, the lidar, the odometry and the env, in SI units.
+"""Every setting of the simulator in one place: :class:`EnvConfig`, the env's keywords (see
+:class:`racecar_sim.env.RacecarEnv`), in SI units, with the YAML settings file and the merge of
+settings, profile and scene.
 
 Frozen dataclasses validated once when built. Every class can be built from a mapping or a YAML file
-with :func:`from_mapping` / :func:`from_yaml`; unknown keys raise a ``ValueError`` naming them.
-:class:`EnvConfig` gathers the env's keywords (see :class:`racecar_sim.env.RacecarEnv`).
+with :func:`from_mapping` / :func:`from_yaml` (:mod:`racecar_sim.params`); unknown keys raise a
+``ValueError`` naming them. The parts live by job and are re-exported here: the car
+(:mod:`racecar_sim.vehicle.params`), the lidar and the odometry noise
+(:mod:`racecar_sim.sensor_params`).
 """
 
 from __future__ import annotations
@@ -14,17 +18,20 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
-from racecar_sim.bounds import BOUNDS, MAX_SUBSTEPS, check
+from racecar_sim.bounds import MAX_SUBSTEPS, check
 from racecar_sim.imu import ImuParams
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.noise_profiles import profile_document
 from racecar_sim.obstacles import ObstacleParams
+from racecar_sim.params import from_mapping, from_yaml, nested
 from racecar_sim.scan_effects import OdometryBias, ScanEffects
 from racecar_sim.scenes import scene_obstacles
+from racecar_sim.sensor_params import LidarParams, OdometryNoise
 from racecar_sim.validation import check_number, read_yaml_mapping, short
 from racecar_sim.vehicle import check_car_model
+from racecar_sim.vehicle.params import CarParams
 
 __all__ = [
     "CarParams",
@@ -37,236 +44,6 @@ __all__ = [
     "merge_settings",
     "nested",
 ]
-
-T = TypeVar("T")
-
-
-def from_mapping(cls: type[T], mapping: dict[str, Any] | None) -> T:
-    """Build dataclass ``cls`` from a mapping, defaults for missing keys.
-
-    Raises:
-        ValueError: a key is not a field of ``cls``, or a value is rejected by its validation.
-    """
-    mapping = dict(mapping or {})
-    names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-    unknown = sorted(set(mapping) - names)
-    if unknown:
-        raise ValueError(f"unknown {cls.__name__} parameter(s) {short(unknown, 200)}; known: {sorted(names)}")
-    return cls(**mapping)
-
-
-def nested(value: Any, cls: type[T], owner: str) -> T:
-    """A nested parameter dataclass from an instance of ``cls`` or a mapping of its fields.
-
-    ``owner`` names the field in errors (e.g. ``"ParticleFilterParams.kld"``).
-
-    Raises:
-        ValueError: the mapping has an unknown key or a rejected value, or ``value`` is neither.
-    """
-    if isinstance(value, cls):
-        return value
-    if isinstance(value, dict) or hasattr(value, "keys"):
-        try:
-            return from_mapping(cls, dict(value))
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f"{owner}: {exc}") from exc
-    raise ValueError(f"{owner} must be a {cls.__name__} or a mapping, got {short(value)}")
-
-
-def from_yaml(cls: type[T], path: str | os.PathLike[str], section: str | None = None) -> T:
-    """Build dataclass ``cls`` from a YAML file (optionally from one top-level ``section``)."""
-    path = Path(path)
-    data = read_yaml_mapping(path)
-    if section is not None:
-        data = data.get(section, {}) or {}
-    try:
-        return from_mapping(cls, data)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"parameter file {path}: {exc}") from exc
-
-
-def _positive(owner: str, obj: Any, *names: str) -> None:
-    for name in names:
-        check_number(owner, name, getattr(obj, name), low=0.0, low_open=True)
-
-
-_F1TENTH_REAR_SHARE = 0.17145 / (0.15875 + 0.17145)  # lr / (lf + lr), f1tenth_gym's parameters
-
-
-@dataclass(frozen=True)
-class CarParams:
-    """A 1/10-scale F1TENTH / MIT RSS racecar (kinematic bicycle about the rear axle).
-
-    Attributes:
-        wheelbase: metres between the axles.
-        max_steer: radians, limit of the front wheel angle (both directions).
-        max_steer_rate: radians per second the steering servo can turn.
-        max_speed: metres per second forwards.
-        max_reverse_speed: metres per second backwards (a positive number).
-        max_accel: metres per second squared when speeding up.
-        max_decel: metres per second squared when braking.
-        length: metres, bumper to bumper.
-        width: metres.
-        rear_overhang: metres from the rear axle back to the rear bumper.
-        mass: kilograms.
-
-    The single-track car (``car_model="single_track"``, :mod:`racecar_sim.vehicle.single_track`)
-    also uses the following; their defaults are F1TENTH's as f1tenth_gym gives them
-    (``F110Env.f1tenth_vehicle_params`` in ``f1tenth_gym/envs/f110_env.py``, branch dev-dynamics,
-    for the CommonRoad single-track model). The fields above keep their values (the kinematic car's are unchanged); for
-    the F1TENTH car throughout (wheelbase 0.3302, mass 3.74, ...) use :meth:`f1tenth`.
-
-    Attributes:
-        cg_to_rear: metres from the rear axle forwards to the centre of gravity (``lr``; the front
-            axle is ``wheelbase - cg_to_rear`` ahead of it, ``lf``); None = F1TENTH's share of the
-            wheelbase, ``0.17145 / (0.15875 + 0.17145)`` of it (0.17135 m at 0.33 m).
-        cg_height: metres, height of the centre of gravity (``h``, longitudinal load transfer).
-        yaw_inertia: kg m², moment of inertia about the vertical axis (``I``).
-        friction: tire-road friction coefficient (``mu``).
-        cornering_front: front cornering stiffness per unit load, 1/rad (``C_Sf``).
-        cornering_rear: rear cornering stiffness per unit load, 1/rad (``C_Sr``).
-        v_switch: m/s above which the motor's power limits the acceleration to
-            ``max_accel * v_switch / v``.
-        kinematic_below: m/s below which the car is the kinematic bicycle.
-        dynamic_above: m/s above which it is fully dynamic (blended in between).
-    """
-
-    wheelbase: float = 0.33
-    max_steer: float = 0.42
-    max_steer_rate: float = 3.2
-    max_speed: float = 7.0
-    max_reverse_speed: float = 2.0
-    max_accel: float = 7.5
-    max_decel: float = 9.5
-    length: float = 0.55
-    width: float = 0.30
-    rear_overhang: float = 0.11
-    mass: float = 3.5
-    cg_to_rear: float | None = None
-    cg_height: float = 0.074
-    yaw_inertia: float = 0.04712
-    friction: float = 1.0489
-    cornering_front: float = 4.718
-    cornering_rear: float = 5.4562
-    v_switch: float = 7.319
-    kinematic_below: float = 0.5
-    dynamic_above: float = 1.0
-
-    @classmethod
-    def f1tenth(cls, **overrides: Any) -> CarParams:
-        """The F1TENTH car as f1tenth_gym's defaults give it (its ``params``: lf + lr, s_max,
-        sv_max, a_max, m, v_max), with ``overrides``; the kinematic car's footprint is kept."""
-        values: dict[str, Any] = {
-            "wheelbase": 0.15875 + 0.17145, "max_steer": 0.4189, "max_steer_rate": 3.2,
-            "max_accel": 9.51, "max_decel": 9.51, "mass": 3.74, "max_speed": 20.0,
-            "cg_to_rear": 0.17145,
-        }  # fmt: skip
-        values.update(overrides)
-        return cls(**values)
-
-    def __post_init__(self) -> None:
-        # racecar_sim.bounds holds the fields' bounds and their reason
-        for f in dataclasses.fields(self):
-            if f"car.{f.name}" in BOUNDS and getattr(self, f.name) is not None:
-                check("CarParams", f.name, getattr(self, f.name), f"car.{f.name}")
-        _positive("CarParams", self, "wheelbase", "max_steer_rate", "max_speed", "max_accel")
-        _positive("CarParams", self, "max_decel", "length", "width", "mass")
-        _positive("CarParams", self, "cg_height", "yaw_inertia", "friction", "cornering_front")
-        _positive("CarParams", self, "cornering_rear", "v_switch", "kinematic_below")
-        if self.cg_to_rear is None:
-            object.__setattr__(self, "cg_to_rear", self.wheelbase * _F1TENTH_REAR_SHARE)
-        check_number("CarParams", "cg_to_rear", self.cg_to_rear, low=0, high=self.wheelbase,
-                     low_open=True, high_open=True)  # fmt: skip
-        check_number("CarParams", "dynamic_above", self.dynamic_above, low=self.kinematic_below,
-                     low_open=True)  # fmt: skip
-        check_number("CarParams", "max_steer", self.max_steer, low=0, high=math.pi / 2,
-                     low_open=True, high_open=True)  # fmt: skip
-        check_number("CarParams", "max_reverse_speed", self.max_reverse_speed, low=0)
-        check_number("CarParams", "rear_overhang", self.rear_overhang, low=0, high=self.length,
-                     high_open=True)  # fmt: skip
-
-
-@dataclass(frozen=True)
-class LidarParams:
-    """A planar scanning lidar (defaults: the MIT RSS racecar's Hokuyo as used in the lab).
-
-    Beams are spread evenly over ``fov`` centred on the car's heading, first beam at ``-fov / 2``
-    (right), last at ``+fov / 2`` (left), both ends included.
-
-    Noise follows the four parts of the beam model (Probabilistic Robotics, 6.3), each beam drawing
-    one of: a random return (probability ``p_rand``, uniform in [0, max_range]), a max-range drop-out
-    (``p_max``, reported as ``max_range``), a short return from an unmapped obstacle (``p_short``, an
-    exponential distance with rate ``short_lambda`` truncated to the true range), otherwise the true
-    range plus Gaussian noise of ``sigma`` metres. Ranges are clipped to [0, max_range].
-
-    Attributes:
-        n_beams: number of beams per scan.
-        fov: radians covered by the scan.
-        max_range: metres; also the value of a drop-out.
-        mount_offset: metres ahead of the rear axle along the car's x axis.
-        rate: scans per second; between scans the last scan is repeated.
-        sigma: metres, standard deviation of the Gaussian range noise.
-        p_short: probability of a short return per beam.
-        short_lambda: 1/metres, rate of the exponential short-return distance.
-        p_max: probability of a max-range drop-out per beam.
-        p_rand: probability of a uniformly random return per beam.
-    """
-
-    n_beams: int = 1080
-    fov: float = 4.71
-    max_range: float = 10.0
-    mount_offset: float = 0.275
-    rate: float = 40.0
-    sigma: float = 0.01
-    p_short: float = 0.01
-    short_lambda: float = 1.0
-    p_max: float = 0.005
-    p_rand: float = 0.005
-
-    def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):  # bounds and reasons: racecar_sim.bounds
-            key = "lidar_rate" if f.name == "rate" else f.name
-            check("LidarParams", f.name, getattr(self, f.name), key)
-        if self.p_short + self.p_max + self.p_rand > 1:
-            raise ValueError("LidarParams: p_short + p_max + p_rand must not exceed 1")
-
-    @property
-    def angles(self):  # -> np.ndarray, imported lazily to keep this module light
-        """(n_beams,) beam angles in the car frame, radians."""
-        import numpy as np
-
-        if self.n_beams == 1:
-            return np.zeros(1)
-        return np.linspace(-self.fov / 2, self.fov / 2, self.n_beams)
-
-
-@dataclass(frozen=True)
-class OdometryNoise:
-    """Noise of the wheel odometry's car-frame twist (vx, vy, omega), like a VESC's /odom.
-
-    Each reported component is ``true * (1 + N(0, proportional**2)) + N(0, additive**2)``.
-
-    Attributes:
-        proportional: (vx, vy, omega) standard deviations as a fraction of the true value.
-        additive: (vx, vy, omega) standard deviations in m/s, m/s, rad/s.
-    """
-
-    proportional: tuple[float, float, float] = (0.02, 0.0, 0.05)
-    additive: tuple[float, float, float] = (0.005, 0.0, 0.005)
-
-    def __post_init__(self) -> None:
-        for name in ("proportional", "additive"):
-            given = getattr(self, name)
-            try:
-                value = tuple(float(v) for v in given)
-            except (TypeError, ValueError):
-                value = ()
-            if len(value) != 3:
-                raise ValueError(f"OdometryNoise.{name} must be three numbers, got {short(given)}")
-            for v in value:  # bounds and reasons: racecar_sim.bounds
-                check("OdometryNoise", name, v, f"odom_{name}")
-            object.__setattr__(self, name, value)
-
 
 # ---------------------------------------------------------------------- the env's settings
 _LIDAR = LidarParams()
