@@ -20,18 +20,18 @@ from racecar_sim.config import (
     load_config,
     merge_settings,
 )
-from racecar_sim.maps import MapError, OccupancyMap, resolve_map
+from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.obstacles import Obstacles
 from racecar_sim.physics import RacecarPhysics
 from racecar_sim.render import MapRenderer
 from racecar_sim.sensors import Lidar, Odometry
+from racecar_sim.start_poses import random_start, start_cells
 from racecar_sim.validation import check_action, short
 from racecar_sim.vesc import CommandDelay, lead_steps, wheel_twist
 
 __all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
 
 _EPS_TIME = 1e-9  # seconds; tolerance when comparing the clock with the next scan's due time
-_START_TRIES = 1000  # random start poses tried before giving up
 _OBSTACLE_REACH = 2.5  # metres: obstacles this close to the rear axle make physics use pymunk
 
 RenderHook = Callable[[np.ndarray, MapRenderer], None]
@@ -429,43 +429,5 @@ class RacecarEnv(gym.Env):
     def _random_start(self) -> np.ndarray:
         """A collision-free rear-axle pose with ``start_clearance`` of room, from ``np_random``."""
         if self._start_centres is None:
-            self._start_centres = self._start_cells()
-        car = self.car_params
-        ahead = car.length / 2 - car.rear_overhang  # metres from the rear axle to the box centre
-        rng = self.np_random
-        centres = self._start_centres
-        res = self.map.resolution
-        width = self.map.width
-        for _ in range(_START_TRIES):
-            row, col = divmod(int(centres[rng.integers(len(centres))]), width)
-            centre = self.map.grid_to_world(np.array([row, col]))
-            cx, cy = centre + (rng.random(2) - 0.5) * res
-            theta = rng.uniform(-math.pi, math.pi)
-            pose = np.array([cx - ahead * math.cos(theta), cy - ahead * math.sin(theta), theta])
-            if self.physics.pose_is_free(pose):
-                return pose
-        raise MapError(
-            f"map {self.map.name!r}: found no free start pose for the car in {_START_TRIES} tries"
-        )
-
-    def _start_cells(self) -> np.ndarray:
-        """Row-major flat indices (K,) of the cells where the car's box fits at any heading with
-        ``start_clearance`` of room (8 bytes a cell, not a (K, 2) array of centres)."""
-        car = self.car_params
-        half_diagonal = 0.5 * math.hypot(car.length, car.width)
-        slack = math.sqrt(2.0) * self.map.resolution  # cell-centre distances vs points in cells
-        need = half_diagonal + slack
-        clearance = self.config.start_clearance
-        cells = np.flatnonzero(self.map.distance >= need + clearance)
-        if len(cells):
-            return cells
-        if clearance > 0 and np.any(self.map.distance >= need):
-            most = float(self.map.distance.max()) - need
-            raise MapError(
-                f"map {self.map.name!r} has no place where the car has start_clearance = "
-                f"{clearance:g} m of room around it (at most {max(most, 0.0):.2f} m here); "
-                "lower start_clearance"
-            )
-        raise MapError(
-            f"map {self.map.name!r} has no place {2 * need:.2f} m wide where the car fits"
-        )
+            self._start_centres = start_cells(self.map, self.car_params, self.config.start_clearance)
+        return random_start(self.physics, self._start_centres, self.np_random)
