@@ -13,8 +13,7 @@ Walls
     map, made into pymunk shapes per car when first needed), so a car is built in milliseconds.
 
 Car
-    A dynamic body whose origin (and centre of gravity) is the rear axle, with a box footprint of
-    ``length x width`` starting ``rear_overhang`` behind the axle. A command [steer, speed] first
+    The pymunk body and footprint of :mod:`racecar_sim.car_body`. A command [steer, speed] first
     goes through the steering-rate and acceleration / braking limits, then through the angle and
     speed limits. Each substep the body's velocity is set from the kinematic bicycle model about
     the rear axle: speed along the heading, ``omega = speed * tan(steer) / wheelbase``.
@@ -53,6 +52,7 @@ import math
 import numpy as np
 import pymunk
 
+from racecar_sim.car_body import CAR_COLLISION_TYPE, make_car_body
 from racecar_sim.config import CarParams
 from racecar_sim.free_steps import (
     CONSTANT_FIELDS,
@@ -69,7 +69,6 @@ from racecar_sim.vehicle.single_track import settle
 from racecar_sim.vehicle.single_track import substep as single_track_substep
 from racecar_sim.walls import (
     WALL_COLLISION_TYPE,
-    WALL_FRICTION,
     WallLoader,
     tiles_for,
     wall_segments,
@@ -77,13 +76,11 @@ from racecar_sim.walls import (
 
 __all__ = ["CAR_COLLISION_TYPE", "WALL_COLLISION_TYPE", "RacecarPhysics", "wall_segments"]
 
-CAR_COLLISION_TYPE = 1
 """pymunk collision type of the car's shape."""
 
 _TWO_PI = 2.0 * math.pi
 _COLLISION_SLOP = 1e-3  # metres of overlap pymunk tolerates before pushing shapes apart
 _HASH_COUNT = 1000  # spatial hash buckets; pymunk clears them all every step, so keep it small
-_CAR_CATEGORY = 0b10  # pymunk shape-filter category bit of the car
 _FREE_MARGIN = 0.05  # metres kept between the footprint's reach and the walls on a free step
 
 
@@ -132,37 +129,13 @@ class RacecarPhysics:
         self._walls = WallLoader(self.space, tiles_for(occupancy_map))
         self.n_segments = len(self._walls.tiles)
 
-        c = self.car
-        self._local_corners = np.array(
-            [
-                [-c.rear_overhang, -c.width / 2],
-                [c.length - c.rear_overhang, -c.width / 2],
-                [c.length - c.rear_overhang, c.width / 2],
-                [-c.rear_overhang, c.width / 2],
-            ]
-        )
-        corners = [tuple(p) for p in self._local_corners.tolist()]
-        # metres from the rear axle to the farthest footprint corner, plus a margin
-        self._extent = float(np.hypot(*self._local_corners.T).max()) + 0.5
-        centroid = self._local_corners.mean(axis=0)
-        moment = pymunk.moment_for_poly(c.mass, corners) + c.mass * float(centroid @ centroid)
-        self.body = pymunk.Body(c.mass, moment, body_type=pymunk.Body.DYNAMIC)
+        parts = make_car_body(self.car, self.space)
+        self._local_corners = parts.corners
+        self._extent = parts.extent
+        self.body, self.shape = parts.body, parts.shape
+        self._query_body, self._query_shape = parts.query_body, parts.query_shape
         self.body.velocity_func = self._set_velocity
-        self.shape = pymunk.Poly(self.body, corners)
-        self.shape.collision_type = CAR_COLLISION_TYPE
-        self.shape.friction = WALL_FRICTION
-        self.shape.elasticity = 0.0
-        self.space.add(self.body, self.shape)
         self.space.on_collision(CAR_COLLISION_TYPE, WALL_COLLISION_TYPE, pre_solve=self._on_contact)
-
-        # A detached copy of the footprint for overlap queries at arbitrary poses.
-        self._query_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-        self._query_shape = pymunk.Poly(self._query_body, corners)
-        # The query shape sees the walls but not the car itself.
-        self.shape.filter = pymunk.ShapeFilter(categories=_CAR_CATEGORY)
-        self._query_shape.filter = pymunk.ShapeFilter(
-            mask=pymunk.ShapeFilter.ALL_MASKS() ^ _CAR_CATEGORY
-        )
 
         self._steer = 0.0  # radians, front wheel angle
         self._speed = 0.0  # m/s along the heading, rear axle
@@ -182,7 +155,7 @@ class RacecarPhysics:
         self._quiet_needed = int(self.space.collision_persistence) + 1
         self._quiet = self._quiet_needed
         self._placed = True  # no pymunk step since the last placement
-        self._free_const = free_constants(c, occupancy_map, _FREE_MARGIN, self.car_model)
+        self._free_const = free_constants(self.car, occupancy_map, _FREE_MARGIN, self.car_model)
         self._model_params = self._free_const[len(CONSTANT_FIELDS) :]
         self._distance = occupancy_map.distance
         self._place(self._first_free_pose(), 0.0, 0.0)
