@@ -7,6 +7,9 @@ of that length ends: reads the whole error log, computes its statistics and plot
 prints the process's peak resident memory so far (``ru_maxrss``) and its current resident memory,
 so each mark's peak is the peak of a drive of that length. Flat memory means the peaks of the
 marks differ by the error log's own arrays (12 float64 columns, 96 bytes per step) and little else.
+Before the mark's read it also prints the drive loop's own resident memory after handing the
+allocator's free pages back to the system (glibc's ``malloc_trim``, where there is one): what the
+loop holds, without the pages a finished read left in the allocator's free lists.
 
     .venv/bin/python scripts/bench_soak.py [--minutes 120] [--marks 10,60,120] [--quick]
 
@@ -18,6 +21,8 @@ on one busy core). It is a benchmark, not a test: the test of the reader's memor
 from __future__ import annotations
 
 import argparse
+import ctypes
+import ctypes.util
 import resource
 import sys
 import tempfile
@@ -49,6 +54,18 @@ def current_rss_mib() -> float:
     except (OSError, IndexError, ValueError):
         return float("nan")
     return pages * resource.getpagesize() / _MIB
+
+
+def trimmed_rss_mib() -> float:
+    """Current resident memory, MiB, after glibc's ``malloc_trim(0)`` has returned the free heap
+    pages to the system (just the current RSS where glibc is not the allocator)."""
+    name = ctypes.util.find_library("c")
+    if name and sys.platform.startswith("linux"):
+        try:
+            ctypes.CDLL(name).malloc_trim(0)
+        except (OSError, AttributeError):
+            pass
+    return current_rss_mib()
 
 
 def _marks(text: str) -> tuple[float, ...]:
@@ -100,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         f"marks at {', '.join(f'{m:g}' for m in marks)} min",
         flush=True,
     )
-    rows: list[tuple[float, int, float, float, float]] = []
+    rows: list[tuple[float, int, float, float, float, float]] = []
     with tempfile.TemporaryDirectory(prefix="racecar-soak-") as tmp:
         log_path = Path(tmp) / "error_log.csv"
         t0 = time.perf_counter()
@@ -111,16 +128,19 @@ def main(argv: list[str] | None = None) -> int:
             minutes = mark_steps.get(count[0])
             if minutes is None:
                 return
+            loop = trimmed_rss_mib()  # what the drive loop holds, before the read below
             # what `drive` does when its run ends: the log read back, its statistics, its plot
             log = read_error_log(log_path)
             error_stats(log)
             plot_error_vs_time(log, Path(tmp) / "error.png")
             del log
-            row = (minutes, count[0], peak_rss_mib(), current_rss_mib(), time.perf_counter() - t0)
+            row = (minutes, count[0], peak_rss_mib(), current_rss_mib(), time.perf_counter() - t0,
+                   loop)  # fmt: skip
             rows.append(row)
             print(
                 f"  {minutes:6g} min ({count[0]:7d} steps): peak RSS {row[2]:7.1f} MiB, "
-                f"current {row[3]:7.1f} MiB, wall {row[4]:7.0f} s",
+                f"current {row[3]:7.1f} MiB, the loop alone (trimmed) {loop:7.1f} MiB, "
+                f"wall {row[4]:7.0f} s",
                 flush=True,
             )
 
@@ -130,6 +150,11 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"peak growth from {rows[0][0]:g} to {rows[-1][0]:g} min: {p1 - p0:+.1f} MiB over "
             f"{s1 - s0} steps ({1024.0**2 * (p1 - p0) / (s1 - s0):.0f} bytes per step)"
+        )
+        l0, l1 = rows[0][5], rows[-1][5]
+        print(
+            f"the loop alone (trimmed) from {rows[0][0]:g} to {rows[-1][0]:g} min: "
+            f"{l1 - l0:+.1f} MiB ({1024.0**2 * (l1 - l0) / (s1 - s0):.0f} bytes per step)"
         )
     return 0
 
