@@ -69,8 +69,13 @@ def scan_geometry(occupancy_map, max_range: float, mount_offset: float) -> np.nd
 
 
 @nb.njit(cache=True, boundscheck=False)
-def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, ranges):
+def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, limits, scale, max_out, ranges):
     """Exact ranges (metres) of beams ``cos_a, sin_a`` from pad-frame (gu, gv), heading (cos, sin).
+
+    ``limits``: None, or (M,) per-beam traversal limits in cells, each at most ``max_t``: a beam
+    stops at its limit as at ``max_t``, so that its range is then at least ``limits[k] * scale``
+    (not ``max_out``) and only a nearer wall is exact (the race's cast: a beam that already hit a
+    car stops behind the car). With None the compiled kernel is the one without limits.
 
     Every beam does the operations of :func:`~racecar_sim.raycast.kernels.cast_ray` in the same
     order (so the same doubles), but the beams go through the traversal's phases together, in
@@ -124,7 +129,7 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
             v = flat[int(py) * w + int(px)]
             t_arr[k] = t
             v_arr[k] = v
-            over = t >= max_t
+            over = t >= (max_t if limits is None else limits[k])
             jumping_next[m] = k
             m += (not over) & (v != 0) & (v != OCCUPIED)
             landed[n_landed] = k
@@ -167,6 +172,7 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
             step_yw = sy_arr[k]
             tdelta_x = tdx_arr[k]
             tdelta_y = tdy_arr[k]
+            lim = max_t if limits is None else limits[k]
             while True:
                 if tmax_x < tmax_y:
                     t = tmax_x
@@ -176,7 +182,7 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
                     t = tmax_y
                     idx += step_yw
                     tmax_y += tdelta_y
-                if t >= max_t:
+                if t >= lim:
                     t_arr[k] = t
                     break
                 v = flat[idx]
@@ -247,9 +253,10 @@ def add_beam_noise(ranges, seed, noise, out) -> int:
 
 
 @nb.njit(cache=True, inline="always")
-def exact_one(field, x, y, th, geometry, cos_a, sin_a, ranges):
+def exact_one(field, x, y, th, geometry, cos_a, sin_a, limits, ranges):
     """Mount pose and exact cast of one scan from rear-axle world (x, y, th) into ``ranges``
-    (metres); 0, or 1 when the pose is not finite (``ranges`` untouched)."""
+    (metres); 0, or 1 when the pose is not finite (``ranges`` untouched). ``limits``: None, or
+    per-beam limits in cells (see :func:`_exact_scan`)."""
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(th)):
         return 1
     # Lidar mount (Lidar.mount_pose), then RayCaster._grid_frame: map frame / resolution + 1 cell.
@@ -265,8 +272,8 @@ def exact_one(field, x, y, th, geometry, cos_a, sin_a, ranges):
     gv = (-s * ddx + c * ddy) / res + 1.0
     heading = th - geometry[5]
     _exact_scan(
-        field, gu, gv, math.cos(heading), math.sin(heading), cos_a, sin_a, geometry[7], res,
-        geometry[8], ranges,
+        field, gu, gv, math.cos(heading), math.sin(heading), cos_a, sin_a, geometry[7], limits,
+        res, geometry[8], ranges,
     )  # fmt: skip
     return 0
 
@@ -274,7 +281,7 @@ def exact_one(field, x, y, th, geometry, cos_a, sin_a, ranges):
 @nb.njit(cache=True, inline="always")
 def _scan_one(field, x, y, th, geometry, cos_a, sin_a, seed, noise, ranges, out):
     """Mount pose, exact cast and noise of one scan (see :func:`scan_with_noise`); a status."""
-    if exact_one(field, x, y, th, geometry, cos_a, sin_a, ranges):
+    if exact_one(field, x, y, th, geometry, cos_a, sin_a, None, ranges):
         return 1
     return add_beam_noise(ranges, seed, noise, out)
 
