@@ -20,14 +20,14 @@ from typing import Any
 
 __all__ = ["SCENES", "scene_obstacles"]
 
-_OPENINGS = {"openings": 0.65, "opening_width": (0.6, 1.6), "opening_depth": 0.39}
+_OPENINGS = {"openings": 0.07, "opening_width": (0.6, 1.6), "opening_depth": 0.39}
 
 SCENES: dict[str, dict[str, Any]] = {
     "none": {},
-    "clean": {**_OPENINGS, "furniture": 0.03},
+    "clean": {**_OPENINGS, "furniture": 0.005},
     "cluttered": {
         **_OPENINGS,
-        "furniture": 0.17,
+        "furniture": 0.09,
         "furniture_width": (0.4, 1.6),
         "furniture_depth": (0.3, 0.8),
         "crowd": 1.5,

@@ -1,8 +1,8 @@
 """Geometry along the map's walls that the map does not show: furniture standing against a wall,
 and openings in it (glass, open doors) through which the lidar sees past the mapped wall.
 
-Both are placed by the fraction of the map's wall length they cover, so a scene means the same on
-a small map and a large one. A wall point is a free cell next to an occupied one; its outward
+Both are placed by the share of the map's wall they cover, so a scene means the same on a small
+map and a large one, and on any route through it. A wall point is a free cell next to an occupied one; its outward
 normal comes from the distance field, its surface lies the cell's distance behind it.
 
 * **Furniture**: a box of width ``furniture_width`` along the wall and depth ``furniture_depth``
@@ -61,6 +61,17 @@ class WallPoints:
         self.depth = dist[cells[keep, 0], cells[keep, 1]] - 0.5 * res
         self.length = float(len(self.xy) * res)
         self.map = m
+        self._cells = cells[keep]
+        self._index = np.full(dist.shape, -1, dtype=np.int64)
+        self._index[self._cells[:, 0], self._cells[:, 1]] = np.arange(len(self.xy))
+
+    def near(self, i: int, radius: float) -> np.ndarray:
+        """Indices of the wall points within about ``radius`` metres of point ``i`` (the grid
+        cells of a square around it)."""
+        k = int(math.ceil(radius / self.map.resolution))
+        r, c = self._cells[i]
+        block = self._index[max(r - k, 0) : r + k + 1, max(c - k, 0) : c + k + 1]
+        return block[block >= 0]
 
     def straight(self, i: int, half: float) -> bool:
         """Whether the wall at point ``i`` runs straight for ``half`` metres to either side (the
@@ -77,6 +88,16 @@ def _count(cover: float, length: float, mean_width: float) -> int:
     return round(cover * length / mean_width)
 
 
+def _on_segments(pts: np.ndarray, seg: np.ndarray) -> np.ndarray:
+    """bool (N,): which points (N, 2) lie within ``_FACE`` of segment ``seg`` [x0, y0, x1, y1]
+    with their projection on it (the test of :func:`opening_ranges`)."""
+    a, d = seg[:2], seg[2:4] - seg[:2]
+    rel = pts - a
+    s = rel @ d / float(d @ d)
+    off = rel - s[:, None] * d
+    return (s >= 0.0) & (s <= 1.0) & ((off * off).sum(axis=1) <= _FACE * _FACE)
+
+
 def place_openings(
     walls: WallPoints,
     rng: np.random.Generator,
@@ -84,22 +105,39 @@ def place_openings(
     width: tuple[float, float],
     depth_mean: float,
 ) -> np.ndarray:
-    """(K, 5) openings [x0, y0, x1, y1, depth] on wall faces covering about ``cover`` of the
-    wall length (world metres)."""
-    n = _count(cover, walls.length, 0.5 * (width[0] + width[1]))
+    """(K, 5) openings [x0, y0, x1, y1, depth] on wall faces (world metres), until ``cover`` of
+    the wall's face points lie on one.
+
+    Each opening is centred on a face point drawn uniformly, along the wall's tangent there, and
+    the share is counted on the face points that the beam test of :func:`opening_ranges`
+    passes (overlaps count once, a segment that leaves a bent wall counts only where it meets
+    it). So every stretch of wall is an opening with about the same probability, ``cover``,
+    and the expected share of *beams* whose mapped end point is an opening is ``cover`` on any
+    route, however the beams fall on the walls (a wall beside the car takes many of them).
+    """
+    n_pts = len(walls.xy)
+    if cover <= 0.0 or n_pts == 0:
+        return np.zeros((0, 5))
+    face = walls.xy - walls.normal * walls.depth[:, None]
+    covered = np.zeros(n_pts, dtype=bool)
+    need = cover * n_pts
+    reach = 0.5 * width[1] + _FACE
     out = []
-    for _ in range(20 * n):
-        if len(out) >= n or len(walls.xy) == 0:
+    for _ in range(20 * _count(cover, walls.length, 0.5 * (width[0] + width[1])) + 20):
+        if covered.sum() >= need:
             break
-        i = int(rng.integers(len(walls.xy)))
+        i = int(rng.integers(n_pts))
         w = float(rng.uniform(*width))
-        if not walls.straight(i, 0.5 * w):
+        depth = 0.15 + rng.exponential(depth_mean)
+        if covered[i]:
             continue
         nrm = walls.normal[i]
         t = np.array([-nrm[1], nrm[0]])
-        face = walls.xy[i] - nrm * walls.depth[i]
-        a, b = face - 0.5 * w * t, face + 0.5 * w * t
-        out.append([a[0], a[1], b[0], b[1], 0.15 + rng.exponential(depth_mean)])
+        seg = np.r_[face[i] - 0.5 * w * t, face[i] + 0.5 * w * t]
+        near = walls.near(i, reach)
+        hit = near[_on_segments(face[near], seg)]
+        covered[hit] = True
+        out.append([*seg, depth])
     return np.asarray(out, dtype=np.float64).reshape(-1, 5)
 
 
@@ -112,23 +150,29 @@ def place_furniture(
     car_xy: np.ndarray,
     keep_out: float,
 ) -> np.ndarray:
-    """(K, 4, 2) world corners of boxes standing against straight walls, covering about ``cover``
-    of the wall length, none within ``keep_out`` metres of ``car_xy``, none overlapping."""
-    n = _count(cover, walls.length, 0.5 * (width[0] + width[1]))
+    """(K, 4, 2) world corners of boxes standing with their backs against walls until ``cover``
+    of the wall's face points lie behind one (as :func:`place_openings` counts them), none
+    within ``keep_out`` metres of ``car_xy``, none overlapping, each in free space."""
+    n_pts = len(walls.xy)
+    if cover <= 0.0 or n_pts == 0:
+        return np.zeros((0, 4, 2))
+    face_pts = walls.xy - walls.normal * walls.depth[:, None]
+    covered = np.zeros(n_pts, dtype=bool)
+    need = cover * n_pts
     boxes: list[np.ndarray] = []
     centres: list[np.ndarray] = []
     radii: list[float] = []
     m = walls.map
-    for _ in range(20 * n):
-        if len(boxes) >= n or len(walls.xy) == 0:
+    for _ in range(20 * _count(cover, walls.length, 0.5 * (width[0] + width[1])) + 20):
+        if covered.sum() >= need:
             break
-        i = int(rng.integers(len(walls.xy)))
+        i = int(rng.integers(n_pts))
         w, d = float(rng.uniform(*width)), float(rng.uniform(*depth))
-        if not walls.straight(i, 0.5 * w):
+        if covered[i]:
             continue
         nrm = walls.normal[i]
         t = np.array([-nrm[1], nrm[0]])
-        face = walls.xy[i] - nrm * walls.depth[i]
+        face = face_pts[i]
         c = face + nrm * (_GAP + 0.5 * d)
         r = 0.5 * math.hypot(w, d)
         if np.hypot(*(c - car_xy)) < keep_out + r:
@@ -143,6 +187,9 @@ def place_furniture(
             continue
         if m.distance_at(c[None])[0] < 0.5 * d:
             continue
+        near = walls.near(i, 0.5 * w + _FACE)
+        back = np.r_[face - 0.5 * w * t, face + 0.5 * w * t]
+        covered[near[_on_segments(face_pts[near], back)]] = True
         boxes.append(corners)
         centres.append(c)
         radii.append(r)

@@ -16,12 +16,13 @@ import numpy as np
 
 from mcl.calibration.judge import judged_recording, judged_simulation
 from mcl.calibration.reference_poses import ReferencePoses, track_recording
+from mcl.calibration.room_split import RoomStats, room_stats
 from mcl.calibration.scan_match import ScanMatcher
 from mcl.calibration.scan_stats import ResidualFractions, residual_fractions
 from mcl.io.bag_reader import BagData, read_bag
 from racecar_sim.maps import OccupancyMap, load_map
 
-__all__ = ["JudgedBag", "judge_bag", "simulated_fractions"]
+__all__ = ["JudgedBag", "judge_bag", "simulated_fractions", "simulated_room", "simulated_scans"]
 
 MAX_RANGE = 30.0
 """Metres: the Hokuyo's range_max in the shared bags, also the simulated lidar's here."""
@@ -61,17 +62,19 @@ def judge_bag(
     return JudgedBag(rec, poses, z, zs, residual_fractions(z, zs, MAX_RANGE))
 
 
-def simulated_fractions(
+def simulated_scans(
     occupancy_map: OccupancyMap | str | os.PathLike[str],
     base_poses: np.ndarray,
     every: int = 3,
     seed: int = 0,
     **settings,
-) -> ResidualFractions:
-    """The five fractions of simulated scans from every ``every``-th of ``base_poses`` (S, 3)
-    (rear-axle, world), judged like real ones. ``settings`` go to ``RacecarSim-v0`` (e.g.
-    ``noise_profile``, ``scene``); the lidar is the Hokuyo's (1081 beams over 270 degrees,
-    30 m). Poses where the car's box touches a wall of the map are skipped."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """(z, z_star) (S, B) metres: simulated scans from every ``every``-th of ``base_poses`` (S, 3)
+    (rear-axle, world) and the exact casts from their refined poses, judged like real ones
+    (:func:`mcl.calibration.judge.judged_simulation`). ``settings`` go to ``RacecarSim-v0``
+    (e.g. ``noise_profile``, ``scene``); the lidar is the Hokuyo's (1081 beams over 270 degrees,
+    30 m). Pose i is reset with seed ``seed + i`` (a scene is placed anew at each). Poses where
+    the car's box touches a wall of the map are skipped."""
     import gymnasium as gym
 
     import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
@@ -91,6 +94,36 @@ def simulated_fractions(
         z[z >= env.lidar_params.max_range] = np.nan
         return z, env.lidar.mount_pose(env.pose)
 
-    z, zs = judged_simulation(scan_at, len(picks), matcher)
+    out = judged_simulation(scan_at, len(picks), matcher)
     env.close()
+    return out
+
+
+def simulated_fractions(
+    occupancy_map: OccupancyMap | str | os.PathLike[str],
+    base_poses: np.ndarray,
+    every: int = 3,
+    seed: int = 0,
+    **settings,
+) -> ResidualFractions:
+    """The five fractions of :func:`simulated_scans` (same arguments)."""
+    z, zs = simulated_scans(occupancy_map, base_poses, every, seed, **settings)
     return residual_fractions(z, zs, MAX_RANGE)
+
+
+def simulated_room(
+    occupancy_map: OccupancyMap | str | os.PathLike[str],
+    base_poses: np.ndarray,
+    every: int = 3,
+    seed: int = 0,
+    body: float = 0.0,
+    **settings,
+) -> RoomStats:
+    """What the room adds to :func:`simulated_scans` (same arguments): the shares of mapped
+    beams in wide runs (:func:`mcl.calibration.room_split.room_stats`), the first ``body``
+    share of the scan's beams (the car's own body) left out as the calibration leaves it out."""
+    z, zs = simulated_scans(occupancy_map, base_poses, every, seed, **settings)
+    zs = zs.copy()
+    zs[:, : round(body * zs.shape[1])] = np.inf
+    spacing = float(settings.get("fov", 1.5 * np.pi)) / (zs.shape[1] - 1)
+    return room_stats(z, zs, spacing, MAX_RANGE)
