@@ -20,34 +20,12 @@ import numpy as np
 NAMES = ("localization_bag1_2022-03-29-19-23-29.bag", "localization_bag2_2022-03-29-19-24-34.bag")
 STARTS = ((-19.737, 4.391, 1.644), (-20.464, -0.832, 1.775))
 """Lidar poses of the scan a third into each bag (what the global search finds)."""
-
-
-def wall_follower_route(world: str, seed: int, duration: float = 60.0, every: float = 1.5) -> np.ndarray:
-    """(N, 3) rear-axle world poses every ``every`` seconds of the wall follower's drive in
-    ``world`` from the reset of ``seed`` (the experiment's route: its start pose and driver;
-    ``noise_profile="mit_racecar"``, no scene)."""
-    import gymnasium as gym
-
-    import racecar_sim  # noqa: F401
-    from racecar_sim.drivers import WallFollower
-
-    env = gym.make("RacecarSim-v0", map=world, noise_profile="mit_racecar").unwrapped
-    obs, _ = env.reset(seed=seed)
-    driver = WallFollower.for_env(env)
-    keep = max(1, round(every / env.dt))
-    poses = []
-    for k in range(round(duration / env.dt)):
-        obs, _, terminated, _, _ = env.step(driver(obs))
-        if terminated:
-            break
-        if k % keep == 0:
-            poses.append(env.pose.copy())
-    env.close()
-    return np.array(poses)
+CLEAN_FROM = (84, 232)
+"""First scan of each bag's clean stretch (as in scripts/validate_noise.py)."""
 
 
 def main(argv: list[str] | None = None) -> int:
-    from mcl.calibration.validation import MAX_RANGE, judge_bag, simulated_room
+    from mcl.calibration.validation import MAX_RANGE, judge_bag, simulated_room, wall_follower_route
     from racecar_sim.maps import load_map
     from racecar_sim.noise_profiles import profile_document
 
@@ -68,10 +46,13 @@ def main(argv: list[str] | None = None) -> int:
     for i, b in enumerate(bags):
         zs = b.z_star.copy()
         zs[:, : round(body * zs.shape[1])] = np.inf
-        r = room_stats(b.z, zs, float(np.median(np.diff(b.rec.angles))), MAX_RANGE)
-        print(f"| bag {i + 1} | real | {r.openings:.3f} | {r.opening_excess:.2f} | {r.clutter:.3f} |")
+        spacing = float(np.median(np.diff(b.rec.angles)))
+        k = CLEAN_FROM[i]
+        for name, r in ((f"bag {i + 1}", room_stats(b.z, zs, spacing, MAX_RANGE)),
+                        (f"bag {i + 1}, clean stretch", room_stats(b.z[k:], zs[k:], spacing, MAX_RANGE))):  # fmt: skip
+            print(f"| {name} | real | {r.openings:.3f} | {r.opening_excess:.2f} | {r.clutter:.3f} |")
     bag_poses = np.vstack([b.poses.base for b in bags])
-    route = np.vstack([wall_follower_route(world, s) for s in range(args.seeds)])
+    route = wall_follower_route(world, tuple(range(args.seeds)))
     for scene in args.scenes.split(","):
         kw = {"noise_profile": "mit_racecar", "scene": scene, "body": body}
         for name, grid, poses, every in (("bags' poses, stata_basement", stata, bag_poses, args.every),

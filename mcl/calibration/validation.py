@@ -22,7 +22,14 @@ from mcl.calibration.scan_stats import ResidualFractions, residual_fractions
 from mcl.io.bag_reader import BagData, read_bag
 from racecar_sim.maps import OccupancyMap, load_map
 
-__all__ = ["JudgedBag", "judge_bag", "simulated_fractions", "simulated_room", "simulated_scans"]
+__all__ = [
+    "JudgedBag",
+    "judge_bag",
+    "simulated_fractions",
+    "simulated_room",
+    "simulated_scans",
+    "wall_follower_route",
+]
 
 MAX_RANGE = 30.0
 """Metres: the Hokuyo's range_max in the shared bags, also the simulated lidar's here."""
@@ -127,3 +134,35 @@ def simulated_room(
     zs[:, : round(body * zs.shape[1])] = np.inf
     spacing = float(settings.get("fov", 1.5 * np.pi)) / (zs.shape[1] - 1)
     return room_stats(z, zs, spacing, MAX_RANGE)
+
+
+def wall_follower_route(
+    world: OccupancyMap | str | os.PathLike[str],
+    seeds: tuple[int, ...] = (0, 1, 2),
+    duration: float = 60.0,
+    every: float = 1.5,
+) -> np.ndarray:
+    """(N, 3) rear-axle world poses, one every ``every`` seconds, of the wall follower's drives in
+    ``world`` from the resets of ``seeds`` (the noise experiment's route: its start poses and
+    driver, ``noise_profile="mit_racecar"``, no scene). A drive ends at ``duration`` seconds or
+    at its first wall contact."""
+    import gymnasium as gym
+
+    import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
+    from racecar_sim.drivers import WallFollower
+
+    grid = world if isinstance(world, OccupancyMap) else load_map(world)
+    env = gym.make("RacecarSim-v0", map=grid, noise_profile="mit_racecar").unwrapped
+    poses = []
+    for seed in seeds:
+        obs, _ = env.reset(seed=seed)
+        driver = WallFollower.for_env(env)
+        keep = max(1, round(every / env.dt))
+        for k in range(round(duration / env.dt)):
+            obs, _, terminated, _, _ = env.step(driver(obs))
+            if terminated:
+                break
+            if k % keep == 0:
+                poses.append(env.pose.copy())
+    env.close()
+    return np.array(poses).reshape(-1, 3)

@@ -164,3 +164,47 @@ def test_calibrate_noise_reproduces_the_shipped_profile(tmp_path):
     assert mine["settings"]["odom_additive"] == pytest.approx(
         shipped["settings"]["odom_additive"], rel=0.25
     )
+
+
+SHARE_TOL = {"openings": 0.015, "clutter_clean": 0.01, "clutter_cluttered": 0.03}
+"""Tolerances on the scenes' beam shares: openings +- 0.015 (the two clean stretches differ by
+0.005, a hundred simulated scans with the scene drawn anew at each spread by about 0.005, and
+their wide runs are cut where the sensor's own noise breaks them); the clean scene's short runs
++- 0.01 (the clean stretches show 0.005 and 0.012); the cluttered scene's +- 0.03 (a fifth of
+bag 2's 0.17: its furniture and people come and go along the corridor)."""
+
+
+@pytest.mark.slow
+def test_the_scenes_cover_the_bags_beam_shares_on_both_routes(stata_map, judged):
+    """The scenes' wide runs of long returns (openings) and of short returns (furniture, people)
+    cover the shares of beams the bags show, from the bags' own poses on stata_basement.yaml
+    AND on the noise experiment's route (the wall follower's drives in
+    basement_fixed_aligned.yaml), by the same judge. The clean scene against the bags' clean
+    stretches, the cluttered one against bag 2. (Sized by wall length, the clean scene's
+    openings came back on 25-57 % of the beams on the wall follower's route, 6-8 % on the bags'.)
+    """
+    from tests.conftest import shared_map_path
+    from mcl.calibration.room_split import body_block, room_stats
+    from mcl.calibration.validation import simulated_room, wall_follower_route
+
+    body = body_block(np.vstack([b.z for b in judged]))
+    spacing = float(np.median(np.diff(judged[0].rec.angles)))
+
+    def real(z, zs):
+        zs = np.where(body.mask(zs.shape[1])[None, :], np.inf, zs)
+        return room_stats(z, zs, spacing, MAX)
+
+    clean = real(*(np.vstack([getattr(b, f)[k:] for b, k in zip(judged, CLEAN_FROM, strict=True)])
+                   for f in ("z", "z_star")))  # fmt: skip
+    bag2 = real(judged[1].z, judged[1].z_star)
+    world = shared_map_path("basement_fixed_aligned.yaml")
+    routes = {
+        "bags": (stata_map, np.vstack([b.poses.base for b in judged]), 6),
+        "wall follower": (world, wall_follower_route(world, (0, 1, 2)), 1),
+    }
+    for scene, target in (("clean", clean), ("cluttered", bag2)):
+        for route, (grid, poses, every) in routes.items():
+            sim = simulated_room(grid, poses, every, body=body.last, noise_profile="mit_racecar", scene=scene)
+            got = (route, scene, sim.openings, target.openings, sim.clutter, target.clutter)
+            assert abs(sim.openings - target.openings) <= SHARE_TOL["openings"], got
+            assert abs(sim.clutter - target.clutter) <= SHARE_TOL[f"clutter_{scene}"], got

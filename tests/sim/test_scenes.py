@@ -137,3 +137,29 @@ def test_scene_in_the_vector_env_is_refused():
 
     with pytest.raises(ValueError, match="scene"):
         RacecarVectorEnv(2, map="basement_loop", scene="clean")
+
+
+def test_openings_take_their_cover_of_the_beams_beside_a_wall_and_far_from_it():
+    """Openings cover a share of the wall's face points drawn uniformly, so the share of beams
+    whose mapped end point is an opening is that cover from anywhere: beside a wall (which takes
+    half the scan at steep angles) and in the middle of the floor alike."""
+    cover = 0.3
+    env = _env(obstacles={"openings": cover}, max_range=30.0)
+    m = env.map
+    dist = m.distance
+    near_rc = np.argwhere((dist > 0.3) & (dist < 0.4))
+    far_rc = np.argwhere(dist >= 0.9 * dist.max())
+    rng = np.random.default_rng(0)
+    shares = {"near": [], "far": []}
+    for seed in range(40):
+        env.reset(seed=seed)
+        for name, cells in (("near", near_rc), ("far", far_rc)):
+            xy = m.grid_to_world(cells[rng.integers(len(cells))])
+            pose = np.array([*xy, rng.uniform(-math.pi, math.pi)])
+            mount = env.lidar.mount_pose(pose)
+            true = env.lidar.true_ranges(pose).astype(np.float64)
+            seen = env.obstacles.clip_ranges(mount, env.lidar.angles, true, 30.0)
+            mapped = true < 30.0
+            shares[name].append(float((seen[mapped] > true[mapped] + 1e-9).mean()))
+    for name, got in shares.items():
+        assert abs(np.mean(got) - cover) < 0.05, (name, np.mean(got))
