@@ -183,9 +183,9 @@ def test_the_scenes_cover_the_bags_beam_shares_on_both_routes(stata_map, judged)
     stretches, the cluttered one against bag 2. (Sized by wall length, the clean scene's
     openings came back on 25-57 % of the beams on the wall follower's route, 6-8 % on the bags'.)
     """
-    from tests.conftest import shared_map_path
     from mcl.calibration.room_split import body_block, room_stats
     from mcl.calibration.validation import simulated_room, wall_follower_route
+    from tests.conftest import shared_map_path
 
     body = body_block(np.vstack([b.z for b in judged]))
     spacing = float(np.median(np.diff(judged[0].rec.angles)))
