@@ -1,8 +1,11 @@
-"""Test a lap policy: laps, lap times, wall contact and progress, with MCL in the loop.
+"""Test a lap policy: laps, lap times, wall contact and progress, with MCL in the loop, and
+against opponents: car contacts and overtakes.
 
 A policy is any ``policy(obs) -> action`` on :class:`~mcl.agents.lap_env.LapTask` observations
-(e.g. :func:`mcl.agents.ppo.load_policy`). Test episodes start at the loop's start, never end at a
-wall (the car stays in contact and every such step is counted) and last ``seconds``.
+(e.g. :func:`mcl.agents.ppo.load_policy`). Test episodes start at the loop's start (in a race: the
+agent last on the grid behind the start line), never end at a contact (the car stays in contact
+and every such step is counted) and last ``seconds``. A race's counts are
+:class:`~mcl.agents.race_tally.RaceTally`'s.
 """
 
 from __future__ import annotations
@@ -23,12 +26,19 @@ __all__ = [
     "EpisodeResult",
     "evaluate_policy",
     "learning_curve",
+    "race_table",
     "summary_table",
     "tested_on",
     "write_results",
 ]
 
 Policy = Callable[[np.ndarray], np.ndarray]
+
+_RACE_FIELDS = {  # EpisodeResult field <- key of info["race"]
+    **{k: k for k in ("opponents", "wall_contacts", "car_contacts", "overtakes", "overtaken")},
+    "start_rank": "start_rank",
+    "final_rank": "rank",
+}
 
 
 @dataclass(frozen=True)
@@ -43,6 +53,9 @@ class EpisodeResult:
         progress_per_min: metres along the loop per minute (truth).
         collision_steps: steps with wall contact. contacts: separate wall contacts (runs of them).
         mean_error, max_error: metres, the filter's position error (NaN without MCL).
+        opponents: scripted cars in the race (0: alone). In a race also (else 0): wall_contacts,
+            car_contacts (separate contacts with a wall / another car), overtakes, overtaken
+            (rank gains and losses), start_rank, final_rank (1 = leading).
     """
 
     policy: str
@@ -56,17 +69,37 @@ class EpisodeResult:
     contacts: int
     mean_error: float
     max_error: float
+    opponents: int = 0
+    wall_contacts: int = 0
+    car_contacts: int = 0
+    overtakes: int = 0
+    overtaken: int = 0
+    start_rank: int = 0
+    final_rank: int = 0
 
 
 def tested_on(task: LapTaskConfig) -> str:
     """How a test builds the pose: ``"truth"``, ``"no pose"`` or ``"estimate (N particles)"``
-    (beams per particle added when not the default)."""
+    (beams per particle added when not the default), then the car model when not kinematic and
+    the opponents when there are any, e.g. ``"truth, single_track, 3 opponents"``."""
     if task.pose_source != "estimate":
-        return "no pose" if task.pose_source == "none" else "truth"
-    beams = (
-        "" if task.filter_beams == LapTaskConfig.filter_beams else f" x {task.filter_beams} beams"
-    )
-    return f"estimate ({task.n_particles} particles{beams})"
+        name = "no pose" if task.pose_source == "none" else "truth"
+    else:
+        beams = (
+            ""
+            if task.filter_beams == LapTaskConfig.filter_beams
+            else f" x {task.filter_beams} beams"
+        )
+        name = f"estimate ({task.n_particles} particles{beams})"
+    return name + describe_world(task)
+
+
+def describe_world(task: LapTaskConfig) -> str:
+    """``", single_track"`` / ``", 3 opponents"`` for what differs from the lone kinematic car."""
+    text = "" if task.car_model == "kinematic" else f", {task.car_model}"
+    if task.opponents:
+        text += f", {task.opponents} opponent{'s' if task.opponents > 1 else ''}"
+    return text
 
 
 def evaluate_policy(
@@ -105,6 +138,7 @@ def evaluate_policy(
                 break
         lap = info["lap"]
         t = float(info["time"])
+        race = info.get("race", {})
         results.append(
             EpisodeResult(
                 policy=name,
@@ -118,10 +152,31 @@ def evaluate_policy(
                 contacts=contacts,
                 mean_error=float(np.mean(errors)) if errors else math.nan,
                 max_error=float(np.max(errors)) if errors else math.nan,
+                **{field: int(race[key]) for field, key in _RACE_FIELDS.items() if key in race},
             )
         )
         env.close()
     return results
+
+
+def _groups(results: Sequence[EpisodeResult]) -> list[list[EpisodeResult]]:
+    """The results grouped by (policy, test), in order of first appearance."""
+    keys = list(dict.fromkeys((r.policy, r.tested_on) for r in results))
+    return [[r for r in results if (r.policy, r.tested_on) == key] for key in keys]
+
+
+def _mean(values: Sequence[float], digits: int = 2) -> str:
+    """The mean of the finite values, or a dash when there are none (e.g. no MCL)."""
+    finite = [v for v in values if math.isfinite(v)]
+    return f"{np.mean(finite):.{digits}f}" if finite else "–"
+
+
+def _lap_columns(group: Sequence[EpisodeResult]) -> str:
+    """``laps | lap time | flying lap`` of a group: total laps, mean first lap (from a standing
+    start), mean of the later (flying) laps."""
+    firsts = [r.lap_times[0] for r in group if r.lap_times]
+    flying = [x for r in group for x in r.lap_times[1:]]
+    return f"{sum(r.laps for r in group)} | {_mean(firsts)} | {_mean(flying)}"
 
 
 def summary_table(results: Sequence[EpisodeResult]) -> str:
@@ -133,27 +188,42 @@ def summary_table(results: Sequence[EpisodeResult]) -> str:
         "| wall contacts | steps in contact | progress (m/min) | MCL error (m) |"
     )
     lines = [head, "|" + "---|" * 10]
-    keys = list(dict.fromkeys((r.policy, r.tested_on) for r in results))
-    for name, test in keys:
-        group = [r for r in results if (r.policy, r.tested_on) == (name, test)]
-        firsts = [r.lap_times[0] for r in group if r.lap_times]
-        flying = [x for r in group for x in r.lap_times[1:]]
-
-        def fmt(values: Sequence[float], digits: int = 2) -> str:
-            return f"{np.mean(values):.{digits}f}" if len(values) else "–"
-
+    for group in _groups(results):
+        r0 = group[0]
         lines.append(
-            f"| {name} | {test} | {len(group)} | "
-            f"{sum(r.laps for r in group)} | {fmt(firsts)} | {fmt(flying)} | "
+            f"| {r0.policy} | {r0.tested_on} | {len(group)} | {_lap_columns(group)} | "
             f"{sum(r.contacts for r in group)} | {sum(r.collision_steps for r in group)} | "
-            f"{fmt([r.progress_per_min for r in group], 1)} | "
-            f"{fmt([r.mean_error for r in group], 3)} |"
+            f"{_mean([r.progress_per_min for r in group], 1)} | "
+            f"{_mean([r.mean_error for r in group], 3)} |"
+        )
+    return "\n".join(lines)
+
+
+def race_table(results: Sequence[EpisodeResult]) -> str:
+    """Markdown, one row per policy and race test: laps, lap times, wall and car contacts
+    (separate contacts), overtakes and times overtaken (totals over the episodes), the start
+    rank and the mean final rank, progress per minute."""
+    head = (
+        "| policy (trained on) | tested on | episodes | laps | lap time (s) | flying lap (s) "
+        "| wall contacts | car contacts | overtakes | overtaken | start rank | final rank (mean) "
+        "| progress (m/min) |"
+    )
+    lines = [head, "|" + "---|" * 13]
+    for group in _groups([r for r in results if r.opponents]):
+        r0 = group[0]
+        lines.append(
+            f"| {r0.policy} | {r0.tested_on} | {len(group)} | {_lap_columns(group)} | "
+            f"{sum(r.wall_contacts for r in group)} | {sum(r.car_contacts for r in group)} | "
+            f"{sum(r.overtakes for r in group)} | {sum(r.overtaken for r in group)} | "
+            f"{r0.start_rank} | {_mean([r.final_rank for r in group], 1)} | "
+            f"{_mean([r.progress_per_min for r in group], 1)} |"
         )
     return "\n".join(lines)
 
 
 def write_results(results: Sequence[EpisodeResult], out_dir: str | os.PathLike[str]) -> list[Path]:
-    """eval.csv (one row per episode) and eval.md (:func:`summary_table`) in ``out_dir``."""
+    """eval.csv (one row per episode) and eval.md (:func:`summary_table` of the tests alone,
+    :func:`race_table` of those with opponents) in ``out_dir``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     csv_path, md_path = out / "eval.csv", out / "eval.md"
@@ -164,7 +234,16 @@ def write_results(results: Sequence[EpisodeResult], out_dir: str | os.PathLike[s
             row: dict[str, Any] = asdict(r)
             row["lap_times"] = " ".join(f"{x:g}" for x in r.lap_times)
             writer.writerow(row)
-    md_path.write_text(summary_table(results) + "\n", encoding="utf-8")
+    alone = [r for r in results if not r.opponents]
+    text = summary_table(alone) + "\n" if alone else ""
+    if len(alone) < len(results):
+        text += (
+            ("\n" if text else "")
+            + "Races (contacts by kind, overtakes = rank gains):\n\n"
+            + race_table(results)
+            + "\n"
+        )
+    md_path.write_text(text, encoding="utf-8")
     return [csv_path, md_path]
 
 

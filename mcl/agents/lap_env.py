@@ -40,6 +40,7 @@ from mcl.sensor_model import SensorModel, SensorModelParams
 from mcl.wrapper import LocalizationWrapper
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import DEFAULT_MAP
+from racecar_sim.race.single import DRIVERS
 from racecar_sim.validation import check_number
 
 __all__ = ["POSE_SOURCES", "LapTask", "LapTaskConfig", "make_lap_env", "make_vector_env"]
@@ -72,7 +73,14 @@ class LapTaskConfig:
         episode_seconds: simulated seconds before the episode is truncated.
         start_s: metres along the loop of the start (None: uniform along the loop).
         start_lateral_sd, start_heading_sd: m and rad, the start's Gaussian noise.
-        env: extra :class:`racecar_sim.env.EnvConfig` settings as (name, value) pairs.
+        env: extra :class:`racecar_sim.env.EnvConfig` settings as (name, value) pairs, e.g.
+            ``(("car_model", "single_track"),)``.
+        opponents: scripted cars racing the agent (0: the agent drives alone in
+            ``RacecarSim-v0``; more: ``RacecarRace-v0`` on the map's centerline, the agent
+            starting last on the grid, :mod:`mcl.agents.race_task`).
+        opponent_driver: their driver (``"pure_pursuit"`` on the centerline or
+            ``"wall_follower"``).
+        opponent_speeds: m/s, one per opponent (None: ``RacecarRace-v0``'s 2.0, 2.4, 2.8, ...).
     """
 
     map: str = DEFAULT_MAP
@@ -91,6 +99,9 @@ class LapTaskConfig:
     start_lateral_sd: float = 0.15
     start_heading_sd: float = 0.15
     env: tuple[tuple[str, Any], ...] = ()
+    opponents: int = 0
+    opponent_driver: str = "pure_pursuit"
+    opponent_speeds: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.pose_source not in POSE_SOURCES:
@@ -115,6 +126,32 @@ class LapTaskConfig:
         if not self.lookahead or not all(math.isfinite(d) for d in self.lookahead):
             raise ValueError("LapTaskConfig.lookahead must hold finite distances in metres")
         object.__setattr__(self, "env", tuple((str(k), v) for k, v in dict(self.env).items()))
+        self._check_opponents()
+
+    def _check_opponents(self) -> None:
+        check_number("LapTaskConfig", "opponents", self.opponents, low=0, integer=True)
+        if self.opponent_driver not in DRIVERS:
+            raise ValueError(
+                f"LapTaskConfig.opponent_driver = {self.opponent_driver!r}; choose one of {DRIVERS}"
+            )
+        if self.opponent_speeds is not None:
+            speeds = tuple(float(v) for v in self.opponent_speeds)
+            if len(speeds) != self.opponents:
+                raise ValueError(
+                    f"LapTaskConfig.opponent_speeds: {len(speeds)} speeds for "
+                    f"{self.opponents} opponents"
+                )
+            object.__setattr__(self, "opponent_speeds", speeds)
+        if self.opponents and self.localized:
+            raise ValueError(
+                "LapTaskConfig: a race (opponents > 0) runs no MCL; use pose_source 'truth' or "
+                "'none'"
+            )
+
+    @property
+    def car_model(self) -> str:
+        """The car's model (``"kinematic"`` unless ``env`` sets ``car_model``)."""
+        return str(dict(self.env).get("car_model", "kinematic"))
 
     @property
     def localized(self) -> bool:
@@ -140,6 +177,9 @@ class LapTask(gym.Wrapper):
         config: the task.
         track: the loop (default: the wall follower's loop of ``config.map``).
     """
+
+    pose_option = "pose"
+    """The reset option :meth:`start_pose`'s value goes into (a race takes ``"poses"``)."""
 
     def __init__(self, env: gym.Env, config: LapTaskConfig, track: Track | None = None) -> None:
         super().__init__(env)
@@ -171,10 +211,10 @@ class LapTask(gym.Wrapper):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """Reset on the loop (``options["pose"]`` overrides the start)."""
+        """Reset on the loop (``options[self.pose_option]`` overrides the start)."""
         options = dict(options or {})
-        if options.get("pose") is None:
-            options["pose"] = self.start_pose(seed)
+        if options.get(self.pose_option) is None:
+            options[self.pose_option] = self.start_pose(seed)
         obs, info = self.env.reset(seed=seed, options=options)
         self.begin(info)
         return self.observe(obs, info), self.add_lap_info(info)
@@ -299,8 +339,13 @@ def make_lap_env(
     render_mode: str | None = None,
     log_path: str | None = None,
 ) -> gym.Env:
-    """``RacecarEnv`` -> [``LocalizationWrapper``] -> :class:`LapTask` -> ``TimeLimit``."""
+    """``RacecarEnv`` -> [``LocalizationWrapper``] -> :class:`LapTask` -> ``TimeLimit``
+    (with opponents: :func:`mcl.agents.race_task.make_race_lap_env`)."""
     config = config if config is not None else LapTaskConfig()
+    if config.opponents:
+        from mcl.agents.race_task import make_race_lap_env
+
+        return make_race_lap_env(config, render_mode=render_mode)
     settings = {"terminate_on_collision": config.terminate_on_collision, **dict(config.env)}
     env: gym.Env = RacecarEnv(config.map, render_mode=render_mode, **settings)
     if config.localized:

@@ -5,20 +5,25 @@
     config.json      the task and the PPO settings
     learning.csv     one row per finished training episode: timesteps, wall_s, return (m of
                      progress minus penalties), length (steps), progress (m), collisions
+                     (steps in contact), laps, opponents, overtakes (rank gains)
     model.zip        the policy (saved every ``save_every`` timesteps and at the end)
     train.json       timesteps done, wall seconds, steps per second
 
-Without MCL (pose sources ``truth`` and ``none``) the cars are stepped by the simulator's batched
-env (:mod:`mcl.agents.batched`); with MCL by stable-baselines3's ``DummyVecEnv`` (a sync vector
-env of single lap envs, one filter each). Torch and numba use one thread each.
+Without MCL (pose sources ``truth`` and ``none``) and without opponents the cars are stepped by
+the simulator's batched env (:mod:`mcl.agents.batched`); with MCL or opponents by
+stable-baselines3's ``DummyVecEnv`` (a sync vector env of single lap envs, one filter or one race
+each). A list of tasks gives env ``i`` the task ``i % len(tasks)``, e.g. races against 1, 2 and 3
+opponents side by side. Torch and numba use one thread each.
 """
 
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import os
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -84,7 +89,7 @@ def _one_thread() -> None:
 
 
 def train(
-    task: LapTaskConfig,
+    task: LapTaskConfig | Sequence[LapTaskConfig],
     timesteps: int,
     out_dir: str | os.PathLike[str],
     *,
@@ -96,9 +101,12 @@ def train(
 ) -> TrainReport:
     """Train PPO on ``task`` for ``timesteps`` env steps (all envs together) into ``out_dir``.
 
+    ``task``: one task, or a list: env ``i`` runs ``task[i % len(task)]`` (all must share the
+    observation: any mix of opponents and car models, one pose source).
     ``batched``: step the cars in the simulator's batched env
-    (:class:`~mcl.agents.batched.BatchedLapVecEnv`; None: whenever the task runs no MCL), else in
-    stable-baselines3's sync ``DummyVecEnv`` of single lap envs (the same observations).
+    (:class:`~mcl.agents.batched.BatchedLapVecEnv`; None: whenever there is one task and it runs
+    no MCL and no race), else in stable-baselines3's sync ``DummyVecEnv`` of single lap envs (the
+    same observations).
     """
     require_sb3()
     from stable_baselines3 import PPO
@@ -108,17 +116,22 @@ def train(
     if isinstance(timesteps, bool) or not isinstance(timesteps, int) or timesteps < 1:
         raise ValueError(f"timesteps = {timesteps!r} must be a positive integer")
     settings = settings if settings is not None else PPOSettings()
+    tasks = [task] if isinstance(task, LapTaskConfig) else list(task)
+    if not tasks:
+        raise ValueError("train: no task given")
+    if batched is None:
+        batched = len(tasks) == 1 and not tasks[0].localized and not tasks[0].opponents
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     _one_thread()
     (out / "config.json").write_text(
         json.dumps(
             {
-                "task": asdict(task),
+                "task": asdict(tasks[0]) if len(tasks) == 1 else [asdict(t) for t in tasks],
                 "ppo": asdict(settings),
                 "seed": seed,
                 "timesteps": timesteps,
-                "batched": batched if batched is not None else not task.localized,
+                "batched": batched,
             },
             indent=1,
             default=str,
@@ -126,14 +139,16 @@ def train(
         + "\n",
         encoding="utf-8",
     )
-    if batched is None:
-        batched = not task.localized
     if batched:
+        if len(tasks) > 1:
+            raise ValueError("train: the batched env runs one task; give one or batched=False")
         from mcl.agents.batched import BatchedLapVecEnv
 
-        inner: Any = BatchedLapVecEnv(task, settings.n_envs)
+        inner: Any = BatchedLapVecEnv(tasks[0], settings.n_envs)
     else:
-        inner = DummyVecEnv([lambda: make_lap_env(task)] * settings.n_envs)
+        inner = DummyVecEnv(
+            [functools.partial(make_lap_env, tasks[i % len(tasks)]) for i in range(settings.n_envs)]
+        )
     venv = VecMonitor(inner)
     model = PPO(
         "MlpPolicy",
@@ -162,7 +177,10 @@ def train(
             self.file = learning_path.open("w", newline="", encoding="utf-8")
             self.writer = csv.writer(self.file)
             self.writer.writerow(
-                ["timesteps", "wall_s", "return", "length", "progress", "collisions", "laps"]
+                [
+                    *("timesteps", "wall_s", "return", "length", "progress", "collisions"),
+                    *("laps", "opponents", "overtakes"),
+                ]
             )
             self.next_save = save_every
 
@@ -171,7 +189,7 @@ def train(
                 episode = info.get("episode")
                 if episode is None:
                     continue
-                lap = info.get("lap", {})
+                lap, race = info.get("lap", {}), info.get("race", {})
                 self.writer.writerow(
                     [
                         self.num_timesteps,
@@ -181,6 +199,8 @@ def train(
                         round(float(lap.get("progress", np.nan)), 3),
                         int(lap.get("collisions", -1)),
                         int(lap.get("laps", -1)),
+                        int(race.get("opponents", 0)),
+                        int(race.get("overtakes", 0)),
                     ]
                 )
                 self.file.flush()

@@ -7,6 +7,14 @@ in the loop) it trains a policy into OUT/<source>/ (skipped when OUT/<source>/mo
 held constant: how much the policy needs the pose) and on MCL's estimate (with each filter of
 --eval-filters; fewer particles and beams, larger errors) and writes OUT/eval.csv,
 OUT/eval.md, OUT/learning_curve.png and OUT/agent.mp4 (the last policy on the estimate).
+
+--env NAME=VALUE sets the simulator for training and tests (e.g. --env car_model=single_track);
+--eval-car-models tests every policy on each car model listed (e.g. kinematic,single_track).
+--opponents K[,K...] trains against K scripted opponents (RacecarRace-v0, the agent starting last
+on the grid; a list is spread over the envs: 1,2,3 gives env i the count i % 3); the policies are
+then tested against each count of --eval-opponents, and OUT/eval.md adds a race table: laps, wall
+and car contacts, overtakes (rank gains) and times overtaken. Races run no MCL: the estimate's
+tests are skipped there.
 """
 
 from __future__ import annotations
@@ -16,11 +24,25 @@ import sys
 from pathlib import Path
 
 from mcl.agents.lap_env import POSE_SOURCES, LapTaskConfig
-from mcl.cli.common import Parser, non_negative_float, positive_float, positive_int
+from mcl.cli.common import (
+    ENV_HELP,
+    Parser,
+    check_env,
+    non_negative_float,
+    number_list,
+    positive_float,
+    positive_int,
+)
+from racecar_sim.race.single import DRIVERS
+from racecar_sim.vehicle import CAR_MODELS
 
 EXAMPLES = """\
-example (the README's run, about 12 + 25 minutes of training on 2 busy cores):
+examples (the first is the README's run, about 12 + 25 minutes of training on 2 busy cores):
   racecar-sim train-agent --timesteps 150000 --eval-filters 300,10,5x2 --out runs/agent
+  racecar-sim train-agent --pose truth --env car_model=single_track \\
+      --eval-car-models kinematic,single_track --eval-poses truth --out runs/agent_st
+  racecar-sim train-agent --pose truth --opponents 1,2,3 --eval-opponents 1,3 \\
+      --eval-poses truth --out runs/agent_race
 """
 
 
@@ -28,14 +50,35 @@ _NAMES = {"truth": "true pose", "estimate": "MCL estimate", "none": "no pose (sc
 """Pose source -> the policy's name in the tables."""
 
 
-def _sources(text: str) -> tuple[str, ...]:
-    names = tuple(v.strip() for v in text.split(",") if v.strip())
-    bad = [n for n in names if n not in POSE_SOURCES]
-    if bad or not names:
+def _choices(choices: tuple[str, ...]):
+    """argparse type: comma-separated names out of ``choices`` (at least one)."""
+
+    def parse(text: str) -> tuple[str, ...]:
+        names = tuple(v.strip() for v in text.split(",") if v.strip())
+        bad = [n for n in names if n not in choices]
+        if bad or not names:
+            raise argparse.ArgumentTypeError(
+                f"takes {' and/or '.join(choices)}, comma-separated; got {text!r}"
+            )
+        return names
+
+    return parse
+
+
+_sources = _choices(POSE_SOURCES)
+
+
+def _counts(text: str) -> tuple[int, ...]:
+    """argparse type: comma-separated whole numbers >= 1 (opponents)."""
+    try:
+        counts = tuple(int(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        counts = ()
+    if not counts or min(counts) < 1:
         raise argparse.ArgumentTypeError(
-            f"takes {' and/or '.join(POSE_SOURCES)}, comma-separated; got {text!r}"
+            f"expected whole numbers >= 1, comma-separated (e.g. 1,2,3); got {text!r}"
         )
-    return names
+    return counts
 
 
 def _filters(text: str) -> tuple[tuple[int, int], ...]:
@@ -84,9 +127,57 @@ def main(argv: list[str] | None = None) -> int:
         help="filters of the tests on the estimate: particles, optionally x beams per particle "
         "(fewer, larger errors), e.g. 300,30,5x2",
     )
+    add(
+        "--eval-poses",
+        type=_sources,
+        default=("truth", "none", "estimate"),
+        help="poses of the tests: truth, none (features held), estimate (each --eval-filters)",
+    )
+    add("--env", action="append", default=[], metavar="NAME=VALUE", help=ENV_HELP)
+    add(
+        "--eval-car-models",
+        type=_choices(CAR_MODELS),
+        default=None,
+        metavar="MODEL,...",
+        help=f"test every policy on each of these car models ({', '.join(CAR_MODELS)}; "
+        "default: the --env car_model)",
+    )
+    add(
+        "--opponents",
+        type=_counts,
+        default=(),
+        metavar="K[,K...]",
+        help="train against K scripted opponents; a list is spread over the envs (default: none)",
+    )
+    add(
+        "--eval-opponents",
+        type=_counts,
+        default=None,
+        metavar="K[,K...]",
+        help="test against each count (default: the --opponents counts)",
+    )
+    add("--opponent-driver", choices=DRIVERS, default="pure_pursuit", help="the opponents' driver")
+    add(
+        "--opponent-speeds",
+        type=number_list,
+        default=None,
+        metavar="V,...",
+        help="m/s of opponents 1, 2, ...: a race of K takes the first K (default 2.0, 2.4, 2.8, ...)",
+    )
     add("--video-seconds", type=non_negative_float, default=20.0, help="0: no video")
     add("--out", type=Path, default=Path("runs/agent"), metavar="DIR", help="output folder")
     args = parser.parse_args(argv)
+    args.env = check_env(parser, args.env)
+    most = max((*args.opponents, *(args.eval_opponents or ())), default=0)
+    if args.opponent_speeds is not None and len(args.opponent_speeds) < most:
+        parser.fail(
+            "--opponent-speeds",
+            f"{len(args.opponent_speeds)} speeds for races of up to {most} opponents",
+        )
+    if args.opponents and "estimate" in args.pose:
+        parser.fail("--pose", "a race (--opponents) runs no MCL: train on truth or none")
+    if args.eval_opponents is None:
+        args.eval_opponents = tuple(sorted(set(args.opponents)))
 
     from mcl.agents.ppo import PPOSettings, load_policy, require_sb3, train
 
@@ -101,8 +192,9 @@ def main(argv: list[str] | None = None) -> int:
         model = folder / "model.zip"
         if args.retrain or not model.is_file():
             print(f"training on the {source} pose: {args.timesteps} timesteps into {folder}")
+            tasks = [_task(args, source, k) for k in args.opponents or (0,)]
             report = train(
-                LapTaskConfig(pose_source=source),
+                tasks,
                 args.timesteps,
                 folder,
                 settings=settings,
@@ -116,24 +208,67 @@ def main(argv: list[str] | None = None) -> int:
     return _evaluate(args, models, load_policy)
 
 
+def _task(args: argparse.Namespace, source: str, opponents: int, **changes) -> LapTaskConfig:
+    """The lap task of the run's --env and opponents settings."""
+    speeds = args.opponent_speeds
+    return LapTaskConfig(
+        pose_source=source,
+        env=args.env,
+        opponents=opponents,
+        opponent_driver=args.opponent_driver,
+        opponent_speeds=None if speeds is None or not opponents else speeds[:opponents],
+        **changes,
+    )
+
+
+def _policy_name(args: argparse.Namespace, source: str) -> str:
+    """``"true pose"``, ``"true pose, single_track, vs 1-3 opponents"``, ..."""
+    name = _NAMES[source]
+    model = dict(args.env).get("car_model", "kinematic")
+    if model != "kinematic":
+        name += f", {model}"
+    if args.opponents:
+        counts = sorted(set(args.opponents))
+        shown = str(counts[0]) if len(counts) == 1 else ",".join(map(str, counts))
+        name += f", vs {shown} opponent{'s' if counts[-1] > 1 else ''}"
+    return name
+
+
+def _tests(args: argparse.Namespace) -> list[LapTaskConfig]:
+    """Every test: each car model, each opponent count (none without), each pose (no estimate
+    in a race)."""
+    car_models = args.eval_car_models or (dict(args.env).get("car_model", "kinematic"),)
+    tests = []
+    for model in car_models:
+        env_args = argparse.Namespace(**{**vars(args), "env": (*args.env, ("car_model", model))})
+        for k in args.eval_opponents or (0,):
+            for source in args.eval_poses:
+                if source != "estimate":
+                    tests.append(_task(env_args, source, k))
+                elif not k:
+                    tests += [
+                        _task(env_args, source, 0, n_particles=n, filter_beams=b)
+                        for n, b in args.eval_filters
+                    ]
+    return tests
+
+
 def _evaluate(args: argparse.Namespace, models: dict[str, Path], load_policy) -> int:
     from mcl.agents.evaluate import evaluate_policy, learning_curve, tested_on, write_results
     from mcl.experiments.video import FrameWriter
 
     results = []
     seeds = list(range(1000, 1000 + args.eval_seeds))  # not the training seeds
-    tests = [LapTaskConfig(pose_source="truth"), LapTaskConfig(pose_source="none")]
-    tests += [
-        LapTaskConfig(pose_source="estimate", n_particles=n, filter_beams=b)
-        for n, b in args.eval_filters
-    ]
+    tests = _tests(args)
     for source, model in models.items():
         policy = load_policy(model)
         for test in tests:
             print(f"testing the policy trained on the {source} pose on the {tested_on(test)}")
-            results += evaluate_policy(policy, _NAMES[source], test, seeds, args.eval_seconds)
+            results += evaluate_policy(
+                policy, _policy_name(args, source), test, seeds, args.eval_seconds
+            )
     files = write_results(results, args.out)
-    curves = {f"trained on: {_NAMES[s]}": args.out / s / "learning.csv" for s in models}
+    curves = {f"trained on: {_policy_name(args, s)}": args.out / s / "learning.csv" for s in models}
     files.append(learning_curve(curves, args.out / "learning_curve.png"))
     if args.video_seconds > 0:
         source = list(models)[-1]
@@ -142,7 +277,7 @@ def _evaluate(args: argparse.Namespace, models: dict[str, Path], load_policy) ->
             evaluate_policy(
                 load_policy(models[source]),
                 source,
-                tests[2],
+                next((t for t in tests if t.localized), tests[-1]),
                 [seeds[0]],
                 args.video_seconds,
                 on_frame=writer.write,

@@ -26,6 +26,7 @@ def start_grid(
     is_free: Callable[[np.ndarray], bool],
     gap: float = 0.3,
     stagger: float = 0.25,
+    at: float = 0.0,
 ) -> np.ndarray:
     """(n, 3) rear-axle world poses of a staggered grid behind ``track``'s start line.
 
@@ -36,6 +37,9 @@ def start_grid(
         is_free: whether a rear-axle pose (3,) keeps the car's box off the walls.
         gap: metres between a car's front and the next one's rear, and between pole and the line.
         stagger: the largest sideways offset from the centerline, metres.
+        at: metres along the centerline of the line the grid stands behind (0: the start line;
+            another value builds the same grid elsewhere on the track, e.g. a rolling start of
+            training episodes).
 
     Raises:
         ValueError: a grid slot where the car fits neither staggered nor on the centerline.
@@ -43,7 +47,7 @@ def start_grid(
     ahead = car.length - car.rear_overhang  # rear axle to the front bumper
     poses = np.zeros((n, 3))
     for i in range(n):
-        s = -(gap + ahead + i * (car.length + gap))
+        s = at - (gap + ahead + i * (car.length + gap))
         point = track.point_at(s)
         theta = track.heading_at(s)
         right, left = track.width_at(s)
@@ -59,6 +63,6 @@ def start_grid(
                 break
         else:
             raise ValueError(
-                f"start grid: slot {i} ({-s:.1f} m behind the line) has no room for the car"
+                f"start grid: slot {i} ({at - s:.1f} m behind the line) has no room for the car"
             )
     return poses
