@@ -98,6 +98,7 @@ def train(
     save_every: int = 50_000,
     progress: bool = False,
     batched: bool | None = None,
+    max_minutes: float | None = None,
 ) -> TrainReport:
     """Train PPO on ``task`` for ``timesteps`` env steps (all envs together) into ``out_dir``.
 
@@ -107,6 +108,8 @@ def train(
     (:class:`~mcl.agents.batched.BatchedLapVecEnv`; None: whenever there is one task and it runs
     no MCL and no race), else in stable-baselines3's sync ``DummyVecEnv`` of single lap envs (the
     same observations).
+    ``max_minutes``: stop after this many wall-clock minutes even before ``timesteps`` (a time
+    box on a shared machine; ``train.json`` says whether it stopped the run).
     """
     require_sb3()
     from stable_baselines3 import PPO
@@ -116,6 +119,8 @@ def train(
     if isinstance(timesteps, bool) or not isinstance(timesteps, int) or timesteps < 1:
         raise ValueError(f"timesteps = {timesteps!r} must be a positive integer")
     settings = settings if settings is not None else PPOSettings()
+    if max_minutes is not None:
+        check_number("train", "max_minutes", max_minutes, low=0, low_open=True)
     tasks = [task] if isinstance(task, LapTaskConfig) else list(task)
     if not tasks:
         raise ValueError("train: no task given")
@@ -207,7 +212,7 @@ def train(
             if self.num_timesteps >= self.next_save:
                 self.model.save(model_path)
                 self.next_save += save_every
-            return True
+            return max_minutes is None or time.perf_counter() - t0 < 60.0 * max_minutes
 
         def _on_training_end(self) -> None:
             self.file.close()
@@ -218,7 +223,12 @@ def train(
     done = int(model.num_timesteps)
     (out / "train.json").write_text(
         json.dumps(
-            {"timesteps": done, "wall_s": round(wall, 1), "steps_per_s": round(done / wall, 1)},
+            {
+                "timesteps": done,
+                "wall_s": round(wall, 1),
+                "steps_per_s": round(done / wall, 1),
+                "stopped_by_max_minutes": done < timesteps,
+            },
             indent=1,
         )
         + "\n",

@@ -114,6 +114,14 @@ def main(argv: list[str] | None = None) -> int:
         help="pose sources to train on: truth, estimate, none (scan only)",
     )
     add("--envs", type=positive_int, default=8, help="envs stepped together")
+    add(
+        "--max-minutes",
+        type=positive_float,
+        default=None,
+        metavar="MIN",
+        help="stop each training after MIN wall minutes even short of --timesteps "
+        "(OUT/<source>/train.json says so)",
+    )
     add("--seed", type=int, default=0, help="training seed")
     add("--retrain", action="store_true", help="train even if OUT/<source>/model.zip exists")
     add("--no-eval", action="store_true", help="train only")
@@ -200,6 +208,7 @@ def main(argv: list[str] | None = None) -> int:
                 settings=settings,
                 seed=args.seed,
                 progress=sys.stderr.isatty(),
+                max_minutes=args.max_minutes,
             )
             print(f"  {report.timesteps} timesteps in {report.wall_s / 60:.1f} min")
         models[source] = model

@@ -224,3 +224,19 @@ def test_train_agent_races_on_the_single_track_car_end_to_end(tmp_path) -> None:
     assert {r["policy"] for r in rows} == {"true pose, single_track, vs 1,2 opponents"}
     assert all(r["opponents"] == "1" and r["start_rank"] == "2" for r in rows)
     assert "overtakes" in (tmp_path / "eval.md").read_text()
+
+
+@pytest.mark.slow
+def test_train_stops_at_max_minutes(tmp_path) -> None:
+    if importlib.util.find_spec("stable_baselines3") is None:
+        pytest.skip("stable-baselines3 is not installed (pip install torch==2.13.0 -e '.[rl]')")
+    import json
+
+    from mcl.agents.ppo import PPOSettings, train
+
+    task = LapTaskConfig(pose_source="truth", env=FAST)
+    settings = PPOSettings(n_envs=2, n_steps=64, batch_size=64, n_epochs=1)
+    report = train(task, 10**7, tmp_path, settings=settings, max_minutes=0.002)  # 0.12 s
+    assert 0 < report.timesteps < 10**7
+    assert json.loads((tmp_path / "train.json").read_text())["stopped_by_max_minutes"] is True
+    assert (tmp_path / "model.zip").is_file()
