@@ -20,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from mcl.agents.lap_env import LapTaskConfig, make_lap_env
+from mcl.agents.lap_env import LapTaskConfig
+from mcl.agents.task_env import make_task_env
 
 __all__ = [
     "EpisodeResult",
@@ -121,7 +122,7 @@ def evaluate_policy(
     results = []
     for i, seed in enumerate(seeds):
         render = on_frame is not None and i == 0
-        env = make_lap_env(test, render_mode="rgb_array" if render else None)
+        env = make_task_env(test, render_mode="rgb_array" if render else None)
         obs, info = env.reset(seed=int(seed))
         errors: list[float] = []
         contacts, touching, steps = 0, False, 0

@@ -339,13 +339,14 @@ def make_lap_env(
     render_mode: str | None = None,
     log_path: str | None = None,
 ) -> gym.Env:
-    """``RacecarEnv`` -> [``LocalizationWrapper``] -> :class:`LapTask` -> ``TimeLimit``
-    (with opponents: :func:`mcl.agents.race_task.make_race_lap_env`)."""
+    """``RacecarEnv`` -> [``LocalizationWrapper``] -> :class:`LapTask` -> ``TimeLimit``: the car
+    alone (with opponents: :func:`mcl.agents.task_env.make_task_env`)."""
     config = config if config is not None else LapTaskConfig()
     if config.opponents:
-        from mcl.agents.race_task import make_race_lap_env
-
-        return make_race_lap_env(config, render_mode=render_mode)
+        raise ValueError(
+            "make_lap_env drives the car alone; a config with opponents needs "
+            "mcl.agents.task_env.make_task_env"
+        )
     settings = {"terminate_on_collision": config.terminate_on_collision, **dict(config.env)}
     env: gym.Env = RacecarEnv(config.map, render_mode=render_mode, **settings)
     if config.localized:

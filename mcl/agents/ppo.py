@@ -30,7 +30,8 @@ from typing import Any
 
 import numpy as np
 
-from mcl.agents.lap_env import LapTaskConfig, make_lap_env
+from mcl.agents.lap_env import LapTaskConfig
+from mcl.agents.task_env import make_task_env
 from racecar_sim.validation import check_number
 
 __all__ = ["PPOSettings", "TrainReport", "load_policy", "require_sb3", "train"]
@@ -152,7 +153,10 @@ def train(
         inner: Any = BatchedLapVecEnv(tasks[0], settings.n_envs)
     else:
         inner = DummyVecEnv(
-            [functools.partial(make_lap_env, tasks[i % len(tasks)]) for i in range(settings.n_envs)]
+            [
+                functools.partial(make_task_env, tasks[i % len(tasks)])
+                for i in range(settings.n_envs)
+            ]
         )
     venv = VecMonitor(inner)
     model = PPO(

@@ -100,7 +100,9 @@ def make_race_lap_env(config: LapTaskConfig, *, render_mode: str | None = None) 
     """``RacecarRace-v0`` (``config.opponents`` scripted cars) -> :class:`RaceLapTask` ->
     ``TimeLimit``."""
     if config.opponents < 1:
-        raise ValueError("make_race_lap_env: the config has no opponents (use make_lap_env)")
+        raise ValueError(
+            "make_race_lap_env: the config has no opponents (use make_task_env or make_lap_env)"
+        )
     settings = {"terminate_on_collision": config.terminate_on_collision, **dict(config.env)}
     env: gym.Env = RacecarRaceEnv(
         config.map,

@@ -16,10 +16,15 @@ from hypothesis import strategies as st
 from mcl.agents.evaluate import EpisodeResult, race_table
 from mcl.agents.lap_env import LapTaskConfig, make_lap_env
 from mcl.agents.race_tally import RaceTally
+from mcl.agents.task_env import make_task_env
 from racecar_sim.drivers import PurePursuit
 from racecar_sim.race.single import RacecarRaceEnv
 
 FAST = (("n_beams", 181),)
+NEEDS_SB3 = pytest.mark.skipif(
+    importlib.util.find_spec("stable_baselines3") is None,
+    reason="stable-baselines3 is not installed (pip install torch==2.13.0 -e '.[rl]')",
+)
 
 
 def _parked(obs, pose) -> np.ndarray:
@@ -119,7 +124,7 @@ def test_a_car_passing_the_parked_agent_is_counted_as_overtaken() -> None:
 @pytest.mark.parametrize("opponents", [1, 3])
 def test_race_task_starts_the_agent_last_and_counts_its_race(opponents) -> None:
     config = LapTaskConfig(pose_source="truth", opponents=opponents, start_s=0.0, env=FAST)
-    env = make_lap_env(config)
+    env = make_task_env(config)
     obs, info = env.reset(seed=5)
     assert obs.shape == env.observation_space.shape == (57,)
     assert info["race"]["start_rank"] == opponents + 1 and info["race"]["opponents"] == opponents
@@ -142,7 +147,7 @@ def test_race_task_starts_the_agent_last_and_counts_its_race(opponents) -> None:
 
 def test_race_task_random_starts_keep_the_agent_behind_in_race_order() -> None:
     config = LapTaskConfig(pose_source="truth", opponents=2, env=FAST)
-    env = make_lap_env(config)
+    env = make_task_env(config)
     starts = set()
     for seed in range(6):
         _, info = env.reset(seed=seed)
@@ -174,6 +179,8 @@ def test_race_task_config_refuses_what_it_cannot_run() -> None:
         LapTaskConfig(pose_source="truth", opponents=2, opponent_speeds=(2.0,))
     with pytest.raises(ValueError, match="opponent_driver"):
         LapTaskConfig(pose_source="truth", opponents=1, opponent_driver="rally")
+    with pytest.raises(ValueError, match="make_task_env"):
+        make_lap_env(LapTaskConfig(pose_source="truth", opponents=1))
 
 
 # ---------------------------------------------------------------------- the command
@@ -198,9 +205,8 @@ def test_train_agent_names_the_bad_flag(flags, named, capsys, tmp_path) -> None:
 
 
 @pytest.mark.slow
+@NEEDS_SB3
 def test_train_agent_races_on_the_single_track_car_end_to_end(tmp_path) -> None:
-    if importlib.util.find_spec("stable_baselines3") is None:
-        pytest.skip("stable-baselines3 is not installed (pip install torch==2.13.0 -e '.[rl]')")
     from mcl.cli.train_agent import main
 
     code = main(
@@ -227,9 +233,8 @@ def test_train_agent_races_on_the_single_track_car_end_to_end(tmp_path) -> None:
 
 
 @pytest.mark.slow
+@NEEDS_SB3
 def test_train_stops_at_max_minutes(tmp_path) -> None:
-    if importlib.util.find_spec("stable_baselines3") is None:
-        pytest.skip("stable-baselines3 is not installed (pip install torch==2.13.0 -e '.[rl]')")
     import json
 
     from mcl.agents.ppo import PPOSettings, train
