@@ -2,19 +2,23 @@
 
 Drives the main job (``racecar-sim drive``: the wall follower on the default bundled map, MCL with
 the default particle count, no video, no progress bar) for ``--minutes`` of simulated time in one
-run. At each mark (default 10, 60 and 120 simulated minutes) it does what ``drive`` does when a run
-of that length ends: reads the whole error log, computes its statistics and plots it. Then it
-prints the process's peak resident memory so far (``ru_maxrss``) and its current resident memory,
-so each mark's peak is the peak of a drive of that length. Flat memory means the peaks of the
-marks differ by the error log's own arrays (12 float64 columns, 96 bytes per step) and little else.
-Before the mark's read it also prints the drive loop's own resident memory after handing the
-allocator's free pages back to the system (glibc's ``malloc_trim``, where there is one): what the
-loop holds, without the pages a finished read left in the allocator's free lists.
+run. At each mark (default 10, 60 and 120 simulated minutes) it prints:
+
+* the drive loop's resident memory: peak so far (``ru_maxrss``), current, and current after
+  handing the allocator's free pages back (glibc's ``malloc_trim``);
+* what the end of a drive of that length adds: ``drive`` then reads the whole error log back,
+  computes its statistics and plots it. That is done in a child process on the log as it stands,
+  which prints the resident memory the read, the statistics and the plot added there; so the marks'
+  own reads leave nothing in the drive's process, and the loop's figures are the loop's alone.
+
+A drive of that length peaks at about the loop's peak plus that addition. Flat memory means the
+loop's figures stay level from mark to mark, and the addition grows by the error log's own
+arrays (12 float64 columns, 96 bytes per row) and little else.
 
     .venv/bin/python scripts/bench_soak.py [--minutes 120] [--marks 10,60,120] [--quick]
 
-The drive is the same for the same seed; wall time depends on the machine (about 5-8 ms per step
-on one busy core). It is a benchmark, not a test: the test of the reader's memory per row is in
+The drive is the same for the same seed; wall time depends on the machine (about 3 ms per step
+on a calm core). It is a benchmark, not a test: the test of the reader's memory per row is in
 ``tests/experiments/test_memory.py``.
 """
 
@@ -24,14 +28,12 @@ import argparse
 import ctypes
 import ctypes.util
 import resource
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from mcl.error_log import read_error_log
-from mcl.experiments.metrics import error_stats
-from mcl.experiments.plots import plot_error_vs_time
 from mcl.experiments.runs import RunSpec, run_one
 from mcl.filter_params import DEFAULT_PARTICLES
 from racecar_sim.maps import DEFAULT_MAP
@@ -66,6 +68,32 @@ def trimmed_rss_mib() -> float:
         except (OSError, AttributeError):
             pass
     return current_rss_mib()
+
+
+_END_OF_RUN = """
+import resource, sys
+from pathlib import Path
+from mcl.error_log import read_error_log
+from mcl.experiments.metrics import error_stats
+from mcl.experiments.plots import plot_error_vs_time
+before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+log = read_error_log(Path(sys.argv[1]))
+error_stats(log)
+plot_error_vs_time(log, Path(sys.argv[2]))
+print(len(log), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before)
+"""
+
+
+def end_of_run_mib(log_path: Path, plot_path: Path) -> tuple[int, float]:
+    """What the end of ``drive`` adds to a process's peak resident memory, MiB: reading the error
+    log back, its statistics and its plot, measured in a child process (Linux ``ru_maxrss`` in
+    KiB); returns the rows read and the MiB added."""
+    done = subprocess.run(
+        [sys.executable, "-c", _END_OF_RUN, str(log_path), str(plot_path)],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    rows, kib = done.stdout.split()[-2:]
+    return int(rows), int(kib) / 1024.0
 
 
 def _marks(text: str) -> tuple[float, ...]:
@@ -117,7 +145,7 @@ def main(argv: list[str] | None = None) -> int:
         f"marks at {', '.join(f'{m:g}' for m in marks)} min",
         flush=True,
     )
-    rows: list[tuple[float, int, float, float, float, float]] = []
+    rows: list[tuple[float, int, float, float, float, float]] = []  # min, step, MiB x3, s
     with tempfile.TemporaryDirectory(prefix="racecar-soak-") as tmp:
         log_path = Path(tmp) / "error_log.csv"
         t0 = time.perf_counter()
@@ -128,34 +156,27 @@ def main(argv: list[str] | None = None) -> int:
             minutes = mark_steps.get(count[0])
             if minutes is None:
                 return
-            loop = trimmed_rss_mib()  # what the drive loop holds, before the read below
-            # what `drive` does when its run ends: the log read back, its statistics, its plot
-            log = read_error_log(log_path)
-            error_stats(log)
-            plot_error_vs_time(log, Path(tmp) / "error.png")
-            del log
-            row = (minutes, count[0], peak_rss_mib(), current_rss_mib(), time.perf_counter() - t0,
-                   loop)  # fmt: skip
+            row = (minutes, count[0], peak_rss_mib(), current_rss_mib(), trimmed_rss_mib(),
+                   time.perf_counter() - t0)  # fmt: skip
+            n_rows, added = end_of_run_mib(log_path, Path(tmp) / "error.png")
             rows.append(row)
             print(
-                f"  {minutes:6g} min ({count[0]:7d} steps): peak RSS {row[2]:7.1f} MiB, "
-                f"current {row[3]:7.1f} MiB, the loop alone (trimmed) {loop:7.1f} MiB, "
-                f"wall {row[4]:7.0f} s",
+                f"  {minutes:6g} min ({count[0]:7d} steps): the loop's peak RSS {row[2]:7.1f} MiB, "
+                f"current {row[3]:7.1f} MiB, trimmed {row[4]:7.1f} MiB; reading back its "
+                f"{n_rows} rows adds {added:5.1f} MiB; wall {row[5]:7.0f} s",
                 flush=True,
             )
 
         run_one(spec, log_path, on_step=on_step)
     if len(rows) >= 2:
-        (_, s0, p0, *_), (_, s1, p1, *_) = rows[0], rows[-1]
-        print(
-            f"peak growth from {rows[0][0]:g} to {rows[-1][0]:g} min: {p1 - p0:+.1f} MiB over "
-            f"{s1 - s0} steps ({1024.0**2 * (p1 - p0) / (s1 - s0):.0f} bytes per step)"
-        )
-        l0, l1 = rows[0][5], rows[-1][5]
-        print(
-            f"the loop alone (trimmed) from {rows[0][0]:g} to {rows[-1][0]:g} min: "
-            f"{l1 - l0:+.1f} MiB ({1024.0**2 * (l1 - l0) / (s1 - s0):.0f} bytes per step)"
-        )
+        first, last = rows[0], rows[-1]
+        steps = last[1] - first[1]
+        for name, k in (("peak", 2), ("current", 3), ("trimmed", 4)):
+            grown = last[k] - first[k]
+            print(
+                f"the loop's {name} RSS from {first[0]:g} to {last[0]:g} min: {grown:+.1f} MiB "
+                f"over {steps} steps ({1024.0**2 * grown / steps:.0f} bytes per step)"
+            )
     return 0
 
 
