@@ -48,6 +48,8 @@ FILTER_BOUNDS: dict[str, Bound] = {
     "sensor.likelihood_max_distance": Bound(0.0, 100.0, "m", "the distance field's cut-off",
                                             low_open=True),
     "sensor.likelihood_max_range": Bound(0.0, 1000.0, "m", "as max_range", low_open=True),
+    "sensor.lut_sort_extent": Bound(0.0, math.inf, "m", "inf never sorts; a tracking cloud "
+                                    "spans about 3.5 m, a global one the floor", allow_inf=True),
     "motion.coefficients": Bound(0.0, 10.0, "m, rad per update", "10 m of noise per update "
                                  "is no odometry"),
     "motion.alphas": Bound(0.0, 100.0, "variance per motion", "amcl's defaults are 0.2 and "

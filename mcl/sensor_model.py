@@ -36,7 +36,7 @@ from mcl.beam_skip import BeamSkip, beam_skip_mask, cloud_converged
 from mcl.likelihood_field import likelihood_table, score_endpoints
 from mcl.sensor_params import MODELS, SensorModelParams
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.raycast import RayCaster
+from racecar_sim.raycast import LutParams, RayCaster
 from racecar_sim.raycast.shared_work import fetch_add, run_shared
 
 __all__ = ["MODELS", "SensorModel", "SensorModelParams", "beam_table"]
@@ -170,7 +170,11 @@ class SensorModel:
             )
         else:
             self.caster = RayCaster(
-                occupancy_map, self.max_range, method=p.raycast_method, parallel=p.parallel
+                occupancy_map,
+                self.max_range,
+                method=p.raycast_method,
+                parallel=p.parallel,
+                lut=LutParams(sort_extent=float(p.lut_sort_extent)),
             )
         self._subsample_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self.last_beam_skip = BeamSkip()

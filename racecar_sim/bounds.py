@@ -20,7 +20,8 @@ __all__ = ["BOUNDS", "MAX_SUBSTEPS", "RULES", "Bound", "check", "markdown_table"
 
 @dataclass(frozen=True)
 class Bound:
-    """An interval for a number setting (``low_open`` / ``high_open`` exclude the ends)."""
+    """An interval for a number setting (``low_open`` / ``high_open`` exclude the ends;
+    ``allow_inf``: an infinite end is a value too, e.g. "never")."""
 
     low: float
     high: float
@@ -29,6 +30,7 @@ class Bound:
     low_open: bool = False
     high_open: bool = False
     integer: bool = False
+    allow_inf: bool = False
 
     def text(self) -> str:
         """The interval as ``[a, b]`` / ``(a, b)`` text."""
@@ -162,6 +164,7 @@ def check(
         low_open=b.low_open,
         high_open=b.high_open,
         integer=b.integer,
+        allow_inf=b.allow_inf,
     )
 
 

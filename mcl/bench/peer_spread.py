@@ -7,7 +7,7 @@ half a metre of the car. Here, for each cloud (uniform over free space at each s
 cloud N(truth, 0.5 m, 0.5 m, 0.2 rad) for the other regime in the same run), one round times in
 turn: range_libc's GLT update (:class:`~mcl.bench.peer_rangelibc.GltUpdate`, one thread), ours on
 each thread count, and ours with the Z-order sort of the cast turned off
-(``LutParams.sort_extent = inf``, the caster before the sort). Every update starts from the same
+(``SensorModelParams.lut_sort_extent = inf``, the caster before the sort). Every update starts from the same
 cloud (a filter that resamples would otherwise collapse it after one scan); the sorted and
 unsorted variants swap places every other round (the first after the GLT finds the cache swept); the scan is the
 simulator's noisy lidar from a free pose. Printed: per variant the median wall time per update
@@ -86,11 +86,10 @@ def compare_spread(
     have_peer = peer_rangelibc.available()
 
     def model(t: int, sort: bool) -> SensorModel:
-        sm = SensorModel(grid, SensorModelParams(num_beams_per_particle=n_beams, parallel=t > 1))
+        params = SensorModelParams(num_beams_per_particle=n_beams, parallel=t > 1)
         if not sort:
-            assert sm.caster is not None
-            sm.caster.lut_params = dataclasses.replace(sm.caster.lut_params, sort_extent=math.inf)
-        return sm
+            params = dataclasses.replace(params, lut_sort_extent=math.inf)
+        return SensorModel(grid, params)
 
     variants = {f"{kind}/{t}": model(t, kind == "ours") for kind in ("ours", "unsorted")
                 for t in threads}  # fmt: skip
