@@ -6,7 +6,10 @@
 
 * spread (:mod:`mcl.bench.peer_spread`): the same update on clouds spread uniformly over the free
   space (global localization; ``--spread-particles``, 4 000 and 10 000 by default) and on a
-  tracking cloud, interleaved with the GLT update round by round (``--spread-rounds``).
+  tracking cloud, interleaved with the GLT update round by round (``--spread-rounds``); then a
+  global start's first update (236 k particles on Stata) and whole global-start replays of the
+  shared bags, with the Z-order sort and without (:mod:`mcl.bench.global_start`,
+  ``--global-rounds``, 0 skips them).
 
 * races (:mod:`mcl.bench.peer_race`): agent-steps per second of ``--race-cars`` cars one behind
   the other, every car scanning every step, against f1tenth_gym's multi-agent env, and our race
@@ -23,7 +26,7 @@ in :func:`add_arguments`. Every part prints its workload (particles, beams, rang
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
-        [--only rangelibc|spread|f1tenth|race] [--spread-particles 4000 10000] [--spread-rounds 8] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
+        [--only rangelibc|spread|f1tenth|race] [--spread-particles 4000 10000] [--spread-rounds 8] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
         [--sim-steps 1000] [--sim-runs 5] [--num-envs 32]
 """
 
@@ -59,6 +62,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="sizes of the clouds spread over free space (spread part)",
     )  # fmt: skip
     parser.add_argument("--spread-rounds", type=int, default=8, help="rounds (spread part)")
+    parser.add_argument(
+        "--global-rounds", type=int, default=3,
+        help="rounds of a global start's first update and bag replays (spread part; 0 skips)",
+    )  # fmt: skip
     parser.add_argument("--f1tenth-python", help="python of a venv with f1tenth_gym installed")
     parser.add_argument("--f1tenth-path", help="the f1tenth_gym checkout (branch dev-dynamics)")
     parser.add_argument("--sim-steps", type=int, default=1000, help="steps per simulator run")
@@ -114,7 +121,25 @@ def spread_part(args: argparse.Namespace) -> int:
         seed=args.seed,
         threads=tuple(args.threads),
     )
+    if args.global_rounds > 0:
+        global_part(args)
     return 0
+
+
+def global_part(args: argparse.Namespace) -> None:
+    """A global start's first update (236 k particles on Stata) against the GLT, and whole
+    global-start replays of the shared bags (:mod:`mcl.bench.global_start`)."""
+    from mcl.bench import global_start, shared_dir
+    from racecar_sim.maps import load_map
+
+    print("== global start: the first update, and whole replays of the bags ==")
+    grid = load_map(args.map)
+    global_start.first_update(grid, n_beams=args.beams, rounds=args.global_rounds, seed=args.seed)
+    bags = sorted((shared_dir() / "bags").glob("*.bag"))
+    if not bags:
+        print(f"no bag in {shared_dir() / 'bags'}: replays skipped")
+        return
+    global_start.bag_replays(grid, bags, rounds=args.global_rounds)
 
 
 def _check_peer_flags(args: argparse.Namespace) -> int:
@@ -207,6 +232,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--race-workers must be at least 1")
     if any(n < 1 for n in args.spread_particles) or args.spread_rounds < 1:
         parser.error("--spread-particles and --spread-rounds must be at least 1")
+    if args.global_rounds < 0:
+        parser.error("--global-rounds must be at least 0")
     for name in ("sim_steps", "sim_runs", "num_envs", "vector_steps", "race_steps", "race_runs"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be at least 1")
