@@ -63,9 +63,8 @@ def first_update(
     ``glt``) and the particle count ``n``."""
     import numba
 
-    from mcl.bench import peer_rangelibc
-    from mcl.bench.mcl import DT, TWIST, mcl_update
-    from mcl.motion_model import twist_to_odometry
+    from mcl.bench.mcl import mcl_update
+    from mcl.bench.peer_spread import glt_inputs
     from mcl.particle_filter import ParticleFilter, ParticleFilterParams
     from mcl.sensor_model import SensorModel, SensorModelParams
     from racecar_sim.sensors import Lidar
@@ -86,15 +85,7 @@ def first_update(
             params=ParticleFilterParams(resample_threshold="always"),
             rng=seed,
         )
-    sm = filters["sorted"].sensor_model
-    peer = (
-        peer_rangelibc.GltUpdate(grid, sm.params, np.random.default_rng(seed + 1))
-        if peer_rangelibc.available()
-        else None
-    )
-    idx, _ = sm._subsample(scan.size)
-    angles, _ = sm.observe(scan)
-    odometry = twist_to_odometry(TWIST, DT)
+    peer, idx, angles, odometry = glt_inputs(grid, filters["sorted"].sensor_model, scan, seed)
     out(
         f"first update of a global start: {cloud.shape[0]} particles (the replay's 300 per m^2 "
         f"of free floor) x {n_beams} beams, one thread, {rounds} rounds after a warm-up"

@@ -26,7 +26,7 @@ import numpy as np
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast.morton import spread_order
 
-__all__ = ["SPREAD", "TRACKING", "clouds", "compare_spread"]
+__all__ = ["SPREAD", "TRACKING", "clouds", "compare_spread", "glt_inputs"]
 
 TRACKING = (0.5, 0.5, 0.2)
 """Standard deviations (metres, metres, radians) of the tracking cloud around the true pose."""
@@ -43,6 +43,25 @@ def clouds(
     out = {f"{SPREAD} {n}": grid.sample_free_poses(rng, n, clearance=0.0) for n in sizes}
     out[f"tracking {sizes[0]}"] = truth + rng.normal(0.0, TRACKING, size=(sizes[0], 3))
     return out
+
+
+def glt_inputs(grid: OccupancyMap, sm, scan: np.ndarray, seed: int):
+    """``(peer, idx, angles, odometry)``: range_libc's GLT update for the beam model of ``sm``
+    (a :class:`~mcl.sensor_model.SensorModel`; None when range_libc is not installed), the
+    indexes of the scan's beams it uses and their car-frame angles (radians), and the odometry of
+    one update (car frame, metres, radians)."""
+    from mcl.bench import peer_rangelibc
+    from mcl.bench.mcl import DT, TWIST
+    from mcl.motion_model import twist_to_odometry
+
+    peer = (
+        peer_rangelibc.GltUpdate(grid, sm.params, np.random.default_rng(seed + 1))
+        if peer_rangelibc.available()
+        else None
+    )
+    idx, _ = sm._subsample(scan.size)
+    angles, _ = sm.observe(scan)
+    return peer, idx, angles, twist_to_odometry(TWIST, DT)
 
 
 def _row(label: str, times: list[float], base: list[float] | None) -> str:
@@ -73,8 +92,7 @@ def compare_spread(
     import numba
 
     from mcl.bench import peer_rangelibc
-    from mcl.bench.mcl import DT, TWIST, mcl_update
-    from mcl.motion_model import twist_to_odometry
+    from mcl.bench.mcl import mcl_update
     from mcl.particle_filter import ParticleFilter, ParticleFilterParams
     from mcl.sensor_model import SensorModel, SensorModelParams
     from racecar_sim.sensors import Lidar
@@ -83,7 +101,6 @@ def compare_spread(
     truth = grid.sample_free_poses(rng, 1, clearance=1.0)[0]
     scan = Lidar(grid).measure(truth, rng).astype(np.float64)
     work = clouds(grid, sizes, truth, rng)
-    have_peer = peer_rangelibc.available()
 
     def model(t: int, sort: bool) -> SensorModel:
         params = SensorModelParams(num_beams_per_particle=n_beams, parallel=t > 1)
@@ -95,14 +112,7 @@ def compare_spread(
                 for t in threads}  # fmt: skip
     sm0 = variants[f"ours/{threads[0]}"]
     assert sm0.caster is not None
-    peer = (
-        peer_rangelibc.GltUpdate(grid, sm0.params, np.random.default_rng(seed + 1))
-        if have_peer
-        else None
-    )
-    idx, _ = sm0._subsample(scan.size)
-    angles, _ = sm0.observe(scan)
-    odometry = twist_to_odometry(TWIST, DT)
+    peer, idx, angles, odometry = glt_inputs(grid, sm0, scan, seed)
     out(
         f"workload: clouds {', '.join(f'{k} particles' for k in work)} x {n_beams} beams, max "
         f"range {sm0.max_range:.2f} m, map {grid.name} {grid.width}x{grid.height} cells at "
