@@ -10,7 +10,7 @@ each thread count, and ours with the Z-order sort of the cast turned off
 (``SensorModelParams.lut_sort_extent = inf``, the caster before the sort). Every update starts from the same
 cloud (a filter that resamples would otherwise collapse it after one scan); the sorted and
 unsorted variants swap places every other round (the first after the GLT finds the cache swept); the scan is the
-simulator's noisy lidar from a free pose. Printed: per variant the median wall time per update
+simulator's noisy lidar from a free pose. Printed: per variant the median time per update (wall, or CPU with ``clock="cpu"``)
 and the range over the rounds, and the median (and range) of the per-round ratios.
 """
 
@@ -26,12 +26,14 @@ import numpy as np
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast.morton import spread_order
 
-__all__ = ["SPREAD", "TRACKING", "clouds", "compare_spread", "glt_inputs"]
+__all__ = ["CLOCKS", "SPREAD", "TRACKING", "clouds", "compare_spread", "glt_inputs"]
 
 TRACKING = (0.5, 0.5, 0.2)
 """Standard deviations (metres, metres, radians) of the tracking cloud around the true pose."""
 
 SPREAD = "spread"
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+"""What :func:`compare_spread` can time an update with."""
 _PAUSE_S = 0.03  # after each round, as between a lidar's scans
 
 
@@ -82,13 +84,21 @@ def compare_spread(
     seed: int = 0,
     threads: tuple[int, ...] = (1, 2),
     out=print,
+    clock: str = "wall",
 ) -> dict[str, dict[str, float]]:
     """Ours against the GLT update on spread and tracking clouds, interleaved round by round.
 
-    Returns, per cloud name, per variant (``glt``, ``ours/T``, ``unsorted/T``): ``ms`` (median wall
-    time per update) and, for ours, ``x_glt`` (median of the per-round GLT / ours ratios) and
-    ``x_unsorted`` (median of the per-round unsorted / sorted ratios).
+    ``clock``: ``"wall"`` (elapsed seconds) or ``"cpu"`` (the process's CPU seconds,
+    :func:`time.process_time`: on a shared machine it leaves out the time spent waiting for a
+    core; on two threads it is the sum of both threads' time, not the latency).
+
+    Returns, per cloud name, per variant (``glt``, ``ours/T``, ``unsorted/T``): ``ms`` (median
+    time per update on ``clock``) and, for ours, ``x_glt`` (median of the per-round GLT / ours
+    ratios) and ``x_unsorted`` (median of the per-round unsorted / sorted ratios).
     """
+    if clock not in CLOCKS:
+        raise ValueError(f"clock must be one of {tuple(CLOCKS)}, got {clock!r}")
+    timer = CLOCKS[clock]
     import numba
 
     from mcl.bench import peer_rangelibc
@@ -118,7 +128,7 @@ def compare_spread(
         f"range {sm0.max_range:.2f} m, map {grid.name} {grid.width}x{grid.height} cells at "
         f"{grid.resolution} m; every update from the same cloud, resampling; {rounds} rounds "
         f"interleaved (GLT, then ours on {', '.join(map(str, threads))} threads, sorted and "
-        f"unsorted swapping places each round); sort from a {sm0.caster.lut_params.sort_extent:g} m wide cloud"
+        f"unsorted swapping places each round), {clock} time; sort from a {sm0.caster.lut_params.sort_extent:g} m wide cloud"
     )
     if peer is None:
         out(f"range_libc not installed, ours only: {peer_rangelibc.INSTALL_HINT}")
@@ -142,24 +152,27 @@ def compare_spread(
         for k in range(warmup + rounds):
             for name, cloud in work.items():
                 if peer is not None:
+                    start = timer()
                     _, r = peer.step(cloud, odometry, scan[idx], angles)
+                    spent = sum(r.values()) if clock == "wall" else timer() - start
                     if k >= warmup:
-                        times[name, "glt"].append(sum(r.values()))
+                        times[name, "glt"].append(spent)
                 # sorted and unsorted swap places every other round: the first after the GLT
                 # finds the cache swept by its table
                 for v in order if k % 2 == 0 else order[::-1]:
                     numba.set_num_threads(min(int(v.split("/")[1]), numba.config.NUMBA_NUM_THREADS))
                     pf = filters[name, v]
                     pf.set_particles(cloud)
-                    start = time.perf_counter()
+                    start = timer()
                     mcl_update(pf, scan)
                     if k >= warmup:
-                        times[name, v].append(time.perf_counter() - start)
+                        times[name, v].append(timer() - start)
             time.sleep(_PAUSE_S)
     finally:
         numba.set_num_threads(default_threads)
     results: dict[str, dict[str, float]] = {}
-    out("median wall ms per update (range over rounds); x GLT: median (range) of per-round ratios")
+    out(f"median {clock} ms per update (range over rounds); x GLT: median (range) of per-round "
+        "ratios")  # fmt: skip
     for name in work:
         gu, gv, *_ = sm0.caster._grid_frame(work[name])
         sorts = spread_order(gu, gv, sm0.caster.lut_params.sort_extent / grid.resolution)

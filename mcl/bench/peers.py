@@ -26,7 +26,7 @@ in :func:`add_arguments`. Every part prints its workload (particles, beams, rang
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
-        [--only rangelibc|spread|f1tenth|race] [--spread-particles 4000 10000] [--spread-rounds 8] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
+        [--only rangelibc|spread|f1tenth|race] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
         [--sim-steps 1000] [--sim-runs 5] [--num-envs 32]
 """
 
@@ -62,6 +62,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="sizes of the clouds spread over free space (spread part)",
     )  # fmt: skip
     parser.add_argument("--spread-rounds", type=int, default=8, help="rounds (spread part)")
+    parser.add_argument(
+        "--spread-clock", choices=("wall", "cpu"), default="wall",
+        help="time the spread part's updates in wall or process CPU seconds (a shared machine)",
+    )  # fmt: skip
     parser.add_argument(
         "--global-rounds", type=int, default=3,
         help="rounds of a global start's first update and bag replays (spread part; 0 skips)",
@@ -120,6 +124,7 @@ def spread_part(args: argparse.Namespace) -> int:
         rounds=args.spread_rounds,
         seed=args.seed,
         threads=tuple(args.threads),
+        clock=args.spread_clock,
     )
     if args.global_rounds > 0:
         global_part(args)

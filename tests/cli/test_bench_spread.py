@@ -43,3 +43,17 @@ def test_bad_spread_flags_exit_2(capsys) -> None:
         assert (
             "--spread-particles and --spread-rounds must be at least 1" in capsys.readouterr().err
         )
+
+
+def test_the_cpu_clock_times_every_variant_and_a_bad_clock_is_refused(default_map, capsys) -> None:
+    res = peer_spread.compare_spread(
+        default_map, sizes=(200,), n_beams=10, rounds=1, threads=(1,), clock="cpu"
+    )
+    assert "median cpu ms per update" in capsys.readouterr().out
+    assert all(cloud["ours/1_ms"] > 0 for cloud in res.values())
+    try:
+        peer_spread.compare_spread(default_map, sizes=(200,), clock="sundial")
+    except ValueError as exc:
+        assert "clock must be one of ('wall', 'cpu')" in str(exc)
+    else:
+        raise AssertionError("clock='sundial' was accepted")
