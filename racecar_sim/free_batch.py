@@ -87,14 +87,15 @@ class FreeStepBatch:
             )  # fmt: skip
             rows = self.states[idx, 6:9].tolist()
             half_h = 0.5 * h
-            for j, i in enumerate(free):
-                if ok[j]:
-                    p = physics[i]
-                    p._steer, p._speed, p._omega = rows[j]
-                    p._half_h = half_h
-                    p._free_valid = True
-                    p._body_stale = True
-                    done.add(i)
+            for j in np.flatnonzero(ok).tolist():
+                p = physics[free[j]]
+                p._steer, p._speed, p._omega = rows[j]
+                p._half_h = half_h
+                p._free_valid = True
+                p._body_stale = True
+            if len(free) == len(cars) and ok.all():  # the usual case: every car stepped freely
+                return collided, free
+            done = {free[j] for j in np.flatnonzero(ok).tolist()}
         stepped_free = [i for i in cars if i in done]
         for j, i in enumerate(cars):
             if i not in done:

@@ -35,17 +35,38 @@ from __future__ import annotations
 import math
 from collections import deque
 
+import numba as nb
+
 from racecar_sim.config import CarParams
 from racecar_sim.imu import ImuParams
 from racecar_sim.vehicle.kinematic import actuate as substep_actuate
 
-__all__ = ["CommandDelay", "ImuParams", "actuate", "lead_steps", "wheel_twist"]
+__all__ = ["CommandDelay", "ImuParams", "actuate", "lead_steps", "vesc_odometry", "wheel_twist"]
 
 
 def wheel_twist(wheel_speed: float, steer: float, wheelbase: float) -> tuple[float, float, float]:
     """The VESC's car-frame twist (vx m/s, vy m/s, omega rad/s) from the wheel speed (m/s) and the
     front wheel angle (radians): the kinematic bicycle formula, no lateral speed."""
     return wheel_speed, 0.0, wheel_speed * math.tan(steer) / wheelbase
+
+
+@nb.njit(cache=True)
+def vesc_odometry(steer, wheel_speed, wheelbase, z, prop, add, out) -> None:
+    """The noisy VESC odometry of K cars: :func:`wheel_twist` of each, then the noise of
+    :meth:`racecar_sim.sensors.Odometry.noisy` (the same double operations, so the same floats).
+
+    Args:
+        steer, wheel_speed: (K,) front wheel angles (rad) and rear wheel speeds (m/s).
+        wheelbase: metres.
+        z: (K, 6) each car's six standard normals, the first three proportional.
+        prop, add: (3,) the proportional and additive noise scales.
+        out: (K, 3) float32, the car-frame twists [vx m/s, vy m/s, omega rad/s].
+    """
+    for j in range(steer.shape[0]):
+        ws = wheel_speed[j]
+        twist = (ws, 0.0, ws * math.tan(steer[j]) / wheelbase)
+        for c in range(3):
+            out[j, c] = twist[c] * (1.0 + prop[c] * z[j, c]) + add[c] * z[j, 3 + c]
 
 
 def actuate(

@@ -21,13 +21,22 @@ import pymunk
 
 from racecar_sim.physics import CAR_COLLISION_TYPE, WALL_COLLISION_TYPE, RacecarPhysics
 
-__all__ = ["GHOST_COLLISION_TYPE", "WALL", "CarContacts", "near_pairs"]
+__all__ = ["GHOST_COLLISION_TYPE", "WALL", "CarContacts", "box_centres", "near_pairs"]
 
 GHOST_COLLISION_TYPE = 3
 """pymunk collision type of another car's box in a car's space."""
 WALL = -1
 """Contact index of a wall (or anything of the map)."""
 _MARGIN = 0.1  # metres added to the reach of two cars before they see each other
+
+
+def box_centres(poses: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """(N, 2) world centres of the boxes of cars at rear-axle world ``poses`` (N, 3), the box's
+    centre at ``centre`` (2,) in the car frame (metres)."""
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    return poses[:, :2] + np.stack(
+        [c * centre[0] - s * centre[1], s * centre[0] + c * centre[1]], axis=1
+    )
 
 
 def near_pairs(
@@ -61,6 +70,8 @@ class CarContacts:
         """Per car, what it touched since :meth:`clear`: :data:`WALL` or other cars' indices."""
         self._ghosts: dict[tuple[int, int], tuple[pymunk.Body, pymunk.Poly]] = {}
         self._shown: set[tuple[int, int]] = set()  # (i, j): car j's ghost is in car i's space
+        self._busy: set[int] = set()  # cars with a ghost in their space (no free steps)
+        self._hit: set[int] = set()  # cars whose touched set is not empty
         self._owner: dict[int, int] = {}  # id(ghost shape) -> the car it stands for
         corners = [tuple(p) for p in physics[0]._local_corners.tolist()]
         self._corners = corners
@@ -71,29 +82,32 @@ class CarContacts:
 
     # ------------------------------------------------------------------ pymunk callbacks
     def _wall(self, i: int):
-        physics, touched = self.physics[i], self.touched[i]
+        physics, touched, hit = self.physics[i], self.touched[i], self._hit
 
         def on_wall(arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> None:
             physics._contact = True
             touched.add(WALL)
+            hit.add(i)
 
         return on_wall
 
     def _car(self, i: int):
-        physics, touched, owner = self.physics[i], self.touched[i], self._owner
+        physics, touched, owner, hit = self.physics[i], self.touched[i], self._owner, self._hit
 
         def on_car(arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> None:
             physics._contact = True
             a, b = arbiter.shapes
             touched.add(owner[id(b if a.collision_type == CAR_COLLISION_TYPE else a)])
+            hit.add(i)
 
         return on_car
 
     # ------------------------------------------------------------------ per step
     def clear(self) -> None:
         """Forget the contacts of the last step."""
-        for t in self.touched:
-            t.clear()
+        for i in self._hit:
+            self.touched[i].clear()
+        self._hit.clear()
 
     def remove_all(self) -> None:
         """Take every ghost out of every space (a reset)."""
@@ -101,6 +115,7 @@ class CarContacts:
             self._hide(i, j)
         for p in self.physics:
             p.free_steps = True
+        self._busy = set()
 
     def show(self, pairs: np.ndarray, poses: np.ndarray, velocities: np.ndarray) -> None:
         """Show each other the cars of ``pairs`` (P, 2), hide the rest.
@@ -111,6 +126,8 @@ class CarContacts:
             velocities: (N, 3) world velocities [vx, vy, omega] of the rear axles (m/s, rad/s)
                 over the step; the ghosts move with them.
         """
+        if not len(pairs) and not self._shown:  # nobody near anybody, as before
+            return
         want: set[tuple[int, int]] = set()
         for i, j in pairs.tolist():
             want.add((i, j))
@@ -127,8 +144,9 @@ class CarContacts:
                 self.physics[i].space.add(body, self._ghosts[(i, j)][1])
                 self._shown.add((i, j))
         busy = {i for i, _ in want}
-        for i, p in enumerate(self.physics):
-            p.free_steps = i not in busy  # pymunk must see the other car's box
+        for i in busy ^ self._busy:  # pymunk must see the other car's box
+            self.physics[i].free_steps = i not in busy
+        self._busy = busy
 
     def _ghost(self, i: int, j: int) -> pymunk.Body:
         ghost = self._ghosts.get((i, j))

@@ -143,6 +143,7 @@ class RaceEnv(ParallelEnv):
         self.metadata = {**self.metadata, "render_fps": max(1, round(1.0 / self.dt))}
         self.possible_agents: list[str] = [f"car_{i}" for i in range(n_cars)]
         self.agents: list[str] = []
+        self._alive_set: set[str] = set()
         self._index = {a: i for i, a in enumerate(self.possible_agents)}
         self._obs_space: spaces.Dict = first.observation_space
         self._act_space: spaces.Box = first.action_space
@@ -209,8 +210,7 @@ class RaceEnv(ParallelEnv):
             self.world.reset(seeds, poses)
         except ValueError as exc:
             raise ValueError(f"reset options['poses']: {exc}") from None
-        self.agents = self.possible_agents[:]
-        self._active[:] = True
+        self._set_agents(self.possible_agents[:])
         self._n_steps = 0
         if self.laps is not None:
             self.laps.reset(self.world.poses[:, :2])
@@ -227,13 +227,12 @@ class RaceEnv(ParallelEnv):
         """
         n = self.world.n_cars
         alive = self.agents
-        extra = sorted(set(actions) - set(alive))
-        if extra:
-            raise ValueError(f"actions for agents not alive: {extra}; alive: {alive}")
-        missing = [a for a in alive if a not in actions]
-        if missing:
+        if actions.keys() != self._alive_set:
+            extra = sorted(set(actions) - self._alive_set)
+            if extra:
+                raise ValueError(f"actions for agents not alive: {extra}; alive: {alive}")
+            missing = [a for a in alive if a not in actions]
             raise ValueError(f"no action for live agent {missing[0]!r}")
-        acts = np.zeros((n, 2))
         given_actions = [actions[a] for a in alive]
         if all(type(v) is np.ndarray and v.shape == (2,) and v.dtype.kind in "fiu"
                for v in given_actions):  # fmt: skip
@@ -246,27 +245,46 @@ class RaceEnv(ParallelEnv):
             given = np.array(
                 [check_action(v, (2,), f"action of {a}") for a, v in zip(alive, given_actions, strict=True)]
             )
-        acts[[self._index[a] for a in alive]] = given
+        rows = self._rows(alive)
+        if len(alive) == n:
+            acts = given
+        else:
+            acts = np.zeros((n, 2))
+            acts[rows] = given
         acts = np.minimum(np.maximum(acts, self._low), self._high)
         collided = self.world.step(acts, self._active)
         self._n_steps += 1
-        idx = np.flatnonzero(self._active)
         if self.laps is not None:
+            idx = np.flatnonzero(self._active)
             self.laps.update(self.world.poses[:, :2], self.world.time, self.dt, idx)
         progress = self.world.twists[:, 0] * self.dt
         penalty = np.where(collided, -self._penalty, 0.0)
-        rewards = progress + penalty
-        term = collided & self._terminate
+        rewards = (progress + penalty)[rows].tolist()
+        term = (collided & self._terminate)[rows].tolist()
         trunc = self.max_episode_steps is not None and self._n_steps >= self.max_episode_steps
         obs = self._observations(alive)
         infos = self._infos(alive, collided, progress, penalty)
-        rew = {a: float(rewards[self._index[a]]) for a in alive}
-        terminations = {a: bool(term[self._index[a]]) for a in alive}
+        rew = dict(zip(alive, rewards, strict=True))
+        terminations = dict(zip(alive, term, strict=True))
         truncations = dict.fromkeys(alive, bool(trunc))
-        self.agents = [a for a in alive if not (terminations[a] or truncations[a])]
-        self._active[:] = False
-        self._active[[self._index[a] for a in self.agents]] = True
+        if trunc:
+            self._set_agents([])
+        elif any(term):
+            self._set_agents([a for a, t in zip(alive, term, strict=True) if not t])
         return obs, rew, terminations, truncations, infos
+
+    def _rows(self, agents: list[str]) -> np.ndarray | slice:
+        """The cars of ``agents`` (in order) as an index: a slice when they are every car."""
+        if len(agents) == len(self.possible_agents):
+            return slice(None)
+        return np.array([self._index[a] for a in agents], dtype=np.int64)
+
+    def _set_agents(self, agents: list[str]) -> None:
+        """The live agents (and the cars that drive) from now on."""
+        self.agents = agents
+        self._alive_set = set(agents)
+        self._active[:] = False
+        self._active[[self._index[a] for a in agents]] = True
 
     def render(self) -> np.ndarray | None:
         """RGB uint8 (H, W, 3): the map, every car's last scan hits and its box in its own colour
@@ -287,10 +305,10 @@ class RaceEnv(ParallelEnv):
             cv2.polylines(img, [line], True, (200, 200, 200), 1)
         world = self.world
         lidar = world.cars[0].lidar
-        for i, car in enumerate(world.cars):
+        for i in range(world.n_cars):
             colour = CAR_COLOURS[i % len(CAR_COLOURS)]
             light = tuple(int(c + (255 - c) * 0.5) for c in colour)
-            renderer.draw_scan(img, lidar.mount_pose(np.array(car._scan_car_pose)), car._scan, lidar.angles,
+            renderer.draw_scan(img, lidar.mount_pose(world.scan_poses[i]), world.scans[i], lidar.angles,
                                colour=light, max_range=self.lidar_params.max_range)  # fmt: skip
         for i, box in enumerate(world.boxes()):
             renderer.draw_car(img, box, CAR_COLOURS[i % len(CAR_COLOURS)])
@@ -303,14 +321,16 @@ class RaceEnv(ParallelEnv):
     # ------------------------------------------------------------------ internals
     def _observations(self, agents: list[str]) -> dict[str, dict[str, np.ndarray]]:
         # One copy of each array; the agents get rows of it (the world overwrites its own).
-        scans, odom = self.world.scans.copy(), self.world.odom.copy()
-        index = self._index
+        rows = self._rows(agents)
+        scans, odom = self.world.scans[rows], self.world.odom[rows]  # copies (or sliced below)
+        if isinstance(rows, slice):
+            scans, odom = scans.copy(), odom.copy()
         if "imu" not in self._obs_space.spaces:
-            return {a: {"scan": scans[index[a]], "odom": odom[index[a]]} for a in agents}
-        imu = self.world.imu.copy()
+            return {a: {"scan": s, "odom": o} for a, s, o in zip(agents, scans, odom, strict=True)}
+        imu = self.world.imu[rows].copy()
         return {
-            a: {"scan": scans[index[a]], "odom": odom[index[a]], "imu": imu[index[a]]}
-            for a in agents
+            a: {"scan": s, "odom": o, "imu": m}
+            for a, s, o, m in zip(agents, scans, odom, imu, strict=True)
         }
 
     def _infos(
@@ -319,23 +339,23 @@ class RaceEnv(ParallelEnv):
         world = self.world
         ranks = self.laps.ranks() if self.laps is not None else None
         poses, twists = world.poses.copy(), world.twists.copy()  # rows of one copy each
-        fresh = world.fresh.tolist()
+        fresh, times = world.fresh.tolist(), world.car_time.tolist()
         prog, pen, hit = progress.tolist(), penalty.tolist(), collided.tolist()
-        cars = world.cars
+        index = self._index
         infos = {}
         for a in agents:
-            i = self._index[a]
+            i = index[a]
             contacts = world.touched(i) if hit[i] else ()
             info = {
                 "pose": poses[i],
                 "twist": twists[i],
                 "collision": contacts[0] if contacts else "",
                 "contacts": contacts,
-                "time": cars[i].time,
+                "time": times[i],
                 "new_scan": fresh[i],
                 "rewards": {"progress": prog[i], "collision": pen[i]},
             }
-            if self.laps is not None:
+            if ranks is not None:
                 info.update(self.laps.info(ranks, i))
             infos[a] = info
         return infos

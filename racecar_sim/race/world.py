@@ -10,6 +10,14 @@ due scan is cast in one numba call that cuts the beams at the other cars' boxes
 its odometry's six normals, as the single env's does, so a world of one car gives what
 ``RacecarSim-v0`` gives for the same seed, start and actions.
 
+Per step, the work for all cars is done on arrays, not car by car: the cars' clocks (each the
+single env's ``steps x dt``, its scan due one lidar period after the last), their last scans and
+the poses those were taken at, and their odometry (:func:`~racecar_sim.vesc.vesc_odometry`, the
+single env's arithmetic) live here; a car's own ``RacecarEnv`` keeps its physics, its lidar
+settings and its generator. What stays per car in Python is what is per car by nature: one raw
+draw and one draw of six normals from each car's generator, and the pymunk step of a car near a
+wall or another car.
+
 Frames: world (the map's), car (x forward, y left, origin at the rear axle).
 """
 
@@ -23,17 +31,25 @@ import numpy as np
 from racecar_sim.config import EnvConfig
 from racecar_sim.env import RacecarEnv
 from racecar_sim.free_batch import FreeStepBatch
-from racecar_sim.race.contact import WALL, CarContacts, bounding_radius, near_pairs, world_velocity
+from racecar_sim.race.contact import (
+    WALL,
+    CarContacts,
+    bounding_radius,
+    box_centres,
+    near_pairs,
+    world_velocity,
+)
 from racecar_sim.race.lidar import car_boxes, race_scans_serial, race_scans_shared
-from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.shared_work import run_shared
-from racecar_sim.vesc import wheel_twist
+from racecar_sim.vesc import vesc_odometry
 
 __all__ = ["RaceWorld", "boxes_overlap"]
 
 _START_TRIES = 200  # random starts tried per car before giving up (no track)
 _CHUNK = 2  # cars per work item of a threaded cast
+_EPS_TIME = 1e-9  # seconds, as RacecarEnv's: the clock against the next scan's due time
+_ONE = np.uint64(1)
 
 
 def boxes_overlap(a: np.ndarray, b: np.ndarray, gap: float = 0.0) -> bool:
@@ -117,6 +133,19 @@ class RaceWorld:
         self.twists = np.zeros((n, 3))
         self.fresh = np.zeros(n, dtype=np.bool_)
         self.time = 0.0
+        """Seconds since the reset: the clock of the car that has driven longest."""
+        self.car_time = np.zeros(n)
+        """(N,) each car's clock, seconds (a car stops its clock when it leaves the race)."""
+        self.scan_poses = np.zeros((n, 3))
+        """(N, 3) the rear-axle world poses the last scans were taken at."""
+        self._n_steps = np.zeros(n, dtype=np.int64)
+        self._next_scan = np.zeros(n)  # seconds, when each car's next scan is due
+        self._period = first._period
+        self._everyone = np.arange(n)
+        self._z = np.zeros((n, 6))  # each car's odometry normals of the step, a row per car
+        self._z_rows = list(self._z)
+        self._raw: list = []  # per car, its generator's raw draw (bound at reset)
+        self._normal: list = []  # per car, its generator's standard_normal (bound at reset)
 
     # ------------------------------------------------------------------ geometry
     def boxes(self, poses: np.ndarray | None = None) -> np.ndarray:
@@ -171,10 +200,12 @@ class RaceWorld:
         arr = self.random_poses() if poses is None else self.check_poses(poses)
         for i, car in enumerate(self.cars):
             car.physics.reset(arr[i])
-            car._n_steps = 0
-            car.time = 0.0
             car.command_delay.reset(car.physics.steer, car.physics.wheel_speed)
+        self._raw = [car.np_random.bit_generator.random_raw for car in self.cars]
+        self._normal = [car.np_random.standard_normal for car in self.cars]
         self.time = 0.0
+        self.car_time[:] = 0.0
+        self._n_steps[:] = 0
         self.poses = np.array([car.physics.pose for car in self.cars])
         self.twists = np.array([car.physics.twist for car in self.cars])
         everyone = np.arange(self.n_cars)
@@ -188,55 +219,50 @@ class RaceWorld:
         = [steer rad, speed m/s] (finite, clipped to the car's box); the others stand still and
         are seen and touched where they stand. Returns the collided flags (N,)."""
         n = self.n_cars
-        stepped = np.flatnonzero(active).tolist()
+        stepped_arr = self._everyone if active.all() else np.flatnonzero(active)
+        stepped = stepped_arr.tolist()
         if self.cars[0].command_delay.n:  # the body gets each command odom_lead late (vesc.py)
             actions = actions.copy()
             for i in stepped:
                 delay = self.cars[i].command_delay
                 actions[i] = delay.push(float(actions[i, 0]), float(actions[i, 1]))
         poses = self.poses
-        vel = np.zeros((n, 3))
-        speed = np.zeros(n)
         phys = self._phys
-        in_states = []  # cars whose motion state is in the free-step rows (pymunk's body lags)
-        for i in stepped:
-            p = phys[i]
-            speed[i] = p.speed
-            if p._free_valid:
-                in_states.append(i)
-            else:
-                vel[i] = world_velocity(p)
-        vel[in_states] = self._physics.states[in_states, 3:6]
+        speed = np.array([p._speed for p in phys])
         travel = self.dt * np.maximum(np.abs(speed), np.abs(actions[:, 1])) * self._speed_factor
         travel[~active] = 0.0
-        c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-        centres = poses[:, :2] + np.stack(
-            [c * self._centre[0] - s * self._centre[1], s * self._centre[0] + c * self._centre[1]],
-            axis=1,
-        )
+        centres = box_centres(poses, self._centre)
+        pairs = near_pairs(centres, self.radius, travel, self._pairs)
+        vel = np.zeros((n, 3))  # world velocities of the cars that could touch (still: zero)
+        if len(pairs):
+            for i in np.unique(pairs).tolist():
+                if active[i]:
+                    vel[i] = world_velocity(phys[i])
         self.contacts.clear()
-        self.contacts.show(near_pairs(centres, self.radius, travel, self._pairs), poses, vel)
+        self.contacts.show(pairs, poses, vel)
         hits, free = self._physics.step(stepped, actions, self.dt)
         collided = np.zeros(n, dtype=np.bool_)
-        collided[stepped] = hits
+        collided[stepped_arr] = hits
         new_poses = poses.copy()
         if free:
             new_poses[free] = self._physics.poses(free)
-        done_free = set(free)
-        due = []
-        self.fresh[:] = False
-        for i in stepped:
-            car = self.cars[i]
-            if i not in done_free:
-                new_poses[i] = car.physics.pose
-            if car._tick():
-                due.append(i)
+        if len(free) < len(stepped):  # stepped through pymunk: the body's pose
+            done_free = set(free)
+            for i in stepped:
+                if i not in done_free:
+                    new_poses[i] = phys[i].pose
         self.poses = new_poses
-        self.time = max(car.time for car in self.cars)
-        self.twists[stepped] = self._physics.twists[stepped]
+        # Each car's clock, as the single env's (RacecarEnv._tick): steps x dt, a scan when due.
+        self._n_steps[stepped_arr] += 1
+        times = self._n_steps[stepped_arr] * self.dt
+        self.car_time[stepped_arr] = times
+        due = stepped_arr[times + _EPS_TIME >= self._next_scan[stepped_arr]]
+        self.time = float(self.car_time.max())
+        self.twists[stepped_arr] = self._physics.twists[stepped_arr]
+        self.fresh[:] = False
         self.fresh[due] = True
-        self._cast(np.array(due, dtype=np.int64))
-        self._measure_odometry(np.array(stepped, dtype=np.int64))
+        self._cast(due)
+        self._measure_odometry(stepped_arr)
         return collided
 
     def touched(self, i: int) -> tuple[str, ...]:
@@ -251,7 +277,10 @@ class RaceWorld:
         if k == 0:
             return
         m = self.lidar_params.n_beams
-        seeds = np.array([seed_from(self.cars[i].np_random) for i in due.tolist()], dtype=np.int64)
+        raw = self._raw
+        seeds = (np.array([raw[i]() for i in due.tolist()], dtype=np.uint64) >> _ONE).astype(
+            np.int64
+        )  # seed_from(car.np_random) of each car: one raw draw, its top 63 bits
         ranges = np.empty((k, m))
         out = np.empty((k, m), dtype=np.float32)
         status = np.zeros(k, dtype=np.int64)
@@ -265,9 +294,10 @@ class RaceWorld:
             raise RuntimeError(f"lidar cast failed for cars {due[status != 0]}")
         self.ranges[due] = ranges
         self.scans[due] = out
-        cars = self.cars
-        for j, (i, pose) in enumerate(zip(due.tolist(), self.poses[due], strict=True)):
-            cars[i]._store_scan(pose, out[j])
+        self.scan_poses[due] = self.poses[due]
+        # The next scan one lidar period after the last one due (RacecarEnv._store_scan).
+        done = np.floor((self.car_time[due] + _EPS_TIME) / self._period) + 1.0
+        self._next_scan[due] = done * self._period
 
     def _measure_odometry(self, cars: np.ndarray) -> None:
         """The odometry (and IMU) of ``cars`` after their scans, as the single env measures it
@@ -284,13 +314,14 @@ class RaceWorld:
                 if "imu" in obs:
                     self.imu[i] = obs["imu"]
             return
-        k = len(cars)
-        z = np.empty((k, 6))
-        wheels = np.empty((k, 3))
-        wheelbase = first._wheelbase
-        for j, i in enumerate(cars.tolist()):
-            p = self._phys[i]
-            wheels[j] = wheel_twist(p.wheel_speed, p.steer, wheelbase)
-            self.cars[i].np_random.standard_normal(out=z[j])
-        prop, add = self._odo_prop, self._odo_add
-        self.odom[cars] = (wheels * (1.0 + prop * z[:, :3]) + add * z[:, 3:]).astype(np.float32)
+        normal, rows = self._normal, self._z_rows
+        cl = cars.tolist()
+        for i in cl:
+            normal[i](out=rows[i])
+        phys = self._phys
+        steer = np.array([phys[i]._steer for i in cl])
+        speed = np.array([phys[i]._speed for i in cl])  # the wheel speed
+        out = np.empty((len(cl), 3), dtype=np.float32)
+        vesc_odometry(steer, speed, first._wheelbase, self._z[cars], self._odo_prop,
+                      self._odo_add, out)  # fmt: skip
+        self.odom[cars] = out

@@ -184,6 +184,31 @@ def test_a_one_car_race_is_the_single_env():
         assert rr["car_0"] == sr
 
 
+def test_a_one_car_race_keeps_the_single_env_clock_into_a_wall():
+    # A scan every 2-3 steps (15 Hz lidar, dt 0.025 s), then straight into the hall's end wall
+    # (pymunk steps): the same scans, odometry, poses, times and new_scan flags.
+    settings = {"n_beams": 91, "lidar_rate": 15.0, "terminate_on_collision": False}
+    race = RaceEnv(HALL, n_cars=1, **settings)
+    single = RacecarEnv(HALL, **settings)
+    pose = np.array([26.0, 5.0, 0.0])
+    race.reset(seed=4, options={"poses": pose[None]})
+    single.reset(seed=4, options={"pose": pose})
+    fresh = hits = 0
+    for k in range(100):
+        a = np.array([0.05 * math.sin(0.1 * k), 3.0])
+        ro, _, _, _, ri = race.step({"car_0": a})
+        so, _, _, _, si = single.step(a)
+        np.testing.assert_array_equal(ro["car_0"]["scan"], so["scan"])
+        np.testing.assert_array_equal(ro["car_0"]["odom"], so["odom"])
+        np.testing.assert_array_equal(ri["car_0"]["pose"], si["pose"])
+        assert ri["car_0"]["time"] == si["time"]
+        assert ri["car_0"]["new_scan"] == si["new_scan"]
+        fresh += si["new_scan"]
+        hits += bool(si["collision"])
+    assert 30 < fresh < 50  # 2.5 s at 15 Hz
+    assert hits > 10  # it drove into the wall
+
+
 def _race(seed: int) -> list[np.ndarray]:
     env = RaceEnv(HALL, n_cars=4, n_beams=121, terminate_on_collision=False)
     obs, _ = env.reset(seed=seed)

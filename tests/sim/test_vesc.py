@@ -247,3 +247,26 @@ def test_beyond_the_friction_limit_the_odometry_turns_far_more_than_the_car() ->
     lateral = np.hypot(tw_vx, rows[:, 4]) * np.abs(tw_om)
     assert lateral.mean() <= 1.05 * car.friction * GRAVITY  # the tires saturate
     assert odo_om.mean() > 2.0 * tw_om.mean()  # the VESC's kinematic yaw rate does not
+
+
+@settings(max_examples=50)
+@given(
+    st.lists(st.tuples(st.floats(-0.5, 0.5), st.floats(-3.0, 9.0)), min_size=1, max_size=8),
+    st.integers(0, 2**31),
+)
+def test_vesc_odometry_of_many_cars_is_each_cars_own_measurement(cars, seed):
+    # The race's batched odometry against the single env's: wheel_twist, then Odometry.noisy
+    # drawing its six normals from the same generator state: the same float32s.
+    from racecar_sim.sensors import Odometry, OdometryNoise
+    from racecar_sim.vesc import vesc_odometry
+
+    odo = Odometry(OdometryNoise(proportional=(0.05, 0.02, 0.1), additive=(0.01, 0.003, 0.02)))
+    wheelbase = CarParams().wheelbase
+    steer, speed = np.array(cars).T.copy()
+    z = np.random.default_rng(seed).standard_normal((len(cars), 6))
+    out = np.empty((len(cars), 3), dtype=np.float32)
+    vesc_odometry(steer, speed, wheelbase, z, odo._prop, odo._add, out)
+    rng = np.random.default_rng(seed)
+    for j, (s, v) in enumerate(cars):
+        expect = odo.noisy(*wheel_twist(v, s, wheelbase), rng)
+        np.testing.assert_array_equal(out[j], expect)
