@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from collections.abc import Callable, Mapping
@@ -187,9 +188,12 @@ class RacecarEnv(gym.Env):
         self._laps = None
         if cfg.track is not None:
             from racecar_sim.race.laps import LapCounter
+            from racecar_sim.race.loop_drive import drive_centerline
             from racecar_sim.race.track import resolve_track
 
-            self.track = resolve_track(cfg.track, self.map)
+            # "auto": the loop map's derived centerline, driven in this class (as RaceEnv's)
+            auto = functools.partial(drive_centerline, env_class=RacecarEnv)
+            self.track = resolve_track(cfg.track, self.map, auto=auto)
             self._laps = LapCounter(self.track, 1)
         self._start_centres: np.ndarray | None = None  # flat cell indices (K,) for random starts
         self._render_hooks: list[RenderHook] = []

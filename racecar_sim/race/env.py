@@ -200,6 +200,9 @@ class RaceEnv(ParallelEnv):
         if unknown:
             gym.logger.warn(f"RaceEnv.reset ignores unknown option(s) {unknown}; known: ['poses']")
         poses = options.get("poses")
+        # The last race's ghosts leave the cars' spaces first: the grid's room check queries car
+        # 0's space, where another car's ghost on a slot would take the slot's room.
+        self.world.contacts.remove_all()
         if poses is None and self.track is not None:
             for car, s in zip(self.world.cars, seeds, strict=True):
                 gym.Env.reset(car, seed=s)  # the grid draws nothing; seeding first keeps it simple

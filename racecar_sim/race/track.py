@@ -272,8 +272,8 @@ def resolve_track(
 ) -> Track | None:
     """The track of the ``track`` setting: None (no track), a :class:`Track`, a CSV path
     (f1tenth's centerline format) or ``"auto"``: ``auto(map name)``, the centerline derived from
-    a loop map (:func:`racecar_sim.race.loops.centerline_for_map`, which drives the map, so only
-    the race envs above the single env pass it).
+    a loop map by driving it (:func:`racecar_sim.race.loops.centerline_for_map`; every env passes
+    one: the race envs that function, the single env the same derivation in its own class).
 
     Raises:
         ValueError: a file that is not a track, ``"auto"`` on a map with no known loop, or
@@ -286,8 +286,8 @@ def resolve_track(
         if text == "auto":
             if auto is None:
                 raise ValueError(
-                    "track='auto' derives the centerline by driving the map, which RaceEnv and "
-                    "RacecarRace-v0 do; here give a centerline CSV or a Track "
+                    "track='auto' derives the centerline by driving the map, which the envs do; "
+                    "here give a centerline CSV or a Track "
                     "(racecar_sim.race.loops.centerline_for_map(name).to_csv(path))"
                 )
             if grid.name not in LOOP_STARTS:

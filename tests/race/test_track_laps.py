@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from race_helpers import QUIET
+from race_helpers import QUIET, hall_map
 
 from racecar_sim.race.env import RaceEnv
 from racecar_sim.race.laps import LapCounter
@@ -146,3 +146,40 @@ def test_the_single_env_on_a_track_reports_laps_too(tmp_path):
     for _ in range(20):
         _, _, _, _, info = env.step([0.0, 2.0])
     assert info["progress"] == pytest.approx(float(np.sum(0)) + info["time"] * 2.0, abs=0.4)
+
+
+def test_the_single_env_takes_track_auto_as_the_race_does():
+    import gymnasium as gym
+
+    from racecar_sim.env import RacecarEnv
+
+    env = gym.make("RacecarSim-v0", map="basement_loop", track="auto", n_beams=61).unwrapped
+    race = RaceEnv("basement_loop", n_cars=1, n_beams=61)  # its default on a loop map
+    np.testing.assert_array_equal(env.track.points, race.track.points)
+    np.testing.assert_array_equal(env.track.points, centerline_for_map("basement_loop").points)
+    track = env.track
+    xy = track.point_at(5.0)
+    _, info = env.reset(seed=0, options={"pose": [xy[0], xy[1], track.heading_at(5.0)]})
+    assert (info["progress"], info["lap"], info["lap_times"], info["rank"]) == (0.0, 0, [], 1)
+    for _ in range(20):
+        _, _, _, _, info = env.step([0.0, 2.0])
+    assert info["progress"] > 0.5
+    with pytest.raises(ValueError, match="no loop known on map 'hall'"):
+        RacecarEnv(hall_map(), track="auto")
+
+
+def test_the_grid_start_ignores_the_last_race_s_ghost_boxes():
+    # car_1 left where the pole's slot is, next to the pole: its ghost box sits in car_0's pymunk
+    # space at the slot; the next reset onto the grid must still find the slot free.
+    env = RaceEnv("basement_loop", n_cars=4, n_beams=61, terminate_on_collision=False)
+    env.reset(seed=0)
+    grid = env.poses
+    ahead = np.array([math.cos(grid[0, 2]), math.sin(grid[0, 2])])
+    poses = grid.copy()
+    poses[0, :2] += 0.65 * ahead  # the pole 0.65 m ahead of its slot
+    poses[1] = grid[0]  # car_1 on the pole's slot, right behind it
+    env.reset(seed=0, options={"poses": poses})
+    env.step({a: np.zeros(2) for a in env.agents})
+    assert (0, 1) in env.world.contacts._shown  # car_1's ghost is in car_0's space
+    env.reset(seed=1)
+    np.testing.assert_array_equal(env.poses, grid)
