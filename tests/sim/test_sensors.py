@@ -373,3 +373,19 @@ def test_scans_of_many_cars_equal_one_scan_each(grid: OccupancyMap, parallel: bo
                                args[6], one_r, one) == 0  # fmt: skip
         np.testing.assert_array_equal(out[k], one)
         np.testing.assert_array_equal(ranges[k], one_r)
+
+
+@pytest.mark.parametrize("theta", [5e-324, -5e-324, 1e-310, math.pi / 2 + 1e-17])
+def test_a_heading_whose_beam_is_subnormal_off_an_axis_scans_as_the_caster_does(
+    grid: OccupancyMap, theta: float
+) -> None:
+    # The straight-ahead beam's other component is subnormal: 1 / it overflows to inf, which
+    # the scan kernel's branch-free walk must not turn into NaN.
+    lidar = lidar_with(grid, n_beams=541, fov=4.7, max_range=30.0)
+    w, h = grid.extent
+    for fx, fy in ((0.3, 0.4), (0.5, 0.5), (0.71, 0.23)):
+        pose = np.array([*grid.map_to_world(np.array([fx * w, fy * h])), theta])
+        ranges = lidar.true_ranges(pose)
+        lidar.measure(pose, np.random.default_rng(0))
+        assert np.isfinite(lidar.last_ranges).all()
+        np.testing.assert_array_equal(lidar.last_ranges, ranges)
