@@ -36,6 +36,7 @@ import math
 from collections import deque
 
 import numba as nb
+import numpy as np
 
 from racecar_sim.config import CarParams
 from racecar_sim.imu import ImuParams
@@ -51,15 +52,25 @@ def wheel_twist(wheel_speed: float, steer: float, wheelbase: float) -> tuple[flo
 
 
 @nb.njit(cache=True)
-def vesc_odometry(steer, wheel_speed, wheelbase, z, prop, add, out) -> None:
+def vesc_odometry(
+    steer: np.ndarray,
+    wheel_speed: np.ndarray,
+    wheelbase: float,
+    z: np.ndarray,
+    prop: np.ndarray,
+    add: np.ndarray,
+    out: np.ndarray,
+) -> None:
     """The noisy VESC odometry of K cars: :func:`wheel_twist` of each, then the noise of
     :meth:`racecar_sim.sensors.Odometry.noisy` (the same double operations, so the same floats).
 
     Args:
-        steer, wheel_speed: (K,) front wheel angles (rad) and rear wheel speeds (m/s).
+        steer: (K,) front wheel angles, radians.
+        wheel_speed: (K,) rear wheel speeds, m/s.
         wheelbase: metres.
         z: (K, 6) each car's six standard normals, the first three proportional.
-        prop, add: (3,) the proportional and additive noise scales.
+        prop: (3,) the proportional noise scales (vx, vy, omega).
+        add: (3,) the additive noise scales (m/s, m/s, rad/s).
         out: (K, 3) float32, the car-frame twists [vx m/s, vy m/s, omega rad/s].
     """
     for j in range(steer.shape[0]):
