@@ -10,7 +10,8 @@ race's track (the map's centerline), with these differences:
   2.0 m/s, starts on pole and the fastest just ahead of the agent). The grid stands behind the start line when ``start_s`` is 0 (the tests), or behind a
   uniformly drawn point of the track when ``start_s`` is None (training: every part of the track,
   with the pack ahead). Drawn points keep the grid off the half-lap point, where the race order
-  wraps (:mod:`racecar_sim.race.laps`).
+  wraps (:mod:`racecar_sim.race.laps`), and a point where the track has no room for the
+  grid is drawn again.
 * **reward**: progress minus the penalty on a step with *any* contact, wall or car (and in
   training the episode ends there, as at a wall).
 * **observation**: the same 57 numbers; the opponents are in the scan (every lidar sees the
@@ -34,6 +35,7 @@ from racecar_sim.race.single import RacecarRaceEnv
 __all__ = ["RaceLapTask", "make_race_lap_env"]
 
 _GRID_GAP = 0.3  # metres between cars on the grid (start_grid's default)
+_GRID_DRAWS = 50  # random grid places tried before giving up
 
 
 class RaceLapTask(LapTask):
@@ -61,18 +63,23 @@ class RaceLapTask(LapTask):
     def _start_pose(self) -> list[list[float]]:
         """(K + 1, 3) rear-axle world poses: the grid with the agent (row 0) in the last slot."""
         cfg, track, car = self.config, self.track, self._car
+        is_free = self.env.unwrapped.race.cars[0].physics.pose_is_free
+        order = [self.n_cars - 1, *range(self.n_cars - 1)]
+        if cfg.start_s is not None:
+            grid = start_grid(track, self.n_cars, car, is_free, gap=_GRID_GAP, at=cfg.start_s)
+            return grid[order].tolist()
         length = track.length
         span = self.n_cars * (car.length + _GRID_GAP) + 1.0  # metres of track the grid covers
-        if cfg.start_s is None:
+        for _ in range(_GRID_DRAWS):  # a drawn point where the track is too narrow: draw again
             at = self._rng.uniform(0.0, length - span)
             if at >= length / 2:  # keep [at - span, at] clear of the half-lap wrap
                 at += span
-        else:
-            at = float(cfg.start_s)
-        is_free = self.env.unwrapped.race.cars[0].physics.pose_is_free
-        grid = start_grid(track, self.n_cars, car, is_free, gap=_GRID_GAP, at=at)
-        order = [self.n_cars - 1, *range(self.n_cars - 1)]
-        return grid[order].tolist()
+            try:
+                grid = start_grid(track, self.n_cars, car, is_free, gap=_GRID_GAP, at=at)
+            except ValueError:
+                continue
+            return grid[order].tolist()
+        raise ValueError(f"no room for a grid of {self.n_cars} cars in {_GRID_DRAWS} draws")
 
     def begin(self, info: dict[str, Any]) -> None:
         """The lap task's bookkeeping, and the race's counts from the reset's info."""

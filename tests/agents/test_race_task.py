@@ -146,14 +146,15 @@ def test_race_task_starts_the_agent_last_and_counts_its_race(opponents) -> None:
 
 
 def test_race_task_random_starts_keep_the_agent_behind_in_race_order() -> None:
-    config = LapTaskConfig(pose_source="truth", opponents=2, env=FAST)
+    config = LapTaskConfig(pose_source="truth", opponents=3, env=FAST)
     env = make_task_env(config)
     starts = set()
-    for seed in range(6):
-        _, info = env.reset(seed=seed)
-        assert info["race"]["start_rank"] == 3, f"seed {seed}: the grid straddles the wrap"
+    _, info = env.reset(seed=0)
+    for _ in range(60):  # the track narrows in places: a grid there is drawn again
+        assert info["race"]["start_rank"] == 4, "the grid straddles the wrap"
         starts.add(round(float(info["pose"][0]), 1))
-    assert len(starts) >= 4, "the training starts are not spread over the track"
+        _, info = env.reset()
+    assert len(starts) >= 30, "the training starts are not spread over the track"
 
 
 def test_race_table_totals_the_counts() -> None:
