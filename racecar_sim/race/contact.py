@@ -34,9 +34,10 @@ def box_centres(poses: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """(N, 2) world centres of the boxes of cars at rear-axle world ``poses`` (N, 3), the box's
     centre at ``centre`` (2,) in the car frame (metres)."""
     c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    return poses[:, :2] + np.stack(
-        [c * centre[0] - s * centre[1], s * centre[0] + c * centre[1]], axis=1
-    )
+    out = np.empty((len(poses), 2))
+    out[:, 0] = poses[:, 0] + (c * centre[0] - s * centre[1])
+    out[:, 1] = poses[:, 1] + (s * centre[0] + c * centre[1])
+    return out
 
 
 def near_pairs(
