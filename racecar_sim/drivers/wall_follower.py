@@ -301,10 +301,25 @@ class WallFollower:
         last = self._state.get("scan")
         if last is not None and last.shape == raw.shape and np.array_equal(last, raw):
             return self._state["action"].copy()
-        action = self._decide(despeckle(raw))
+        action = self._decide(despeckle(self.without_body(raw)))
         self._state["scan"] = raw
         self._state["action"] = action
         return action.copy()
+
+    def without_body(self, scan: np.ndarray) -> np.ndarray:
+        """``scan`` with the readings whose end points lie inside the car's own outline (the car's
+        body seen by its lidar, as the real racecar's rear wheel is) set to the lidar's maximum
+        range (no return): nothing else can be there."""
+        cos_a, sin_a = self._geometry(scan.size)[:2]
+        r = np.asarray(scan, dtype=np.float64)
+        x = r * cos_a + self.mount_offset  # rear-axle frame, metres
+        y = r * sin_a
+        inside = (x >= -self.car_rear) & (x <= self.car_front) & (np.abs(y) <= 0.5 * float(self.car.width))
+        if not inside.any():
+            return scan
+        out = np.array(scan, dtype=np.float64)
+        out[inside] = float(self.lidar.max_range)
+        return out
 
     def _decide(self, scan: np.ndarray) -> np.ndarray:
         """The action for a despeckled scan (updates the backing-out state)."""
