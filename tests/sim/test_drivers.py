@@ -449,3 +449,22 @@ def test_waypoints_from_drive_orients_the_loop_along_the_start_heading() -> None
     assert np.abs(np.hypot(loop[:, 0], loop[:, 1] - 5) - 5).max() < 0.05
     i = int(np.argmin(np.hypot(loop[:, 0], loop[:, 1])))
     assert (loop[(i + 1) % len(loop)] - loop[i - 1])[0] < 0
+
+
+@pytest.mark.parametrize("reading", [0.02, 0.06, 0.12])
+def test_the_cars_own_body_in_the_scan_is_not_an_obstacle(corridor: OccupancyMap, reading: float) -> None:
+    """The real racecar's lidar sees its own rear wheel: the scan's right-rear end reads ~6 cm
+    (the mit_racecar profile's body block). Readings inside the car's outline are the car
+    itself, so the follower drives on as without them (it used to back out, boxed in)."""
+    scan = scan_at(corridor, [20.0, 1.2, 0.0]).astype(np.float64)
+    body = scan.copy()
+    body[: round(0.0213 * scan.size)] = reading  # the first 23 of 1081 beams: right-rear
+    wf = WallFollower(side="right")
+    free = wf(scan)
+    seen = WallFollower(side="right")(body)
+    assert free[1] > 0 and np.array_equal(free, seen)
+    # a reading just outside the outline on the same beams is an obstacle and is kept
+    a = np.linspace(-wf.fov / 2, wf.fov / 2, scan.size)[0]
+    out = (wf.car.width / 2 + 0.02) / abs(math.sin(a))
+    kept = wf.without_body(np.where(np.arange(scan.size) < 23, out, scan))
+    assert (kept[:23] == out).all()
