@@ -197,7 +197,8 @@ def step_size_error(car: CarParams) -> dict[str, dict[float, tuple[float, float,
 
 def speed_cost(map_yaml: Path, steps: int, vector_steps: int, runs: int, num_envs: int) -> dict:
     """Print steps/s of each model (single env, vector env) on f1tenth_gym's workload, rounds
-    interleaved; returns the medians and the median per-round cost (time per step ratio)."""
+    interleaved; returns the medians and the median per-round cost (time per step ratio, by the
+    wall clock and by process CPU time, which a shared machine's load disturbs less)."""
     import gymnasium as gym
 
     from mcl.bench.peer_f1tenth import ENV_SETTINGS, SPEED, WORKLOAD, run_ours, start_pose
@@ -225,23 +226,27 @@ def speed_cost(map_yaml: Path, steps: int, vector_steps: int, runs: int, num_env
                 a = run_ours(single, n, r, pose)
                 b = run_ours(vector, nv, r * num_envs, pose, cars=num_envs)
                 if r:
-                    rates.setdefault((model, "single"), []).append(a["steps"] / a["wall"])
-                    rates.setdefault((model, "vector"), []).append(b["steps"] / b["wall"])
+                    for kind, res in (("single", a), ("vector", b)):
+                        rates.setdefault((model, kind), []).append(res["steps"] / res["wall"])
+                        rates.setdefault((model, kind, "cpu"), []).append(res["steps"] / res["cpu"])
     finally:
         for _, vector in envs.values():
             vector.close()
     print("| env | kinematic steps/s | single_track steps/s | single_track time per step / "
-          "kinematic (median, rounds) |")  # fmt: skip
-    print("|---|---:|---:|---:|")
+          "kinematic, wall (median, rounds) | the same by CPU time (median, rounds) |")  # fmt: skip
+    print("|---|---:|---:|---:|---:|")
     out = {}
     for kind, label in (("single", "one env"), ("vector", f"vector env, {num_envs} cars (car-steps/s)")):
         kin, st = rates[("kinematic", kind)], rates[("single_track", kind)]
         ratios = [k / s for k, s in zip(kin, st, strict=True)]
-        cost = statistics.median(ratios)
+        cpu = [k / s for k, s in zip(rates[("kinematic", kind, "cpu")],
+                                     rates[("single_track", kind, "cpu")], strict=True)]  # fmt: skip
+        cost, cost_cpu = statistics.median(ratios), statistics.median(cpu)
         out[kind] = {"kinematic": statistics.median(kin), "single_track": statistics.median(st),
-                     "cost": cost}  # fmt: skip
+                     "cost": cost, "cost_cpu": cost_cpu}  # fmt: skip
         print(f"| {label} | {out[kind]['kinematic']:.0f} | {out[kind]['single_track']:.0f} | "
-              f"{cost:.3f} ({min(ratios):.3f}-{max(ratios):.3f}) |")  # fmt: skip
+              f"{cost:.3f} ({min(ratios):.3f}-{max(ratios):.3f}) | "
+              f"{cost_cpu:.3f} ({min(cpu):.3f}-{max(cpu):.3f}) |")  # fmt: skip
     out["physics"] = _physics_cost(runs)
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
     print(f"load average {load:.1f} on {os.cpu_count()} CPUs after the run")

@@ -29,7 +29,10 @@ def test_speed_part_measures_both_models(capsys) -> None:
     assert "both models in turn" in text
     for kind in ("single", "vector"):
         assert out[kind]["kinematic"] > 0 and out[kind]["single_track"] > 0
-        assert out[kind]["cost"] > 0
+        assert out[kind]["cost"] > 0 and out[kind]["cost_cpu"] > 0
+    # one row per env, each with the wall-clock and the CPU-time ratio
+    rows = [line for line in text.splitlines() if line.startswith(("| one env", "| vector env"))]
+    assert len(rows) == 2 and all(row.count("|") == 6 for row in rows)
 
 
 def test_bad_flags_are_one_line_errors(capsys) -> None:
