@@ -71,27 +71,37 @@ def trimmed_rss_mib() -> float:
 
 
 _END_OF_RUN = """
-import resource, sys
+import sys
 from pathlib import Path
 from mcl.error_log import read_error_log
 from mcl.experiments.metrics import error_stats
 from mcl.experiments.plots import plot_error_vs_time
-before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+
+def status_kib(field):
+    with open("/proc/self/status", encoding="ascii") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith(field + ":"))
+
+with open("/proc/self/clear_refs", "w", encoding="ascii") as f:
+    f.write("5")  # the peak (VmHWM) starts again from the current RSS, not from the imports' peak
+before = status_kib("VmRSS")
 log = read_error_log(Path(sys.argv[1]))
 error_stats(log)
 plot_error_vs_time(log, Path(sys.argv[2]))
-print(len(log), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before)
+print(len(log), status_kib("VmHWM") - before)
 """
 
 
 def end_of_run_mib(log_path: Path, plot_path: Path) -> tuple[int, float]:
     """What the end of ``drive`` adds to a process's peak resident memory, MiB: reading the error
-    log back, its statistics and its plot, measured in a child process (Linux ``ru_maxrss`` in
-    KiB); returns the rows read and the MiB added."""
+    log back, its statistics and its plot, measured in a child process (Linux: the peak ``VmHWM``
+    reset to the current RSS after the imports, through ``/proc/self/clear_refs``); returns the
+    rows read and the MiB added (NaN where ``/proc`` does not allow it)."""
     done = subprocess.run(
         [sys.executable, "-c", _END_OF_RUN, str(log_path), str(plot_path)],
-        capture_output=True, text=True, check=True,
+        capture_output=True, text=True,
     )  # fmt: skip
+    if done.returncode != 0:
+        return -1, float("nan")
     rows, kib = done.stdout.split()[-2:]
     return int(rows), int(kib) / 1024.0
 
