@@ -87,8 +87,9 @@ def guided_casts(field, x, y, dx, dy, t0, max_t, n, out, fstate, istate, active)
         cy = rv + 1 if uy > 0.0 else rv
         ax = t + (cx - px) / ux
         ay = t + (cy - py) / uy
-        bx = 1.0 / abs(ux)
-        by = 1.0 / abs(uy)
+        # capped: 1 / |u| overflows for a subnormal u, and 0 * inf would make the steps below NaN
+        bx = min(1.0 / abs(ux), _BIG)
+        by = min(1.0 / abs(uy), _BIG)
         fs[4 * k] = _BIG if ux == 0.0 else ax
         fs[4 * k + 1] = _BIG if uy == 0.0 else ay
         fs[4 * k + 2] = _BIG if ux == 0.0 else bx

@@ -80,3 +80,21 @@ def test_lockstep_leaves_work_arrays_longer_than_the_rays_alone():
     # the wall's cell starts at pad column 26: 26 - 3.5 cells from the origin
     np.testing.assert_array_equal(out[:2], [22.5, 22.5])
     assert out[2] == -7.0
+
+
+def test_a_subnormal_direction_component_casts_as_one_ray_at_a_time():
+    """A heading a hair off an axis (a direction component of 1e-310, subnormal: 1 / |u|
+    overflows) gives the exact cast's finite range, not NaN."""
+    occupied = np.zeros((20, 30), dtype=bool)
+    occupied[:, 25] = True  # a wall across the x axis
+    occupied[17, :] = True  # and one across y
+    field = field_from_occupancy(occupied)
+    tiny = 1e-310
+    dx = np.array([1.0, tiny, -tiny, 1.0])
+    dy = np.array([tiny, 1.0, 1.0, -tiny])
+    x = np.full(4, 3.5)
+    y = np.full(4, 4.5)
+    t0 = np.array([2.0, 2.0, 0.0, 0.0])
+    got = run_lockstep(field, x, y, dx, dy, t0, 60.0)
+    assert np.isfinite(got).all()
+    np.testing.assert_array_equal(got, one_at_a_time(field, x, y, dx, dy, t0, 60.0))
