@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from mcl.error_log import read_error_log
+from mcl.experiments.heap import TRIM_EVERY_S, release_free_heap
 from mcl.experiments.metrics import DIVERGED_M, ErrorStats, error_stats
 from mcl.experiments.scenarios import make_scenario
 from mcl.filter_params import DEFAULT_PARTICLES
@@ -322,7 +323,10 @@ def run_one(
             from tqdm import tqdm
 
             steps = tqdm(steps, desc=spec.run_id, unit="step", leave=False)
+        trim_every = max(1, round(TRIM_EVERY_S / env.dt))  # steps between two heap trims
         for k in steps:
+            if k % trim_every == 0:
+                release_free_heap()  # pages the allocator keeps but nothing holds (heap.py)
             scenario.before_step(wrapped, k, (k - 1) * env.dt, scenario_rng)
             obs, _, terminated, truncated, info = wrapped.step(driver(obs, info))
             n_collisions += bool(info["collision"])
