@@ -7,8 +7,6 @@ import sys
 
 import pytest
 
-from mcl.experiments.heap import release_free_heap
-
 # A child process, so this test's own heap does not matter: 150 MB in 4 kB blocks, every 64th
 # kept, the rest freed. glibc keeps the freed blocks' pages (they lie below a kept block), and
 # malloc_trim(0) hands them back.
