@@ -6,7 +6,7 @@ import math
 from pathlib import Path
 
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from racecar_sim.config import EnvConfig, LidarParams, from_yaml, load_config
@@ -20,6 +20,7 @@ from racecar_sim.validation import check_number, read_yaml_mapping
     low_open=st.booleans(),
     high_open=st.booleans(),
 )
+@example(low=0.0, width=0.0, value=1e10, low_open=False, high_open=False)  # quoted as 1e+10
 def test_a_number_passes_exactly_when_it_is_finite_and_inside_the_interval(
     low: float, width: float, value: float, low_open: bool, high_open: bool
 ) -> None:
@@ -34,7 +35,11 @@ def test_a_number_passes_exactly_when_it_is_finite_and_inside_the_interval(
                            high_open=high_open)  # fmt: skip
     except ValueError as exc:
         assert not inside
-        assert str(exc).startswith(f"P.x = {value!r} must be")
+        message = str(exc)
+        assert message.startswith("P.x = ") and " must be " in message
+        quoted = message[len("P.x = ") : message.index(" must be ")]
+        # the value as given, in its shortest form (1e+10 for 10000000000.0): the same number
+        assert float(quoted) == value or (math.isnan(value) and math.isnan(float(quoted)))
     else:
         assert inside and out == value
 
