@@ -63,6 +63,7 @@ from racecar_sim.free_steps import (
     se2_log_twist,
 )
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.validation import check_poses
 from racecar_sim.vehicle import check_car_model
 from racecar_sim.vehicle.kinematic import actuate
 from racecar_sim.vehicle.single_track import settle
@@ -277,9 +278,7 @@ class RacecarPhysics:
 
     @staticmethod
     def _check_pose(pose, name: str) -> tuple[float, float, float]:
-        arr = np.asarray(pose, dtype=np.float64)
-        if arr.shape != (3,) or not np.isfinite(arr).all():
-            raise ValueError(f"{name} must be three finite numbers [x, y, theta], got {pose!r}")
+        arr = check_poses(name, pose)
         return float(arr[0]), float(arr[1]), float(arr[2])
 
     # ------------------------------------------------------------------ commands

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +22,8 @@ __all__ = [
     "YAMLRefused",
     "check_action",
     "check_number",
+    "check_options",
+    "check_poses",
     "load_yaml",
     "read_text",
     "read_yaml_mapping",
@@ -182,6 +185,8 @@ def read_yaml_mapping(path: str | os.PathLike[str], what: str = "parameter file"
 
 def _what(value: Any) -> str:
     """A value's kind and a short quote of it, for messages (``str '12'``, ``float64 array (3,)``)."""
+    if isinstance(value, np.ma.MaskedArray):
+        return f"a masked {value.dtype} array of shape {value.shape}"
     if isinstance(value, np.ndarray):
         return f"a {value.dtype} array of shape {value.shape}"
     return f"{type(value).__name__} {short(value)}"
@@ -202,13 +207,16 @@ def check_action(action: Any, shape: tuple[int, ...], what: str = "action") -> n
 
     Accepted: a numpy array of integer or float dtype, or a list / tuple (nested for 2-D) of ints
     and floats. Refused, naming what was given: strings and bytes (``"12"`` is not [1, 2]),
-    booleans, mappings, other shapes, NaN and infinity.
+    booleans, mappings, other shapes, NaN and infinity, and masked arrays (numpy drops the mask
+    on conversion, so a masked value would be driven as if it were a number).
 
     Raises:
         ValueError: one line, ``"action must be ... got <kind> <value>"``.
     """
     per_car = " per car" if len(shape) > 1 else ""
     need = f"{what} must be numbers of shape {shape} ([steer rad, speed m/s]{per_car})"
+    if isinstance(action, np.ma.MaskedArray):
+        raise ValueError(f"{need}, got {_what(action)} (fill it: np.ma.filled)")
     ok = isinstance(action, np.ndarray) or (
         isinstance(action, list | tuple) and not _has_bool_or_text(action)
     )
@@ -228,4 +236,56 @@ def check_action(action: Any, shape: tuple[int, ...], what: str = "action") -> n
     out = arr.astype(np.float64)
     if not np.isfinite(out).all():
         raise ValueError(f"{what} must be finite, got {_what(action)}")
+    return out
+
+
+def check_options(owner: str, options: Any) -> dict[str, Any]:
+    """A ``reset`` call's ``options`` as a new dict: None is ``{}``; a mapping with text keys is
+    copied.
+
+    Raises:
+        ValueError: ``"<owner>: options must be a dict ..., got <kind> <value>"`` for anything
+            else (a list, a string, a number), or a key that is not a string.
+    """
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ValueError(
+            f"{owner}: options must be a dict of reset options or None, got {_what(options)}"
+        )
+    bad = [k for k in options if not isinstance(k, str)]
+    if bad:
+        raise ValueError(f"{owner}: options keys must be option names (str), got {short(bad[0])}")
+    return dict(options)
+
+
+def check_poses(what: str, value: Any, rows: int | None = None) -> np.ndarray:
+    """``value`` as float64 poses [x m, y m, theta rad]: shape (3,) when ``rows`` is None, else
+    (``rows``, 3); every number finite.
+
+    Raises:
+        ValueError: one line naming ``what`` and what was given (a mapping, text, bools, another
+            shape, NaN or infinity).
+    """
+    shape = (3,) if rows is None else (rows, 3)
+    need = (
+        f"{what} must be three finite numbers [x, y, theta]"
+        if rows is None
+        else f"{what} must be a finite ({rows}, 3) array of poses [x, y, theta]"
+    )
+    ok = isinstance(value, np.ndarray) and not isinstance(value, np.ma.MaskedArray)
+    ok = ok or (isinstance(value, list | tuple) and not _has_bool_or_text(value))
+    arr = None
+    if ok:
+        try:
+            arr = np.asarray(value)
+        except (TypeError, ValueError):
+            arr = None
+    if arr is None or arr.dtype.kind not in "fiu":
+        raise ValueError(f"{need}, got {_what(value)}")
+    if arr.shape != shape:
+        raise ValueError(f"{need}, got shape {arr.shape}")
+    out = arr.astype(np.float64)
+    if not np.isfinite(out).all():
+        raise ValueError(f"{need}, got {short(out.tolist(), 80)}")
     return out

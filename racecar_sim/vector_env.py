@@ -38,7 +38,7 @@ from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil, scans_shared
 from racecar_sim.raycast.shared_work import run_shared
-from racecar_sim.validation import check_action
+from racecar_sim.validation import check_action, check_options
 from racecar_sim.vesc import wheel_twist
 
 __all__ = ["PROBE_EVERY", "RacecarVectorEnv", "car_seeds"]
@@ -192,7 +192,7 @@ class RacecarVectorEnv(VectorEnv):
         """
         n = self.num_envs
         seeds = car_seeds(seed, n)
-        options = dict(options or {})
+        options = check_options("RacecarVectorEnv.reset", options)
         mask = options.pop("reset_mask", None)
         if mask is None:
             mask = np.ones(n, dtype=np.bool_)

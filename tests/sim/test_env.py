@@ -177,6 +177,24 @@ def test_non_finite_or_malformed_actions_raise(map_spec) -> None:
         env.step([0.1, 0.2, 0.3])
 
 
+def test_a_masked_action_is_refused_not_driven_by_its_hidden_value(map_spec) -> None:
+    env = make(map_spec)
+    env.reset(seed=0)
+    before = env.pose.copy()
+    with pytest.raises(ValueError, match="masked"):
+        env.step(np.ma.array([0.0, 5.0], mask=[False, True]))
+    np.testing.assert_array_equal(env.pose, before)  # nothing was driven
+
+
+def test_reset_options_of_the_wrong_kind_are_one_message_naming_them(map_spec) -> None:
+    env = make(map_spec)
+    with pytest.raises(ValueError, match=r"RacecarEnv.reset: options must be a dict.*list"):
+        env.reset(options=[1, 2])
+    for pose, kind in (({"x": 1.0}, "dict"), ("abc", "str")):
+        with pytest.raises(ValueError, match=rf"options\['pose'\].*{kind}"):
+            env.reset(options={"pose": pose})
+
+
 def test_actions_outside_the_box_are_clipped(map_spec) -> None:
     a, b = make(map_spec), make(map_spec)
     a.reset(seed=3)

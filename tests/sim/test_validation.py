@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
@@ -83,3 +84,59 @@ def test_yaml_files_are_read_by_one_reader_that_names_the_file(tmp_path: Path) -
         assert str(path) in str(info.value) and "\n" not in str(info.value)
         with pytest.raises(ValueError, match=problem):
             from_yaml(LidarParams, path)
+
+
+def test_a_masked_array_is_refused_as_an_action_even_with_nothing_masked() -> None:
+    from racecar_sim.validation import check_action
+
+    for masked in (np.ma.array([0.1, 1.0], mask=[True, False]), np.ma.array([0.1, 1.0])):
+        with pytest.raises(ValueError, match="masked float64 array"):
+            check_action(masked, (2,))
+    np.testing.assert_array_equal(check_action(np.array([0.1, 1.0]), (2,)), [0.1, 1.0])
+
+
+@pytest.mark.parametrize("options", [[1, 2], "pose", 3, (("pose", 1),), {1: 2}])
+def test_reset_options_that_are_not_a_dict_of_names_are_refused_naming_the_owner(options) -> None:
+    from racecar_sim.validation import check_options
+
+    with pytest.raises(ValueError, match=r"^Owner.reset: options"):
+        check_options("Owner.reset", options)
+
+
+def test_reset_options_none_or_a_mapping_become_a_new_dict() -> None:
+    from types import MappingProxyType
+
+    from racecar_sim.validation import check_options
+
+    given = {"pose": [1, 2, 3]}
+    out = check_options("x", given)
+    assert out == given and out is not given
+    assert check_options("x", None) == {}
+    assert check_options("x", MappingProxyType(given)) == given
+
+
+@pytest.mark.parametrize(
+    ("value", "said"),
+    [({"x": 1}, "dict"), ("abc", "str"), ([1.0, 2.0], r"shape \(2,\)"), ([True, 1.0, 0.0], "list"),
+     ([1.0, math.nan, 0.0], "nan"), (np.ma.array([1.0, 2.0, 3.0]), "masked"),
+     (np.array(["1", "2", "3"]), "<U1")],
+)  # fmt: skip
+def test_a_pose_that_is_not_three_finite_numbers_is_refused_naming_it(value, said) -> None:
+    from racecar_sim.validation import check_poses
+
+    with pytest.raises(ValueError, match=rf"^init_pose must be three finite numbers.*{said}"):
+        check_poses("init_pose", value)
+
+
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=2, max_size=4),
+       st.sampled_from([None, 1]))  # fmt: skip
+def test_poses_pass_exactly_when_they_are_finite_of_the_shape(values, rows) -> None:
+    from racecar_sim.validation import check_poses
+
+    value = values if rows is None else [values]
+    shape_ok = len(values) == 3
+    if shape_ok and all(math.isfinite(v) for v in values):
+        np.testing.assert_array_equal(check_poses("p", value, rows), np.array(value))
+    else:
+        with pytest.raises(ValueError, match=r"^p must be"):
+            check_poses("p", value, rows)

@@ -98,6 +98,10 @@ def test_bad_actions_and_settings_raise() -> None:
         env.step(np.zeros((3, 2)))
     with pytest.raises(ValueError, match="finite"):
         env.step(np.array([[0.0, np.nan], [0.0, 1.0]]))
+    with pytest.raises(ValueError, match="masked"):
+        env.step(np.ma.array(np.zeros((2, 2)), mask=[[False, True], [False, False]]))
+    with pytest.raises(ValueError, match=r"RacecarVectorEnv.reset: options must be a dict"):
+        env.reset(options=[1, 2])
     with pytest.raises(ValueError, match="num_envs"):
         RacecarVectorEnv(0, **SETTINGS)
     with pytest.raises(ValueError, match="unknown"):
@@ -137,3 +141,4 @@ def test_cars_scraping_walls_equal_single_envs() -> None:
     assert hits > 10, "the cars spent steps against walls"
     fast.close()
     sync.close()
+
