@@ -204,7 +204,6 @@ class RacecarVectorEnv(VectorEnv):
                 )
         obs = self._empty_obs()
         infos: dict[str, Any] = {}
-        self._never_reset &= ~mask
         for i, env in enumerate(self.envs):
             if mask[i]:
                 o, info = env.reset(seed=seeds[i], options=options or None)
@@ -214,6 +213,7 @@ class RacecarVectorEnv(VectorEnv):
             else:
                 obs["scan"][i] = env._scan
                 obs["odom"][i] = self._last_odom[i]
+        self._never_reset &= ~mask  # after every car's reset: a refused one leaves its car unset
         self._last_odom = obs["odom"].copy()
         self._autoreset[mask] = False
         return obs, infos

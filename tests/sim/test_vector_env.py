@@ -142,3 +142,12 @@ def test_cars_scraping_walls_equal_single_envs() -> None:
     fast.close()
     sync.close()
 
+
+def test_a_refused_first_reset_leaves_the_cars_needing_a_reset() -> None:
+    from gymnasium.error import ResetNeeded
+
+    env = RacecarVectorEnv(2, **SETTINGS)
+    with pytest.raises(ValueError, match="pose"):
+        env.reset(options={"pose": [1e4, 1e4, 0.0]})  # off the map: every car's reset refuses
+    with pytest.raises(ResetNeeded, match=r"car\(s\) \[0, 1\]"):
+        env.step(np.zeros((2, 2)))
