@@ -24,6 +24,7 @@ __all__ = [
     "check_number",
     "check_options",
     "check_poses",
+    "describe",
     "load_yaml",
     "read_text",
     "read_yaml_mapping",
@@ -183,7 +184,7 @@ def read_yaml_mapping(path: str | os.PathLike[str], what: str = "parameter file"
     return data
 
 
-def _what(value: Any) -> str:
+def describe(value: Any) -> str:
     """A value's kind and a short quote of it, for messages (``str '12'``, ``float64 array (3,)``)."""
     if isinstance(value, np.ma.MaskedArray):
         return f"a masked {value.dtype} array of shape {value.shape}"
@@ -216,7 +217,7 @@ def check_action(action: Any, shape: tuple[int, ...], what: str = "action") -> n
     per_car = " per car" if len(shape) > 1 else ""
     need = f"{what} must be numbers of shape {shape} ([steer rad, speed m/s]{per_car})"
     if isinstance(action, np.ma.MaskedArray):
-        raise ValueError(f"{need}, got {_what(action)} (fill it: np.ma.filled)")
+        raise ValueError(f"{need}, got {describe(action)} (fill it: np.ma.filled)")
     ok = isinstance(action, np.ndarray) or (
         isinstance(action, list | tuple) and not _has_bool_or_text(action)
     )
@@ -227,15 +228,15 @@ def check_action(action: Any, shape: tuple[int, ...], what: str = "action") -> n
         except (TypeError, ValueError):
             arr = None
     if arr is None or arr.dtype.kind not in "fiu":
-        raise ValueError(f"{need}, got {_what(action)}")
+        raise ValueError(f"{need}, got {describe(action)}")
     if arr.shape != shape:
-        given = _what(action)
+        given = describe(action)
         if not isinstance(action, np.ndarray):
             given += f" of shape {arr.shape}"
         raise ValueError(f"{need}, got {given}")
     out = arr.astype(np.float64)
     if not np.isfinite(out).all():
-        raise ValueError(f"{what} must be finite, got {_what(action)}")
+        raise ValueError(f"{what} must be finite, got {describe(action)}")
     return out
 
 
@@ -251,7 +252,7 @@ def check_options(owner: str, options: Any) -> dict[str, Any]:
         return {}
     if not isinstance(options, Mapping):
         raise ValueError(
-            f"{owner}: options must be a dict of reset options or None, got {_what(options)}"
+            f"{owner}: options must be a dict of reset options or None, got {describe(options)}"
         )
     bad = [k for k in options if not isinstance(k, str)]
     if bad:
@@ -282,7 +283,7 @@ def check_poses(what: str, value: Any, rows: int | None = None) -> np.ndarray:
         except (TypeError, ValueError):
             arr = None
     if arr is None or arr.dtype.kind not in "fiu":
-        raise ValueError(f"{need}, got {_what(value)}")
+        raise ValueError(f"{need}, got {describe(value)}")
     if arr.shape != shape:
         raise ValueError(f"{need}, got shape {arr.shape}")
     out = arr.astype(np.float64)

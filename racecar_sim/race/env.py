@@ -19,6 +19,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 
 try:  # the race extra; without it RaceEnv still works (RacecarRace-v0 needs no pettingzoo)
     from pettingzoo import ParallelEnv
@@ -33,7 +34,7 @@ from racecar_sim.race.loops import centerline_for_map
 from racecar_sim.race.track import LOOP_STARTS, Track, resolve_track
 from racecar_sim.race.world import RaceWorld
 from racecar_sim.render import MapRenderer
-from racecar_sim.validation import check_action, check_number
+from racecar_sim.validation import check_action, check_number, check_options, describe, short
 from racecar_sim.vector_env import car_seeds
 
 MAX_CARS = 100
@@ -64,7 +65,8 @@ class RaceEnv(ParallelEnv):
     driven forwards along the heading, minus ``collision_penalty`` on a step with contact).
     ``terminated`` on any contact (wall or car) unless ``terminate_on_collision=False``;
     ``truncated`` after ``max_episode_steps``. A finished car leaves :attr:`agents` and stays where
-    it stopped, still seen and touched by the others.
+    it stopped, still seen and touched by the others. A step before :meth:`reset` (or after a
+    refused one), or once every agent is done, raises ``ResetNeeded``.
 
     ## Info (per agent)
     ``pose`` (rear axle, world [x, y, theta]), ``twist``, ``collision`` (what the car touched
@@ -77,8 +79,9 @@ class RaceEnv(ParallelEnv):
     ``reset(seed=s)`` seeds car ``i`` with ``s + i`` (or a list of seeds);
     ``options={"poses": array (N, 3)}`` places the cars (rear-axle world poses; ``ValueError``
     naming the car that would overlap a wall or another car). Without poses the cars stand on the
-    track's staggered start grid (:func:`~racecar_sim.race.grid.start_grid`), or at random free
-    places clear of each other when there is no track. The same seed gives the same race.
+    track's staggered start grid (:func:`~racecar_sim.race.grid.start_grid`; it holds track length
+    / (car length + 0.3 m) cars, more is a ``ValueError``), or at random free places clear of each
+    other when there is no track. The same seed gives the same race.
 
     Args:
         map: as ``RacecarSim-v0`` (a bundled name, a map YAML or an :class:`OccupancyMap`).
@@ -156,6 +159,7 @@ class RaceEnv(ParallelEnv):
         )
         self._active = np.zeros(n_cars, dtype=np.bool_)
         self._n_steps = 0
+        self._needs_reset = True  # until a reset goes through
         self._renderer: MapRenderer | None = None
 
     # ------------------------------------------------------------------ spaces
@@ -195,24 +199,31 @@ class RaceEnv(ParallelEnv):
         """Start a race (see the class doc); returns ``(observations, infos)`` per agent."""
         n = self.world.n_cars
         seeds = car_seeds(seed, n)
-        options = dict(options or {})
+        options = check_options("RaceEnv.reset", options)
         unknown = sorted(set(options) - {"poses"})
         if unknown:
             gym.logger.warn(f"RaceEnv.reset ignores unknown option(s) {unknown}; known: ['poses']")
         poses = options.get("poses")
+        self._needs_reset = True  # until this reset goes through
         # The last race's ghosts leave the cars' spaces first: the grid's room check queries car
         # 0's space, where another car's ghost on a slot would take the slot's room.
         self.world.contacts.remove_all()
+        where = "options['poses']" if poses is not None else "random starts"
         if poses is None and self.track is not None:
+            where = f"start grid of n_cars = {n}"
             for car, s in zip(self.world.cars, seeds, strict=True):
                 gym.Env.reset(car, seed=s)  # the grid draws nothing; seeding first keeps it simple
-            poses = start_grid(
-                self.track, n, self.car_params, self.world.cars[0].physics.pose_is_free
-            )
+            try:
+                poses = start_grid(
+                    self.track, n, self.car_params, self.world.cars[0].physics.pose_is_free
+                )
+            except ValueError as exc:
+                raise ValueError(f"RaceEnv.reset (n_cars = {n}, no options['poses']): {exc}") from None
         try:
             self.world.reset(seeds, poses)
         except ValueError as exc:
-            raise ValueError(f"reset options['poses']: {exc}") from None
+            raise ValueError(f"RaceEnv.reset {where}: {exc}") from None
+        self._needs_reset = False
         self._set_agents(self.possible_agents[:])
         self._n_steps = 0
         if self.laps is not None:
@@ -225,17 +236,31 @@ class RaceEnv(ParallelEnv):
         """Drive every live agent by its action ``[steer rad, speed m/s]`` for ``dt`` seconds.
 
         Raises:
-            ValueError: an action for an agent that is not alive, a missing action, or an action
-                that is not two finite numbers (the agent named).
+            ValueError: ``actions`` is not a mapping, an action for an agent that is not alive, a
+                missing action, or an action that is not two finite numbers (the agent named).
+            gymnasium.error.ResetNeeded: :meth:`reset` was never called (or was refused), or every
+                agent is done.
         """
+        if self._needs_reset:
+            raise ResetNeeded("RaceEnv.step: call reset() before step(): the race has no state yet")
         n = self.world.n_cars
         alive = self.agents
+        if not isinstance(actions, Mapping):
+            raise ValueError(
+                "RaceEnv.step: actions must be a dict {agent: [steer rad, speed m/s]} of the live "
+                f"agents, got {describe(actions)}"
+            )
+        if not alive:
+            raise ResetNeeded("RaceEnv.step: every agent is done; call reset() to race again")
         if actions.keys() != self._alive_set:
-            extra = sorted(set(actions) - self._alive_set)
+            extra = sorted(set(actions) - self._alive_set, key=repr)
             if extra:
-                raise ValueError(f"actions for agents not alive: {extra}; alive: {alive}")
+                raise ValueError(
+                    f"RaceEnv.step: actions for agents not alive: {short(extra, 120)}; "
+                    f"alive: {short(alive, 120)}"
+                )
             missing = [a for a in alive if a not in actions]
-            raise ValueError(f"no action for live agent {missing[0]!r}")
+            raise ValueError(f"RaceEnv.step: no action for live agent {missing[0]!r}")
         given_actions = [actions[a] for a in alive]
         if all(type(v) is np.ndarray and v.shape == (2,) and v.dtype.kind in "fiu"
                for v in given_actions):  # fmt: skip
@@ -246,7 +271,10 @@ class RaceEnv(ParallelEnv):
             # numbers of shape (2,) only: "12", b"12", ("0.1", "2") and [True, True] are refused,
             # naming the agent
             given = np.array(
-                [check_action(v, (2,), f"action of {a}") for a, v in zip(alive, given_actions, strict=True)]
+                [
+                    check_action(v, (2,), f"RaceEnv.step: action of {a}")
+                    for a, v in zip(alive, given_actions, strict=True)
+                ]
             )
         rows = self._rows(alive)
         if len(alive) == n:

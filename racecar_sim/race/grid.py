@@ -42,8 +42,17 @@ def start_grid(
             training episodes).
 
     Raises:
-        ValueError: a grid slot where the car fits neither staggered nor on the centerline.
+        ValueError: more cars than fit once round the track (each takes its length plus ``gap``
+            of centerline: the last would stand on the first), or a grid slot where the car fits
+            neither staggered nor on the centerline.
     """
+    pitch = car.length + gap  # metres of centerline each car takes
+    most = int(track.length // pitch)
+    if n > most:
+        raise ValueError(
+            f"start grid: {n} cars need {n * pitch:.1f} m of track (car length {car.length:g} m "
+            f"+ gap {gap:g} m each), the track is {track.length:.1f} m long; at most {most} fit"
+        )
     ahead = car.length - car.rear_overhang  # rear axle to the front bumper
     poses = np.zeros((n, 3))
     for i in range(n):

@@ -42,6 +42,7 @@ from racecar_sim.race.contact import (
 from racecar_sim.race.lidar import car_boxes, race_scans_serial, race_scans_shared
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.shared_work import run_shared
+from racecar_sim.validation import check_poses
 from racecar_sim.vesc import vesc_odometry
 
 __all__ = ["RaceWorld", "boxes_overlap"]
@@ -155,12 +156,8 @@ class RaceWorld:
     def check_poses(self, poses: Any) -> np.ndarray:
         """``poses`` as (N, 3) float64, or ValueError naming the first car that cannot be there
         (not finite, in a wall, off the map, or overlapping an earlier car)."""
-        arr = np.asarray(poses, dtype=np.float64)
         n = self.n_cars
-        if arr.shape != (n, 3) or not np.isfinite(arr).all():
-            raise ValueError(
-                f"poses must be a finite ({n}, 3) array of [x, y, theta], got {poses!r}"
-            )
+        arr = check_poses("poses", poses, n)
         boxes = self.boxes(arr)
         for i in range(n):
             if not self.cars[i].physics.pose_is_free(arr[i]):
@@ -195,9 +192,10 @@ class RaceWorld:
         """Seed every car's generator, place the cars at rest (``poses`` (N, 3); None: random,
         see :meth:`random_poses`) and take every first scan and odometry."""
         self.contacts.remove_all()
+        given = None if poses is None else self.check_poses(poses)  # before anything changes
         for car, seed in zip(self.cars, seeds, strict=True):
             gym.Env.reset(car, seed=seed)
-        arr = self.random_poses() if poses is None else self.check_poses(poses)
+        arr = self.random_poses() if given is None else given
         for i, car in enumerate(self.cars):
             car.physics.reset(arr[i])
             car.command_delay.reset(car.physics.steer, car.physics.wheel_speed)

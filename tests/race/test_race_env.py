@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from gymnasium.error import ResetNeeded
 from hypothesis import given
 from hypothesis import strategies as st
 from pettingzoo.test import parallel_api_test
@@ -246,6 +247,72 @@ def test_bad_actions_name_the_agent():
         env.step({"car_0": [0.0, 1.0]})
     with pytest.raises(ValueError, match="not alive"):
         env.step({"car_0": [0.0, 1.0], "car_1": [0.0, 1.0], "car_9": [0.0, 0.0]})
+
+
+def test_a_grid_longer_than_the_track_is_refused_naming_n_cars_and_the_track_length():
+    # Each grid car takes its length plus the 0.3 m gap of centerline: the most that fit once
+    # round the bundled loop start; one more is refused at reset, before any car is placed,
+    # instead of a message about an option never given.
+    probe = RaceEnv("basement_loop", n_cars=1, n_beams=11)
+    most = int(probe.track.length // (CAR.length + 0.3))
+    full = RaceEnv("basement_loop", n_cars=most, n_beams=11)
+    full.reset(seed=0)
+    boxes = full.world.boxes()
+    assert not any(penetration(boxes[i], boxes[i - 1]) > 0 for i in range(1, most))
+    over = RaceEnv("basement_loop", n_cars=most + 1, n_beams=11)
+    with pytest.raises(ValueError, match=rf"n_cars = {most + 1}.*{probe.track.length:.1f} m long") as err:
+        over.reset(seed=0)
+    assert "options['poses']:" not in str(err.value)
+
+
+def test_step_before_reset_or_after_every_agent_is_done_needs_a_reset():
+    env = quiet_race(n_beams=61, max_episode_steps=1)
+    actions = {"car_0": [0.0, 0.0], "car_1": [0.0, 0.0]}
+    with pytest.raises(ResetNeeded, match=r"RaceEnv.step: call reset"):
+        env.step(actions)
+    env.reset(seed=0, options={"poses": [[5.0, 5.0, 0.0], [10.0, 5.0, 0.0]]})
+    env.step(actions)  # truncated: every agent is done
+    assert env.agents == []
+    for late in ({}, actions):
+        with pytest.raises(ResetNeeded, match="every agent is done"):
+            env.step(late)
+
+
+@pytest.mark.parametrize("actions", [None, [[0.0, 1.0], [0.0, 1.0]], np.zeros((2, 2)), "car_0"])
+def test_actions_that_are_not_a_dict_are_refused_in_words(actions):
+    env = quiet_race(n_beams=61)
+    env.reset(seed=0, options={"poses": [[5.0, 5.0, 0.0], [10.0, 5.0, 0.0]]})
+    with pytest.raises(ValueError, match=r"^RaceEnv.step: actions must be a dict \{agent"):
+        env.step(actions)
+
+
+def test_agent_names_of_any_kind_that_are_not_alive_are_named():
+    env = quiet_race(n_beams=61)
+    env.reset(seed=0, options={"poses": [[5.0, 5.0, 0.0], [10.0, 5.0, 0.0]]})
+    with pytest.raises(ValueError, match=r"not alive: \['car_9', 0\]"):
+        env.step({"car_0": [0.0, 1.0], "car_1": [0.0, 1.0], 0: [0.0, 0.0], "car_9": [0.0, 0.0]})
+
+
+def test_a_masked_action_is_refused_naming_the_agent_and_nothing_moves():
+    env = quiet_race(n_beams=61)
+    env.reset(seed=0, options={"poses": [[5.0, 5.0, 0.0], [10.0, 5.0, 0.0]]})
+    before = env.poses
+    masked = np.ma.array([0.0, 5.0], mask=[False, True])
+    with pytest.raises(ValueError, match=r"action of car_1 .*masked"):
+        env.step({"car_0": np.array([0.0, 1.0]), "car_1": masked})
+    np.testing.assert_array_equal(env.poses, before)
+
+
+def test_reset_options_of_the_wrong_kind_name_the_option_and_need_a_new_reset():
+    env = quiet_race(n_beams=61)
+    with pytest.raises(ValueError, match=r"^RaceEnv.reset: options must be a dict.*list \[1, 2\]"):
+        env.reset(options=[1, 2])
+    env.reset(seed=0, options={"poses": [[5.0, 5.0, 0.0], [10.0, 5.0, 0.0]]})
+    for poses, kind in (({"car_0": [5.0, 5.0, 0.0]}, "dict"), ("grid", "str")):
+        with pytest.raises(ValueError, match=rf"^RaceEnv.reset options\['poses'\]: .*{kind}"):
+            env.reset(options={"poses": poses})
+    with pytest.raises(ResetNeeded):  # the refused reset left no race to step
+        env.step({"car_0": [0.0, 1.0], "car_1": [0.0, 1.0]})
 
 
 def test_single_track_cars_race_and_pass_the_api_test():
