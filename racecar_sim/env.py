@@ -27,7 +27,7 @@ from racecar_sim.physics import RacecarPhysics
 from racecar_sim.render import MapRenderer
 from racecar_sim.sensors import Lidar, Odometry
 from racecar_sim.start_poses import random_start, start_cells
-from racecar_sim.validation import check_action, check_options, short
+from racecar_sim.validation import check_action, check_options, check_poses, short
 from racecar_sim.vesc import CommandDelay, lead_steps, wheel_twist
 
 __all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
@@ -239,11 +239,11 @@ class RacecarEnv(gym.Env):
         if options.get("pose") is None:
             self.physics.reset(self._random_start())
         else:
-            pose = options["pose"]
+            pose = check_poses("RacecarEnv.reset options['pose']", options["pose"])
             try:
                 self.physics.reset(pose)
             except ValueError as exc:
-                raise ValueError(f"reset options['pose'] = {short(pose)} is not usable: {exc}") from exc
+                raise ValueError(f"reset options['pose'] = {short(pose.tolist())} is not usable: {exc}") from exc
         if self.obstacles is not None:
             # Their own stream from the env's: the same seed places the same obstacles.
             obstacle_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
