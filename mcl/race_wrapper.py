@@ -18,7 +18,8 @@ the car's true ``pose``, n_eff, update_s, corrected, uncertainty).
 
 Reset options (the others go to the race): ``init`` (``"pose"`` or ``"global"``), ``init_spread``
 (standard deviations x m, y m, theta rad, or one number), ``init_pose`` (an (N, 3) array of
-centres, one per car, instead of the true start poses).
+centres, one per car, instead of the true start poses, each in a free cell of the map). They
+are checked before the race is reset ([filter_start][mcl.wrapper_checks.filter_start]).
 
 The filters run one after another on the calling thread (each vectorised over its particles).
 """
@@ -31,11 +32,10 @@ from typing import Any
 
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 from pettingzoo.utils.wrappers import BaseParallelWrapper
 
 from mcl.localization import (
-    INIT_MODES,
-    RESET_OPTIONS,
     LocalizationConfig,
     correct_with_scan,
     filter_rng,
@@ -45,6 +45,8 @@ from mcl.localization import (
     start_filter,
 )
 from mcl.particle_filter import ParticleFilter
+from mcl.wrapper_checks import check_wrapped, filter_start
+from racecar_sim.validation import short
 from racecar_sim.vector_env import car_seeds
 
 __all__ = ["LocalizedRaceEnv"]
@@ -57,8 +59,8 @@ class LocalizedRaceEnv(BaseParallelWrapper):
         env: a :class:`racecar_sim.RaceEnv` (or a wrapper of one that keeps its observations).
         config: :class:`~mcl.localization.LocalizationConfig` or a mapping of its fields (the
             adaptive filter is not supported here).
-        agents: the agents to localize (default: every one); the others' observations and
-            infos pass through unchanged.
+        agents: the agents to localize (default: every one; an empty list localizes none); the
+            others' observations and infos pass through unchanged.
         clock: seconds, the timer of ``update_s``; a fixed clock makes infos reproducible.
     """
 
@@ -70,11 +72,21 @@ class LocalizedRaceEnv(BaseParallelWrapper):
         agents: list[str] | None = None,
         clock: Callable[[], float] = time.perf_counter,
     ) -> None:
+        check_wrapped("LocalizedRaceEnv", env, "race", "a racecar_sim.RaceEnv")
         super().__init__(env)
+        if agents is not None and (
+            not isinstance(agents, list | tuple) or not all(isinstance(a, str) for a in agents)
+        ):
+            raise ValueError(
+                f"LocalizedRaceEnv agents must be a list of agent names (str), got {short(agents)}"
+            )
         localized = list(env.possible_agents) if agents is None else list(agents)
-        unknown = sorted(set(localized) - set(env.possible_agents))
-        if unknown:
-            raise ValueError(f"LocalizedRaceEnv agents {unknown} are not the race's agents")
+        unknown = set(localized) - set(env.possible_agents)
+        if unknown or len(set(localized)) < len(localized):
+            raise ValueError(
+                f"LocalizedRaceEnv agents {short(localized)} must be distinct agents of the race "
+                f"(car_0 ... car_{len(env.possible_agents) - 1})"
+            )
         self.localized: tuple[str, ...] = tuple(localized)
         """The agents with a filter."""
         inner = env.unwrapped
@@ -92,6 +104,7 @@ class LocalizedRaceEnv(BaseParallelWrapper):
             config, self.map, lidar, "LocalizedRaceEnv"
         )
         self._clock = clock
+        self._started = False  # whether a reset went through
         self.filters: dict[str, ParticleFilter] = {}
         self._rngs: dict[str, np.random.Generator] = {}
         self._spaces = {
@@ -111,20 +124,11 @@ class LocalizedRaceEnv(BaseParallelWrapper):
         self, seed: int | list[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, dict[str, Any]], dict[str, dict[str, Any]]]:
         """Reset the race and start every car's filter (module docstring for the options)."""
-        options = dict(options or {})
-        mine = {k: options.pop(k) for k in RESET_OPTIONS if k in options}
-        init = mine.get("init", self.config.init)
-        if init not in INIT_MODES:
-            raise ValueError(f"reset option init = {init!r}; choose one of {list(INIT_MODES)}")
         agents = list(self.env.possible_agents)
-        centres = None
-        if "init_pose" in mine:
-            centres = np.asarray(mine["init_pose"], dtype=np.float64)
-            if centres.shape != (len(agents), 3) or not np.isfinite(centres).all():
-                raise ValueError(
-                    f"reset option init_pose must be a ({len(agents)}, 3) array of finite "
-                    f"poses, one per car; got shape {centres.shape}"
-                )
+        start, options = filter_start(
+            "LocalizedRaceEnv", options, self.config.init, self.map, rows=len(agents)
+        )
+        self._started = False  # until this reset goes through
         obs, infos = self.env.reset(seed=seed, options=options or None)
         seeds = car_seeds(seed, len(agents))
         out_obs, out_infos = dict(obs), dict(infos)
@@ -137,19 +141,20 @@ class LocalizedRaceEnv(BaseParallelWrapper):
             t0 = self._clock()
             pf = start_filter(
                 self.map, self.config, self.sensor_model, self.motion_model, self._rngs[agent],
-                init, truth if centres is None else centres[i], mine.get("init_spread"),
+                start.init, truth if start.centres is None else start.centres[i], start.spread,
             )  # fmt: skip
             self.filters[agent] = pf
             n_eff = correct_with_scan(pf, obs[agent]["scan"], self._lidar_max_range)
             out_obs[agent], out_infos[agent] = self._report(
                 agent, obs[agent], infos[agent], n_eff, self._clock() - t0, True
             )
+        self._started = True
         return out_obs, out_infos
 
     def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
         """Step the race, then predict and correct every car that observed."""
-        if not self.filters:
-            raise RuntimeError("call reset() before step()")
+        if not self._started:
+            raise ResetNeeded("LocalizedRaceEnv.step: call reset() before step()")
         obs, rewards, terminations, truncations, infos = self.env.step(actions)
         out_obs, out_infos = dict(obs), dict(infos)
         for agent, o in obs.items():

@@ -32,12 +32,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorWrapper
 from gymnasium.vector.utils import batch_space
 
 from mcl.localization import (
-    INIT_MODES,
-    RESET_OPTIONS,
     LocalizationConfig,
     correct_with_scan,
     filter_rng,
@@ -47,6 +46,8 @@ from mcl.localization import (
     start_filter,
 )
 from mcl.particle_filter import ParticleFilter
+from mcl.wrapper_checks import check_wrapped, filter_start
+from racecar_sim.validation import short
 from racecar_sim.vector_env import car_seeds
 
 __all__ = ["LocalizedVectorEnv"]
@@ -78,6 +79,7 @@ class LocalizedVectorEnv(VectorWrapper):
         uncertainty: bool = False,
         clock: Callable[[], float] = time.perf_counter,
     ) -> None:
+        check_wrapped("LocalizedVectorEnv", env, "vector", "a RacecarSim-v0 vector env")
         super().__init__(env)
         inner = env.unwrapped
         cars = getattr(inner, "envs", None)
@@ -117,24 +119,14 @@ class LocalizedVectorEnv(VectorWrapper):
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         """Reset the cars (all, or ``options["reset_mask"]``) and start their filters."""
         n = self.num_envs
-        options = dict(options or {})
-        mine = {k: options.pop(k) for k in RESET_OPTIONS if k in options}
-        init = mine.get("init", self.config.init)
-        if init not in INIT_MODES:
-            raise ValueError(f"reset option init = {init!r}; choose one of {list(INIT_MODES)}")
-        centres = None
-        if "init_pose" in mine:
-            given = np.asarray(mine["init_pose"], dtype=np.float64)
-            if given.shape not in ((3,), (n, 3)) or not np.isfinite(given).all():
-                raise ValueError(
-                    f"reset option init_pose must be one pose [x, y, theta] or a ({n}, 3) array "
-                    f"of finite numbers, got shape {given.shape}"
-                )
-            centres = np.broadcast_to(given, (n, 3))
+        start, options = filter_start(
+            "LocalizedVectorEnv", options, self.config.init, self.map, rows=n, one_for_all=True
+        )
+        centres = None if start.centres is None else np.broadcast_to(start.centres, (n, 3))
         seeds = car_seeds(seed, n)
+        obs, infos = self.env.reset(seed=seed, options=options or None)  # it checks reset_mask
         mask = options.get("reset_mask")
         mask = np.ones(n, dtype=np.bool_) if mask is None else np.asarray(mask, dtype=np.bool_)
-        obs, infos = self.env.reset(seed=seed, options=options or None)
         truth = np.asarray(infos["pose"], dtype=np.float64)
         report = self._empty_report()
         estimates = self._estimates()
@@ -142,7 +134,7 @@ class LocalizedVectorEnv(VectorWrapper):
             if seeds[i] is not None or self._rngs[i] is None:
                 self._rngs[i] = filter_rng(seeds[i])
             centre = truth[i] if centres is None else centres[i]
-            self._start(i, init, centre, mine.get("init_spread"))
+            self._start(i, start.init, centre, start.spread)
             t0 = self._clock()
             n_eff = self._correct(i, obs["scan"][i])
             estimates[i] = self._pf(i).estimate()
@@ -154,8 +146,14 @@ class LocalizedVectorEnv(VectorWrapper):
         self, actions: np.ndarray
     ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every car, then predict with its odometry and correct with its fresh scan."""
-        if any(pf is None for pf in self.filters):
-            raise RuntimeError("call reset() before step()")
+        unset = [i for i, pf in enumerate(self.filters) if pf is None]
+        if len(unset) == self.num_envs:
+            raise ResetNeeded("LocalizedVectorEnv.step: call reset() before step()")
+        if unset:
+            raise ResetNeeded(
+                f"LocalizedVectorEnv.step: car(s) {short(unset)} were never reset (reset_mask left "
+                "them out); reset them before step()"
+            )
         obs, rewards, terminated, truncated, infos = self.env.step(actions)
         truth = np.asarray(infos["pose"], dtype=np.float64)
         fresh = np.asarray(infos.get("new_scan", np.ones(self.num_envs, dtype=np.bool_)))

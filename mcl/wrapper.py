@@ -27,12 +27,11 @@ from typing import TYPE_CHECKING, Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 
 from mcl.adaptive import AdaptiveParticleFilter
 from mcl.error_log import ErrorLogWriter
 from mcl.localization import (
-    INIT_MODES,
-    RESET_OPTIONS,
     FilterFactory,
     LocalizationConfig,
     as_localization_config,
@@ -45,6 +44,7 @@ from mcl.localization import (
 from mcl.motion_model import MotionModel
 from mcl.particle_filter import ParticleFilter
 from mcl.sensor_model import SensorModel
+from mcl.wrapper_checks import check_filter_map, check_wrapped, filter_start
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.render import MapRenderer
 
@@ -93,7 +93,8 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         filter_map: the map the *filter* holds (bundled name, YAML path or OccupancyMap) when it
             differs from the world the env simulates (e.g. the world edited since the map was
             drawn); None = the env's map. Both must share the world frame; size and resolution
-            may differ.
+            may differ, but at least half of the world's free space must be free on it
+            ([MIN_FILTER_MAP_COVER][mcl.wrapper_checks.MIN_FILTER_MAP_COVER]).
         live: ``"[HOST:]PORT"`` (or a port number): stream the drive to Foxglove as it runs, on
             a WebSocket server bound to 127.0.0.1 unless a host is given, with the topics of
             ``drive --bag`` (:mod:`mcl.io.live`; extra ``[live]``); or a server from
@@ -114,7 +115,9 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     Reset options (the others go to the env): ``init`` (``"pose"`` or ``"global"``, this episode),
     ``init_spread`` (standard deviations x m, y m, theta rad around the start, or one number),
-    ``init_pose`` (centre of the initial guess instead of the true start pose).
+    ``init_pose`` (centre of the initial guess instead of the true start pose; it must lie in a
+    free cell of the filter's map). They are checked before the env is reset
+    ([filter_start][mcl.wrapper_checks.filter_start]).
     """
 
     def __init__(
@@ -133,6 +136,8 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             self, config=config, log_path=log_path, filter_factory=filter_factory, clock=clock,
             filter_map=filter_map, live=live,
         )  # fmt: skip
+        check_wrapped("LocalizationWrapper", env, "single",
+                      "a RacecarSim-v0 or RacecarRace-v0 env (a gymnasium.Env)")  # fmt: skip
         gym.Wrapper.__init__(self, env)
         inner = env.unwrapped
         car = car_of(inner)
@@ -146,6 +151,8 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         """The map the env simulates (the world)."""
         self.map = car.map if filter_map is None else resolve_map(filter_map)
         """The map the filter holds."""
+        if filter_map is not None:
+            check_filter_map("LocalizationWrapper", self.map, self.world_map)
         self.dt = float(car.dt)
         lidar = car.lidar
         self._lidar_max_range = float(lidar.params.max_range)
@@ -185,15 +192,12 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, Any], dict[str, Any]]:
         """Reset the env, then start the filter (see the class docstring for the options)."""
-        options = dict(options or {})
-        mine = {k: options.pop(k) for k in RESET_OPTIONS if k in options}
-        init = mine.get("init", self.config.init)
-        if init not in INIT_MODES:
-            raise ValueError(f"reset option init = {init!r}; choose one of {list(INIT_MODES)}")
+        start, options = filter_start("LocalizationWrapper", options, self.config.init, self.map)
+        self.filter = None  # until this reset goes through
         obs, info = self.env.reset(seed=seed, options=options or None)
         if seed is not None or self._rng is None:
             self._rng = filter_rng(seed)
-        self.filter = self._filter_factory(
+        pf = self._filter_factory(
             self.map,
             motion_model=self.motion_model,
             sensor_model=self.sensor_model,
@@ -202,11 +206,11 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         )
         truth = np.asarray(info["pose"], dtype=np.float64)
         t0 = self._clock()
-        if init == "global":
-            self.filter.initialize_global()
+        if start.init == "global":
+            pf.initialize_global()
         else:
-            centre = mine.get("init_pose", truth)
-            self.filter.initialize(np.asarray(centre, dtype=np.float64), mine.get("init_spread"))
+            pf.initialize(truth if start.centres is None else start.centres, start.spread)
+        self.filter = pf
         n_eff = self._correct(obs["scan"])  # the reset observation carries a fresh scan
         estimate = self.filter.estimate()
         self._step = 0
@@ -216,7 +220,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def step(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
         """Step the env, then predict with its odometry and correct with a fresh scan."""
         if self.filter is None:
-            raise RuntimeError("call reset() before step()")
+            raise ResetNeeded("LocalizationWrapper.step: call reset() before step()")
         obs, reward, terminated, truncated, info = self.env.step(action)
         pf = self.filter
         t0 = self._clock()

@@ -83,3 +83,47 @@ def test_localization_wrapper_localizes_car_0_of_racecar_race() -> None:
     np.testing.assert_allclose(loc["estimate"], obs["pose_estimate"])
     # the opponents are in car 0's scan, not in the filter's map
     assert info["opponent_poses"].shape == (2, 3)
+
+
+# ---------------------------------------------------------------------- misuse
+def test_no_localized_agent_still_steps_after_a_reset() -> None:
+    from gymnasium.error import ResetNeeded
+
+    env = LocalizedRaceEnv(RaceEnv("basement_loop", n_cars=2, n_beams=61), CONFIG, agents=[])
+    with pytest.raises(ResetNeeded, match=r"LocalizedRaceEnv.step: call reset\(\)"):
+        env.step({"car_0": [0.0, 1.0], "car_1": [0.0, 1.0]})
+    env.reset(seed=0)
+    obs, *_ = env.step({"car_0": [0.0, 1.0], "car_1": [0.0, 1.0]})
+    assert env.filters == {} and set(obs) == {"car_0", "car_1"}
+    assert all("pose_estimate" not in o for o in obs.values())  # passed through
+
+
+@pytest.mark.parametrize("agents", [["car_9"], ["car_0", "car_0"], [0], "car_0"])
+def test_agents_that_are_not_distinct_agent_names_are_refused(agents) -> None:
+    with pytest.raises(ValueError, match="LocalizedRaceEnv agents"):
+        LocalizedRaceEnv(RaceEnv("basement_loop", n_cars=2, n_beams=61), CONFIG, agents=agents)
+
+
+def test_wrapping_anything_but_a_race_names_the_wrapper_that_takes_it() -> None:
+    import gymnasium as gym
+
+    from racecar_sim.env import RacecarEnv
+
+    vec = gym.make_vec("RacecarSim-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                       map="corridor", n_beams=61)  # fmt: skip
+    with pytest.raises(TypeError, match=r"needs a racecar_sim.RaceEnv; got RacecarVectorEnv, a vector env: use mcl.LocalizedVectorEnv"):
+        LocalizedRaceEnv(vec)
+    with pytest.raises(TypeError, match=r"got RacecarEnv, a single env: use mcl.LocalizationWrapper"):
+        LocalizedRaceEnv(RacecarEnv("corridor", n_beams=61))
+
+
+def test_reset_options_of_the_wrong_kind_or_place_name_the_option_and_the_car() -> None:
+    env = LocalizedRaceEnv(RaceEnv("basement_loop", n_cars=2, n_beams=61), CONFIG)
+    with pytest.raises(ValueError, match=r"^LocalizedRaceEnv.reset: options must be a dict"):
+        env.reset(options=[1, 2])
+    with pytest.raises(ValueError, match=r"option init_pose must be a finite \(2, 3\) array.*dict"):
+        env.reset(options={"init_pose": {"car_0": [9.0, 2.5, 0.0]}})
+    _, infos = env.reset(seed=0)
+    good = infos["car_0"]["pose"]
+    with pytest.raises(ValueError, match=r"option init_pose\[1\] = \[5000.0, 5000.0, 0.0\] is off the filter map"):
+        env.reset(options={"init_pose": [good, [5000.0, 5000.0, 0.0]]})

@@ -5,6 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium.error import ResetNeeded
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
 from mcl.localization import LocalizationConfig
@@ -86,7 +87,7 @@ def test_wrong_env_and_config() -> None:
     with pytest.raises(ValueError, match="init"):
         LocalizedVectorEnv(vec, {"init": "nowhere"})
     env = LocalizedVectorEnv(vec, CONFIG)
-    with pytest.raises(RuntimeError, match="reset"):
+    with pytest.raises(ResetNeeded, match="reset"):
         env.step(np.zeros((1, 2)))
     with pytest.raises(ValueError, match="init_pose"):
         env.reset(seed=0, options={"init_pose": [1.0, 2.0]})
@@ -119,3 +120,39 @@ def test_init_option_holds_for_that_reset_only() -> None:
             i1["localization"]["position_error"], i2["localization"]["position_error"]
         )
     assert np.all(i1["localization"]["position_error"] < 0.5)  # the autoreset started at the pose
+
+
+# ---------------------------------------------------------------------- misuse
+def _vec(n: int = 2) -> LocalizedVectorEnv:
+    vec = gym.make_vec("RacecarSim-v0", num_envs=n, vectorization_mode="vector_entry_point",
+                       n_beams=61, **SETTINGS)  # fmt: skip
+    return LocalizedVectorEnv(vec, CONFIG)
+
+
+def test_a_car_left_out_of_the_first_reset_is_named_not_called_never_reset() -> None:
+    env = _vec()
+    env.reset(seed=0, options={"reset_mask": [True, False]})
+    with pytest.raises(ResetNeeded, match=r"car\(s\) \[1\] were never reset \(reset_mask left them out\)"):
+        env.step(np.zeros((2, 2)))
+    env.reset(seed=1, options={"reset_mask": [False, True]})
+    env.step(np.zeros((2, 2)))  # now every car has a filter
+
+
+def test_reset_options_of_the_wrong_kind_or_place_are_named() -> None:
+    env = _vec()
+    with pytest.raises(ValueError, match=r"^LocalizedVectorEnv.reset: options must be a dict"):
+        env.reset(options=[1, 2])
+    with pytest.raises(ValueError, match=r"init_pose must be a finite \(2, 3\) array.*dict"):
+        env.reset(options={"init_pose": {"x": 1.0}})
+    with pytest.raises(ValueError, match=r"init_pose = \[5000.0, 5000.0, 0.0\] is off the filter map"):
+        env.reset(options={"init_pose": [5000.0, 5000.0, 0.0]})  # one pose for every car
+
+
+def test_wrapping_a_single_env_or_a_race_names_the_wrapper_that_takes_it() -> None:
+    from racecar_sim.env import RacecarEnv
+    from racecar_sim.race.env import RaceEnv
+
+    with pytest.raises(TypeError, match=r"got RacecarEnv, a single env: use mcl.LocalizationWrapper"):
+        LocalizedVectorEnv(RacecarEnv("corridor", n_beams=61))
+    with pytest.raises(TypeError, match=r"got RaceEnv, a PettingZoo race .*use mcl.LocalizedRaceEnv"):
+        LocalizedVectorEnv(RaceEnv("corridor", n_cars=2, n_beams=61))

@@ -13,6 +13,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium.error import ResetNeeded
 from gymnasium.utils.env_checker import check_env
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -106,7 +107,7 @@ def test_bad_settings_are_named(room) -> None:
 
 
 def test_step_before_reset_names_reset(room) -> None:
-    with pytest.raises(RuntimeError, match="reset"):
+    with pytest.raises(ResetNeeded, match="reset"):
         make(room).step(np.zeros(2, dtype=np.float32))
 
 
@@ -384,3 +385,71 @@ def test_config_loads_from_yaml_with_nested_sections(tmp_path) -> None:
     path.write_text("localization:\n  motion: {scheme: wobbly}\n")
     with pytest.raises(ValueError, match="motion"):
         from_yaml(LocalizationConfig, path, section="localization")
+
+
+# ---------------------------------------------------------------------- misuse
+def test_reset_options_of_the_wrong_kind_are_refused_before_the_env_resets(room) -> None:
+    env = make(room)
+    env.reset(seed=0, options={"pose": START})
+    env.step(np.array([0.0, 1.0]))
+    pose, filter_before = env.unwrapped.pose.copy(), env.filter
+    refused = [
+        ([1, 2], r"^LocalizationWrapper.reset: options must be a dict.*list"),
+        ({"init_pose": "abc"}, r"^LocalizationWrapper.reset option init_pose must be three .*str"),
+        ({"init_pose": {"x": 6.0}}, r"option init_pose must be three .*dict"),
+        ({"init_pose": [6.0, float("nan"), 0.0]}, r"option init_pose must be three .*nan"),
+        ({"init_spread": "wide"}, r"option init_spread must be one or three"),
+        ({"init": ["pose"]}, r"option init = \['pose'\]; choose one of"),
+    ]
+    for options, message in refused:
+        with pytest.raises(ValueError, match=message):
+            env.reset(options=options)
+        # nothing was reset: the car and its filter are as they were
+        np.testing.assert_array_equal(env.unwrapped.pose, pose)
+        assert env.filter is filter_before
+    env.step(np.array([0.0, 1.0]))  # still running
+
+
+def test_an_init_pose_off_the_filter_map_or_in_a_wall_is_refused_naming_it(room) -> None:
+    env = make(room)
+    with pytest.raises(ValueError, match=r"init_pose = \[5000.0, 5000.0, 0.0\] is off the filter map 'room'"):
+        env.reset(seed=0, options={"pose": START, "init_pose": [5000.0, 5000.0, 0.0]})
+    wall = room.grid_to_world(np.argwhere(room.occupied)[0])  # a wall cell's centre
+    with pytest.raises(ValueError, match="is in a wall or unknown cell of the filter map 'room'"):
+        env.reset(seed=0, options={"pose": START, "init_pose": [*wall, 0.0]})
+    env.reset(seed=0, options={"pose": START, "init_pose": START + np.array([0.2, 0.0, 0.0])})  # taken
+
+
+def test_a_filter_map_that_does_not_cover_the_world_is_refused_naming_it(room) -> None:
+    from racecar_sim.maps import OccupancyMap
+
+    far = OccupancyMap(np.zeros((3, 3), bool), 0.05, (5000.0, 5000.0, 0.0), name="far")
+    with pytest.raises(ValueError, match=r"filter_map 'far' .* is free on 0% of the free space of the world map 'room'"):
+        make(room, filter_map=far)
+    # The room shifted by 70 % of its width leaves about a third of the world's floor: refused;
+    # the room with one more box (an edited world) covers nearly all of it: taken.
+    ox, oy, _ = room.origin
+    shifted = OccupancyMap(room.occupied, room.resolution, (ox + 0.7 * room.extent[0], oy, 0.0),
+                           name="shifted")  # fmt: skip
+    with pytest.raises(ValueError, match="filter_map 'shifted'"):
+        make(room, filter_map=shifted)
+    edited = room.occupied.copy()
+    edited[40:60, 100:120] = True
+    make(room, filter_map=OccupancyMap(edited, room.resolution, room.origin, name="edited"))
+
+
+def test_wrapping_a_race_or_a_vector_env_names_the_wrapper_that_takes_it(room) -> None:
+    from racecar_sim.race.env import RaceEnv
+    from racecar_sim.vector_env import RacecarVectorEnv
+
+    with pytest.raises(TypeError, match=r"got RaceEnv, a PettingZoo race .*use mcl.LocalizedRaceEnv"):
+        LocalizationWrapper(RaceEnv(room, n_cars=2, n_beams=FEW_BEAMS))
+    with pytest.raises(TypeError, match=r"got RacecarVectorEnv, a vector env: use mcl.LocalizedVectorEnv"):
+        LocalizationWrapper(RacecarVectorEnv(2, map=room, n_beams=FEW_BEAMS))
+
+
+def test_a_masked_action_is_refused_through_the_wrapper(room) -> None:
+    env = make(room)
+    env.reset(seed=0, options={"pose": START})
+    with pytest.raises(ValueError, match="masked"):
+        env.step(np.ma.array([0.0, 3.0], mask=[False, True]))
