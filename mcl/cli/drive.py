@@ -44,6 +44,7 @@ from mcl.cli.common import (
     positive_int,
 )
 from mcl.cli.compile_notice import compile_notice, compile_report
+from mcl.cli.filter_map_option import check_filter_map
 from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
 from mcl.error_log import read_error_log
 from mcl.experiments.metrics import DIVERGED_M
@@ -149,6 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     check_map(parser, args.map, env=env)
     if args.filter_map is not None:
         check_map(parser, args.filter_map, "--filter-map", env=env)
+        check_filter_map(parser, args.map, args.filter_map, env)
     out: Path = check_out(parser, args.out)
     if args.bag is not None:
         check_out(parser, args.bag, "--bag")

@@ -26,6 +26,7 @@ from mcl.cli.common import (
     positive_int,
 )
 from mcl.cli.compile_notice import compile_notice
+from mcl.cli.filter_map_option import check_filter_map
 from mcl.experiments.noise_sweep import (
     GAUSSIAN_SIGMAS,
     UNIFORM_COEFFICIENTS,
@@ -196,6 +197,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.noise_profile is not None:
         args.env.append(f"noise_profile={args.noise_profile}")
     env = check_env(parser, args.env)
+    if args.filter_map is not None:
+        check_filter_map(parser, args.map, args.filter_map, env)
     out: Path = check_out(parser, args.out)
     config: ExperimentConfig | RecoveryConfig
     try:

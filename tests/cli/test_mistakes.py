@@ -72,6 +72,7 @@ DRIVE_MISTAKES = [
     (["--env", "map=office"], "--env map", "--map"),
     (["--env", "car_model=dynamic"], "--env car_model", "must be one of"),
     (["--filter-map", "{missing}"], "--filter-map", "not found"),
+    (["--map", "corridor", "--filter-map", "office"], "--filter-map", "at least 50% must be"),
     (["--noise-profile", "mit_racecer"], "--env noise_profile", "mit_racecar"),
     (["--env", "obstacles={boxs: 3}"], "--env obstacles", "unknown obstacles setting"),
     (["--env", "lidar_rate"], "--env", "NAME=VALUE"),
@@ -82,6 +83,7 @@ DRIVE_MISTAKES = [
 EXPERIMENT_MISTAKES = [
     (["--map", "{missing}"], "--map", "not found"),
     (["--map", "stata"], "--map", "no bundled map named 'stata'"),
+    (["--map", "corridor", "--filter-map", "office"], "--filter-map", "at least 50% must be"),
     (["--seeds", "0"], "--seeds", ">= 1"),
     (["--seeds", "three"], "--seeds", "whole number"),
     (["--workers", "0"], "--workers", ">= 1"),
