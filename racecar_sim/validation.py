@@ -40,14 +40,14 @@ _SHORT = 40
 
 
 def short(value: Any, limit: int = _SHORT) -> str:
-    """``repr(value)`` cut to about ``limit`` characters (``...`` marks the cut), for messages that
-    quote a value given by a user, however large it is."""
+    """``repr(value)`` on one line, cut to about ``limit`` characters (``...`` marks the cut), for
+    messages that quote a value given by a user, however large it is."""
     if isinstance(value, list | tuple | dict | set) and len(value) > 16:
         text = f"<{type(value).__name__} of {len(value)} items>"
     elif isinstance(value, float) and len(repr(value)) > 12 and float(f"{value:g}") == value:
         text = f"{value:g}"  # 1e+12, not 1000000000000.0 (only when it is the same number)
     else:
-        text = repr(value)
+        text = re.sub(r"\s*\n\s*", " ", repr(value))  # one line: an array's repr breaks lines
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
@@ -193,12 +193,13 @@ def describe(value: Any) -> str:
     return f"{type(value).__name__} {short(value)}"
 
 
-def _has_bool_or_text(value: Any, depth: int = 0) -> bool:
-    """Whether a (nested) list / tuple holds a bool, a string or bytes anywhere (depth <= 2)."""
+def _has_non_number(value: Any, depth: int = 0) -> bool:
+    """Whether a (nested) list / tuple holds a bool, a string, bytes or a masked value anywhere
+    (depth <= 2): numpy would read them as numbers."""
     for v in value:
-        if isinstance(v, bool | np.bool_ | str | bytes):
+        if isinstance(v, bool | np.bool_ | str | bytes | np.ma.MaskedArray):
             return True
-        if depth < 1 and isinstance(v, list | tuple) and _has_bool_or_text(v, depth + 1):
+        if depth < 1 and isinstance(v, list | tuple) and _has_non_number(v, depth + 1):
             return True
     return False
 
@@ -219,7 +220,7 @@ def check_action(action: Any, shape: tuple[int, ...], what: str = "action") -> n
     if isinstance(action, np.ma.MaskedArray):
         raise ValueError(f"{need}, got {describe(action)} (fill it: np.ma.filled)")
     ok = isinstance(action, np.ndarray) or (
-        isinstance(action, list | tuple) and not _has_bool_or_text(action)
+        isinstance(action, list | tuple) and not _has_non_number(action)
     )
     arr = None
     if ok:
@@ -275,7 +276,7 @@ def check_poses(what: str, value: Any, rows: int | None = None) -> np.ndarray:
         else f"{what} must be a finite ({rows}, 3) array of poses [x, y, theta]"
     )
     ok = isinstance(value, np.ndarray) and not isinstance(value, np.ma.MaskedArray)
-    ok = ok or (isinstance(value, list | tuple) and not _has_bool_or_text(value))
+    ok = ok or (isinstance(value, list | tuple) and not _has_non_number(value))
     arr = None
     if ok:
         try:
@@ -290,3 +291,4 @@ def check_poses(what: str, value: Any, rows: int | None = None) -> np.ndarray:
     if not np.isfinite(out).all():
         raise ValueError(f"{need}, got {short(out.tolist(), 80)}")
     return out
+

@@ -140,3 +140,15 @@ def test_poses_pass_exactly_when_they_are_finite_of_the_shape(values, rows) -> N
     else:
         with pytest.raises(ValueError, match=r"^p must be"):
             check_poses("p", value, rows)
+
+
+def test_a_list_holding_a_masked_value_is_refused_as_an_action() -> None:
+    from racecar_sim.validation import check_action
+
+    with pytest.raises(ValueError, match=r"got list \[masked, 1.0\]"):
+        check_action([np.ma.masked, 1.0], (2,))
+    rows = [np.ma.array([0.1, 1.0], mask=[False, True])] * 2
+    with pytest.raises(ValueError, match="must be numbers of shape") as info:
+        check_action(rows, (2, 2))
+    assert "\n" not in str(info.value)  # the masked array's repr is put on one line
+
