@@ -27,7 +27,7 @@ from racecar_sim.physics import RacecarPhysics
 from racecar_sim.render import MapRenderer
 from racecar_sim.sensors import Lidar, Odometry
 from racecar_sim.start_poses import random_start, start_cells
-from racecar_sim.validation import check_action, check_options, check_poses, short
+from racecar_sim.validation import check_action, check_options, check_poses, check_seed, short
 from racecar_sim.vesc import CommandDelay, lead_steps, wheel_twist
 
 __all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
@@ -232,7 +232,7 @@ class RacecarEnv(gym.Env):
             ValueError: an unknown option, or a pose that is not finite, inside a wall or off map.
         """
         options = check_options("RacecarEnv.reset", options)
-        super().reset(seed=seed)
+        super().reset(seed=check_seed("RacecarEnv.reset", seed))
         unknown = sorted(set(options) - {"pose"})
         if unknown:
             raise ValueError(f"unknown reset option(s) {short(unknown, 200)}; known: ['pose']")

@@ -24,6 +24,7 @@ __all__ = [
     "check_number",
     "check_options",
     "check_poses",
+    "check_seed",
     "describe",
     "load_yaml",
     "read_text",
@@ -292,3 +293,15 @@ def check_poses(what: str, value: Any, rows: int | None = None) -> np.ndarray:
         raise ValueError(f"{need}, got {short(out.tolist(), 80)}")
     return out
 
+
+def check_seed(owner: str, seed: Any) -> int | None:
+    """``seed`` if it is None or a non-negative int (what Gymnasium seeds a generator with).
+
+    Raises:
+        ValueError: ``"<owner>: seed must be a non-negative int or None, got <value>"``.
+    """
+    if seed is None:
+        return None
+    if not isinstance(seed, int | np.integer) or isinstance(seed, bool | np.bool_) or seed < 0:
+        raise ValueError(f"{owner}: seed must be a non-negative int or None, got {short(seed)}")
+    return int(seed)

@@ -38,7 +38,7 @@ from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil, scans_shared
 from racecar_sim.raycast.shared_work import run_shared
-from racecar_sim.validation import check_action, check_options
+from racecar_sim.validation import check_action, check_options, short
 from racecar_sim.vesc import wheel_twist
 
 __all__ = ["PROBE_EVERY", "RacecarVectorEnv", "car_seeds"]
@@ -53,18 +53,23 @@ def car_seeds(seed: int | list[int | None] | None, n: int) -> list[int | None]:
     """Each of ``n`` cars' reset seed: ``seed + i`` for an int, None for None, or the list given.
 
     Raises:
-        ValueError: anything else (a float, a bool, a string), or a list whose length is not ``n``.
+        ValueError: anything else (a float, a bool, a string, a negative int), or a list whose
+            length is not ``n``.
     """
     if seed is None:
         return [None] * n
-    if isinstance(seed, int | np.integer) and not isinstance(seed, bool | np.bool_):
+
+    def is_seed(s: object) -> bool:
+        return isinstance(s, int | np.integer) and not isinstance(s, bool | np.bool_) and s >= 0
+
+    if is_seed(seed):
         return [int(seed) + i for i in range(n)]
     if not isinstance(seed, list | tuple | np.ndarray) or not all(
-        s is None or (isinstance(s, int | np.integer) and not isinstance(s, bool | np.bool_))
-        for s in seed
+        s is None or is_seed(s) for s in seed
     ):
         raise ValueError(
-            f"reset: seed must be an int, a list of {n} ints or None, or None; got {seed!r}"
+            f"reset: seed must be a non-negative int, None, or a list of {n} of them; "
+            f"got {short(seed)}"
         )
     seeds = [None if s is None else int(s) for s in seed]
     if len(seeds) != n:

@@ -195,6 +195,12 @@ def test_reset_options_of_the_wrong_kind_are_one_message_naming_them(map_spec) -
             env.reset(options={"pose": pose})
 
 
+def test_a_negative_seed_is_refused_in_words_not_by_gymnasium(map_spec) -> None:
+    env = make(map_spec)
+    with pytest.raises(ValueError, match=r"RacecarEnv.reset: seed must be a non-negative int"):
+        env.reset(seed=-1)
+
+
 def test_actions_outside_the_box_are_clipped(map_spec) -> None:
     a, b = make(map_spec), make(map_spec)
     a.reset(seed=3)

@@ -152,3 +152,17 @@ def test_a_list_holding_a_masked_value_is_refused_as_an_action() -> None:
         check_action(rows, (2, 2))
     assert "\n" not in str(info.value)  # the masked array's repr is put on one line
 
+
+@pytest.mark.parametrize("seed", [-1, 2.5, "1", True, np.bool_(True), [1]])
+def test_a_seed_that_is_not_a_non_negative_int_is_refused_naming_the_owner(seed) -> None:
+    from racecar_sim.validation import check_seed
+
+    with pytest.raises(ValueError, match=r"^Owner.reset: seed must be a non-negative int or None"):
+        check_seed("Owner.reset", seed)
+
+
+def test_a_seed_that_is_a_non_negative_int_or_none_passes() -> None:
+    from racecar_sim.validation import check_seed
+
+    assert check_seed("x", None) is None
+    assert check_seed("x", np.int64(3)) == 3 and check_seed("x", 2**70) == 2**70

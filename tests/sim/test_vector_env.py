@@ -151,3 +151,12 @@ def test_a_refused_first_reset_leaves_the_cars_needing_a_reset() -> None:
         env.reset(options={"pose": [1e4, 1e4, 0.0]})  # off the map: every car's reset refuses
     with pytest.raises(ResetNeeded, match=r"car\(s\) \[0, 1\]"):
         env.step(np.zeros((2, 2)))
+
+
+@pytest.mark.parametrize("seed", [-1, [0, -1], 2.5, True, "a"])
+def test_a_negative_or_non_integer_seed_is_one_value_error(seed) -> None:
+    from racecar_sim.vector_env import car_seeds
+
+    with pytest.raises(ValueError, match=r"seed must be a non-negative int, None, or a list of 2"):
+        car_seeds(seed, 2)
+    assert car_seeds([0, None], 2) == [0, None] and car_seeds(5, 2) == [5, 6]
