@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mcl.augmented import AugmentedParams
-from mcl.filter_bounds import check_filter
+from mcl.filter_bounds import FILTER_BOUNDS, check_filter
 from mcl.kld import KLDParams
 from mcl.resampling import RESAMPLERS
 from mcl.uncertainty import ClusterParams
@@ -137,13 +137,17 @@ class ParticleFilterParams:
 def spread_sd(
     value: float | tuple[float, ...] | np.ndarray, name: str
 ) -> tuple[float, float, float]:
-    """One number (all three) or three standard deviations (x m, y m, theta rad), non-negative."""
+    """One number (all three) or three standard deviations (x m, y m, theta rad), non-negative
+    and at most ``filter.init_spread``'s bound (10 km: wider than any map)."""
+    most = FILTER_BOUNDS["filter.init_spread"].high
     try:
         arr = np.asarray(value, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError):
         arr = np.zeros(0)
     if arr.size == 1:
         arr = np.repeat(arr, 3)
-    if arr.size != 3 or not (np.isfinite(arr).all() and (arr >= 0).all()):
-        raise ValueError(f"{name} must be one or three non-negative numbers, got {short(value)}")
+    if arr.size != 3 or not (np.isfinite(arr).all() and (arr >= 0).all() and (arr <= most).all()):
+        raise ValueError(
+            f"{name} must be one or three numbers in [0, {most:g}] (m, m, rad), got {short(value)}"
+        )
     return (float(arr[0]), float(arr[1]), float(arr[2]))

@@ -106,7 +106,7 @@ def filter_start(
 
     Raises:
         ValueError: options not a dict; ``init`` not a mode; ``init_spread`` not one or three
-            non-negative numbers; ``init_pose`` not finite poses of the shape, or off the filter
+            non-negative numbers within the config's bounds; ``init_pose`` not finite poses of the shape, or off the filter
             map's free space (off the map, in a wall or unknown cell).
     """
     options = check_options(f"{owner}.reset", options)

@@ -399,6 +399,7 @@ def test_reset_options_of_the_wrong_kind_are_refused_before_the_env_resets(room)
         ({"init_pose": {"x": 6.0}}, r"option init_pose must be three .*dict"),
         ({"init_pose": [6.0, float("nan"), 0.0]}, r"option init_pose must be three .*nan"),
         ({"init_spread": "wide"}, r"option init_spread must be one or three"),
+        ({"init_spread": 1e12}, r"option init_spread must be one or three numbers in \[0, 10000\]"),
         ({"init": ["pose"]}, r"option init = \['pose'\]; choose one of"),
     ]
     for options, message in refused:
