@@ -84,8 +84,8 @@ class LocalizedRaceEnv(BaseParallelWrapper):
         unknown = set(localized) - set(env.possible_agents)
         if unknown or len(set(localized)) < len(localized):
             raise ValueError(
-                f"LocalizedRaceEnv agents {short(localized)} must be distinct agents of the race "
-                f"(car_0 ... car_{len(env.possible_agents) - 1})"
+                f"LocalizedRaceEnv agents {short(localized)} must be distinct agents of the race, "
+                f"{short(list(env.possible_agents), 80)}"
             )
         self.localized: tuple[str, ...] = tuple(localized)
         """The agents with a filter."""

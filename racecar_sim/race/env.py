@@ -198,13 +198,13 @@ class RaceEnv(ParallelEnv):
     ) -> tuple[dict[str, dict[str, np.ndarray]], dict[str, dict[str, Any]]]:
         """Start a race (see the class doc); returns ``(observations, infos)`` per agent."""
         n = self.world.n_cars
+        self._needs_reset = True  # until this reset goes through
         seeds = car_seeds(seed, n)
         options = check_options("RaceEnv.reset", options)
         unknown = sorted(set(options) - {"poses"})
         if unknown:
             gym.logger.warn(f"RaceEnv.reset ignores unknown option(s) {unknown}; known: ['poses']")
         poses = options.get("poses")
-        self._needs_reset = True  # until this reset goes through
         # The last race's ghosts leave the cars' spaces first: the grid's room check queries car
         # 0's space, where another car's ghost on a slot would take the slot's room.
         self.world.contacts.remove_all()

@@ -313,6 +313,11 @@ def test_reset_options_of_the_wrong_kind_name_the_option_and_need_a_new_reset():
             env.reset(options={"poses": poses})
     with pytest.raises(ResetNeeded):  # the refused reset left no race to step
         env.step({"car_0": [0.0, 1.0], "car_1": [0.0, 1.0]})
+    env.reset(seed=0, options={"poses": [[5.0, 5.0, 0.0], [10.0, 5.0, 0.0]]})
+    with pytest.raises(ValueError, match="seed must be a non-negative int"):
+        env.reset(seed=-1)  # refused before anything changed, but a reset was asked for
+    with pytest.raises(ResetNeeded):
+        env.step({"car_0": [0.0, 1.0], "car_1": [0.0, 1.0]})
 
 
 def test_single_track_cars_race_and_pass_the_api_test():
