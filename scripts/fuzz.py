@@ -1,7 +1,7 @@
 """A longer fuzz campaign than the tests' (tests/fuzz): many seeds of hostile maps, settings,
-filter settings, actions, command lines and damaged bags, each batch in a worker process under a
-memory and a time limit. Prints a table per kind (clean errors, correct runs, problems, slowest
-case) and every problem found; exits 1 when there was one.
+filter settings, actions, command lines, damaged bags and the race's and the localization wrappers'
+API misused, each batch in a worker process under a memory and a time limit. Prints a table per kind (clean errors, correct runs, problems, slowest
+case, the workers' peak resident memory) and every problem found; exits 1 when there was one.
 
     python scripts/fuzz.py                       # 200 cases of each kind, seeds from 1
     python scripts/fuzz.py --kinds map setting --cases 1000 --seed 7
@@ -19,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tests.fuzz import mutations
 from tests.fuzz.harness import MEMORY_LIMIT, judge, run_cases
 
-KINDS = ("setting", "filter", "map", "action", "cli", "bag")
+KINDS = ("setting", "filter", "map", "action", "cli", "bag", "race_api", "localization_api")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -35,19 +35,21 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--cases and --batch must be >= 1")
     memory = int(args.memory_gb * 2**30)
     problems: list[str] = []
-    print("| kind | cases | clean errors | correct runs | problems | slowest case (s) | wall (s) |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
+    print("| kind | cases | clean errors | correct runs | problems | slowest case (s) "
+          "| peak worker RSS (MiB) | wall (s) |")  # fmt: skip
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for kind in args.kinds:
         make = getattr(mutations, f"{kind}_cases")
         t0 = time.perf_counter()
         counts = {"error": 0, "ok": 0, "bad": 0}
-        slowest = 0.0
+        slowest = peak = 0.0
         done, seed = 0, args.seed
         while done < args.cases:
             n = min(args.batch, args.cases - done)
             cases = make(seed, n)
             for case, result in zip(cases, run_cases(cases, args.timeout, memory), strict=True):
                 slowest = max(slowest, result.get("seconds", 0.0))
+                peak = max(peak, result.get("peak_rss_mib", 0.0))
                 problem = judge(case, result)
                 if problem is not None:
                     counts["bad"] += 1
@@ -60,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
             seed += 1
         wall = time.perf_counter() - t0
         print(f"| {kind} | {done} | {counts['error']} | {counts['ok']} | {counts['bad']} | "
-              f"{slowest:.1f} | {wall:.0f} |", flush=True)  # fmt: skip
+              f"{slowest:.1f} | {peak:.0f} | {wall:.0f} |", flush=True)  # fmt: skip
     for p in problems:
         print(p[:2000])
     return 1 if problems else 0

@@ -6,7 +6,9 @@ ValueErrors) or Gymnasium's ``ResetNeeded``, whose message is one line of at mos
 :data:`MAX_MESSAGE` characters; for a command line, exit code 2 with exactly one stderr line
 ``racecar-sim SUBCOMMAND: error: ...`` and no traceback, and no output folder left behind.
 Anything else (a ``TypeError``, ``MemoryError``, an assertion about the run, a killed worker,
-exceeding the time limit) is a failure.
+exceeding the time limit) is a failure, except the ``clear_types`` a case names, whose message
+must then start with the case's ``owner`` (a wrapper refusing the wrong kind of env: a
+``TypeError`` naming itself).
 """
 
 from __future__ import annotations
@@ -90,7 +92,10 @@ def judge(case: dict[str, Any], result: dict[str, Any]) -> str | None:
         if case.get("kind") == "cli":  # a command must not raise: that is a traceback
             return f"raised {result['type']}: {result['message'][:300]}\n{result['where']}"
         message = result["message"]
-        if not any(name in _CLEAR for name in result["mro"]):
+        # a case may name more clear types (a TypeError for the wrong kind of env), which must
+        # then come from its owner, saying so
+        extra = tuple(case.get("clear_types", ())) if message.startswith(case.get("owner", "\0")) else ()
+        if not any(name in _CLEAR + extra for name in result["mro"]):
             return f"{result['type']}: {message[:300]}\n{result['where']}"
         if "\n" in message or not message.strip() or len(message) > MAX_MESSAGE:
             return f"not one short line ({len(message)} chars): {message[:300]!r}"

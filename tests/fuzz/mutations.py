@@ -1,4 +1,5 @@
-"""Seeded hostile inputs: maps, settings, actions, command lines and bags, drawn from a seed.
+"""Seeded hostile inputs: maps, settings, actions, command lines and bags, drawn from a seed (and
+the API misuse of the race and the localization wrappers, :mod:`tests.fuzz.api_cases`).
 
 Each generator returns JSON-able case dicts; :mod:`tests.fuzz.worker` runs them and reports what
 happened. The same seed gives the same cases (``random.Random(seed)``).
@@ -10,6 +11,8 @@ import dataclasses
 import random
 from typing import Any
 
+from tests.fuzz.api_cases import localization_api_cases, race_api_cases
+
 __all__ = [
     "HOSTILE_TEXTS",
     "HOSTILE_VALUES",
@@ -17,7 +20,9 @@ __all__ = [
     "bag_cases",
     "cli_cases",
     "filter_cases",
+    "localization_api_cases",
     "map_cases",
+    "race_api_cases",
     "setting_cases",
 ]
 

@@ -1,6 +1,7 @@
-"""Seeded fuzzing: hostile maps, settings, filter settings, actions, command lines and damaged bags,
-each kind run in a worker process under a 3 GiB memory limit and a time limit. Every case must end
-in one clear error or a correct run (tests/fuzz/harness.py says what counts).
+"""Seeded fuzzing: hostile maps, settings, filter settings, actions, command lines, damaged bags,
+and the race's and the localization wrappers' API misused, each kind run in a worker process under
+a 3 GiB memory limit and a time limit. Every case must end in one clear error or a correct run
+(tests/fuzz/harness.py says what counts).
 
 The cases are the same on every run (fixed seeds); ``scripts/fuzz.py`` runs a longer campaign with
 other seeds.
@@ -21,6 +22,8 @@ BUDGET = {
     "action": (30, 180),
     "cli": (8, 240),
     "bag": (12, 240),
+    "race_api": (24, 240),
+    "localization_api": (24, 240),
 }
 
 
@@ -62,3 +65,10 @@ def test_the_judge_refuses_what_is_not_a_clear_error() -> None:
     assert judge(case, {**cli, "exit": 1}) is not None
     assert judge(case, {**cli, "stderr": "Traceback (most recent call last):\n  x\n"}) is not None
     assert judge(case, {**cli, "left": ["out"]}) is not None
+    # a case may name another clear type, from its owner only
+    wrap = {"clear_types": ["TypeError"], "owner": "LocalizedRaceEnv"}
+    type_error = {**good, "type": "TypeError", "mro": ["TypeError"],
+                  "message": "LocalizedRaceEnv needs a racecar_sim.RaceEnv; got NoneType"}  # fmt: skip
+    assert judge(wrap, type_error) is None
+    assert judge(wrap, {**type_error, "message": "'NoneType' object is not iterable"}) is not None
+    assert judge(case, type_error) is not None

@@ -15,6 +15,7 @@ import contextlib
 import io
 import json
 import math
+import resource
 import shutil
 import sys
 import tempfile
@@ -25,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from tests.fuzz.api_runners import run_localization_api, run_race_api
 from tests.fuzz.hostile_maps import alias_bomb, fake_png, small_png
 from tests.fuzz.mutations import decode
 
@@ -198,6 +200,8 @@ def run_bag(case: dict[str, Any], tmp: Path) -> None:
 
 
 RUNNERS = {
+    "race_api": run_race_api,
+    "localization_api": run_localization_api,
     "setting": run_setting,
     "filter": run_filter,
     "map": run_map,
@@ -227,6 +231,7 @@ def run_case(case: dict[str, Any]) -> dict[str, Any]:
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     result["seconds"] = time.perf_counter() - t0
+    result["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB
     return result
 
 
