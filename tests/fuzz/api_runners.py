@@ -346,10 +346,18 @@ def run_localization_api(case: dict[str, Any], tmp: Path) -> None:
         if op["op"] == "reset":
             spec = op["options"]
             options = _loc_options(spec, env, wrapper, n)
-            out = judge.call(f"reset({spec})", spec["bad"], False, env.reset, seed=op["seed"],
+            bad = spec["bad"]
+            mask = spec.get("reset_mask")
+            if mask is not None and not (  # a bool per car, one True at least
+                isinstance(mask, list) and len(mask) == n and any(mask)
+                and all(isinstance(v, bool) for v in mask)
+            ):  # fmt: skip
+                bad = True
+            out = judge.call(f"reset({spec})", bad, False, env.reset, seed=op["seed"],
                              options=options)  # fmt: skip
             if out is not None:
-                ready = True
+                # a vector env is ready once every car was reset (reset_mask may leave some out)
+                ready = wrapper != "vector" or all(pf is not None for pf in env.filters)
                 _check_loc(out, env, wrapper, f"reset({spec})")
             elif not str(judge.refusals[-1]).startswith(f"{owner}.reset"):
                 ready = None if wrapper == "vector" else False  # the env's reset refused
