@@ -33,6 +33,7 @@ from mcl.cli.common import (
     ENV_HELP,
     MAP_HELP,
     Parser,
+    check_bag,
     check_env,
     check_env_builds,
     check_map,
@@ -40,6 +41,7 @@ from mcl.cli.common import (
     non_negative_float,
     non_negative_int,
     output_folder,
+    path_arg,
     positive_float,
     positive_int,
 )
@@ -82,7 +84,11 @@ def build_parser() -> Parser:
     parser = Parser("racecar-sim drive", __doc__, EXAMPLES)
     parser.add_argument("--map", default=DEFAULT_MAP, metavar="NAME|YAML", help=MAP_HELP)
     parser.add_argument(
-        "--out", type=Path, default=Path("out/drive"), metavar="DIR", help="output folder"
+        "--out",
+        type=path_arg,
+        default=Path("out/drive"),
+        metavar="DIR",
+        help="output folder: a new or empty one, or one racecar-sim made",
     )
     parser.add_argument(
         "--seed", type=non_negative_int, default=0, metavar="N", help="start pose and noise seed"
@@ -128,11 +134,12 @@ def build_parser() -> Parser:
     )
     parser.add_argument(
         "--bag",
-        type=Path,
+        type=path_arg,
         default=None,
         metavar="BAGDIR",
-        help="also record the drive as a ROS 2 / MCAP bag in this folder, replaced if it exists "
-        "(default: no bag)",
+        help="also record the drive as a ROS 2 / MCAP bag in this new folder, outside --out (an "
+        "existing folder is replaced only when it holds exactly an earlier recording; default: "
+        "no bag)",
     )
     add_live_arguments(parser, "drive")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -151,9 +158,7 @@ def main(argv: list[str] | None = None) -> int:
         check_map(parser, args.filter_map, "--filter-map", env=env)
     out: Path = check_out(parser, args.out)
     if args.bag is not None:
-        check_out(parser, args.bag, "--bag")
-        if args.bag.resolve() == out.resolve():
-            parser.fail("--bag", "must differ from --out")
+        check_bag(parser, args.bag, out)
     live = check_live(parser, args.live, args.live_speed)
     try:
         spec = RunSpec(

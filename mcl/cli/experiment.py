@@ -22,6 +22,7 @@ from mcl.cli.common import (
     non_negative_float,
     number_list,
     output_folder,
+    path_arg,
     positive_float,
     positive_int,
 )
@@ -164,7 +165,8 @@ def build_parser() -> Parser:
     )
     add("--resume", action="store_true", help="skip runs whose log is complete")
     add("--no-plots", action="store_true", help="write no PNG plots")
-    add("--out", type=Path, default=Path("runs/experiment"), metavar="DIR", help="output folder")
+    add("--out", type=path_arg, default=Path("runs/experiment"), metavar="DIR",
+        help="output folder: a new or empty one, or one racecar-sim made")  # fmt: skip
     return parser
 
 

@@ -21,6 +21,7 @@ from mcl.cli.common import (
     non_negative_int,
     number_list,
     output_folder,
+    path_arg,
     positive_float,
     positive_int,
 )
@@ -33,6 +34,7 @@ from mcl.experiments.opponents_run import (
     run_opponents,
     run_row,
 )
+from racecar_sim.file_guard import writable
 
 EXAMPLES = """\
 examples:
@@ -71,7 +73,8 @@ def build_parser() -> Parser:
         help="metres of loop from the car to each opponent (boxes backend)")  # fmt: skip
     add("--particles", type=positive_int, default=1500, metavar="N", help="particles")
     add("--backend", choices=BACKENDS, default="boxes", help="where the opponents come from")
-    add("--out", type=Path, default=Path("runs/opponents"), metavar="DIR", help="output folder")
+    add("--out", type=path_arg, default=Path("runs/opponents"), metavar="DIR",
+        help="output folder: a new or empty one, or one racecar-sim made")  # fmt: skip
     return parser
 
 
@@ -111,7 +114,7 @@ def _run(args, out: Path) -> int:
     table = opponents_table(results)
     _write_csv(out / "summary.csv", table)
     text = markdown_table(table)
-    (out / "summary.md").write_text(text)
+    writable(out / "summary.md").write_text(text)
     print(text, end="")
     return 0
 
@@ -127,7 +130,7 @@ def markdown_table(table: list[dict]) -> str:
 
 
 def _write_csv(path: Path, rows: list[dict]) -> None:
-    with open(path, "w", newline="") as f:
+    with open(writable(path), "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)

@@ -28,8 +28,11 @@ from mcl.cli.common import (
     ENV_HELP,
     Parser,
     check_env,
+    check_out,
     non_negative_float,
     number_list,
+    output_folder,
+    path_arg,
     positive_float,
     positive_int,
 )
@@ -173,7 +176,8 @@ def main(argv: list[str] | None = None) -> int:
         help="m/s of opponents 1, 2, ...: a race of K takes the first K (default 2.0, 2.4, 2.8, ...)",
     )
     add("--video-seconds", type=non_negative_float, default=20.0, help="0: no video")
-    add("--out", type=Path, default=Path("runs/agent"), metavar="DIR", help="output folder")
+    add("--out", type=path_arg, default=Path("runs/agent"), metavar="DIR",
+        help="output folder: a new or empty one, or one racecar-sim made")  # fmt: skip
     args = parser.parse_args(argv)
     args.env = check_env(parser, args.env)
     most = max((*args.opponents, *(args.eval_opponents or ())), default=0)
@@ -186,13 +190,22 @@ def main(argv: list[str] | None = None) -> int:
         parser.fail("--pose", "a race (--opponents) runs no MCL: train on truth or none")
     if args.eval_opponents is None:
         args.eval_opponents = tuple(sorted(set(args.opponents)))
+    check_out(parser, args.out)
 
-    from mcl.agents.ppo import PPOSettings, load_policy, require_sb3, train
+    from mcl.agents.ppo import require_sb3
 
     try:
         require_sb3()
     except ImportError as exc:
         parser.error(str(exc))
+    with output_folder(parser, args.out):
+        return _train_and_evaluate(args)
+
+
+def _train_and_evaluate(args: argparse.Namespace) -> int:
+    """Train (or reuse) a policy per --pose in ``args.out``, then evaluate them."""
+    from mcl.agents.ppo import PPOSettings, load_policy, train
+
     settings = PPOSettings(n_envs=args.envs)
     models: dict[str, Path] = {}
     for source in args.pose:

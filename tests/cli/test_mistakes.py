@@ -13,6 +13,7 @@ import mcl.cli.recovery_ablation
 from mcl.cli.main import main
 from mcl.experiments.noise_sweep import ExperimentConfig
 from mcl.experiments.runner import record_settings
+from racecar_sim.file_guard import MARKER, claim_folder
 
 
 @pytest.fixture
@@ -148,7 +149,7 @@ def test_resume_into_a_folder_made_with_other_settings_stops_before_running(
     tmp_path, capsys, no_runs
 ) -> None:
     out = tmp_path / "sweep"
-    out.mkdir()
+    claim_folder(out)  # as an earlier experiment left it
     recorded = out / "config.json"
     record_settings(ExperimentConfig(seeds=1), recorded, resume=False)
     before = recorded.read_text()
@@ -156,7 +157,7 @@ def test_resume_into_a_folder_made_with_other_settings_stops_before_running(
     assert_one_line_error(code, err, "--resume", "seeds")
     assert str(out) in err
     assert recorded.read_text() == before  # the folder's record is untouched
-    assert sorted(p.name for p in out.iterdir()) == ["config.json"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "config.json"]
     settings = json.loads(before)
     assert settings["seeds"] == 1
 
