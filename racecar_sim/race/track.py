@@ -21,6 +21,7 @@ import numba as nb
 import numpy as np
 
 from racecar_sim.drivers.pure_pursuit import resample_polyline
+from racecar_sim.file_guard import writable
 from racecar_sim.maps import OccupancyMap
 
 __all__ = ["LOOP_STARTS", "Track", "centre_loop", "resolve_track"]
@@ -141,8 +142,13 @@ class Track:
             raise ValueError(f"track file {path}: {exc}") from None
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
-        """Write the track in f1tenth's centerline format (widths 0 when unknown); returns the path."""
-        path = Path(path)
+        """Write the track in f1tenth's centerline format (widths 0 when unknown); returns the path.
+
+        Raises:
+            FileExistsError: ``path`` exists outside racecar-sim's folders
+                ([writable][racecar_sim.file_guard.writable]).
+        """
+        path = writable(path)
         widths = self.widths if self.widths is not None else np.zeros_like(self.points)
         np.savetxt(
             path,
