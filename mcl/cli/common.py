@@ -41,6 +41,9 @@ __all__ = [
     "check_map",
     "check_out",
     "check_resume",
+    "duration_or_zero",
+    "duration_seconds",
+    "live_speed",
     "non_negative_float",
     "non_negative_int",
     "number_list",
@@ -166,6 +169,35 @@ def positive_int(text: str) -> int:
 def non_negative_int(text: str) -> int:
     """argparse type: a whole number >= 0."""
     return _number(text, int, "a whole number", lambda v: v >= 0, "a whole number >= 0")
+
+
+def duration_seconds(text: str) -> float:
+    """argparse type: simulated seconds within the run bound (a day;
+    [RUN_BOUNDS][mcl.run_bounds.RUN_BOUNDS])."""
+    from mcl.run_bounds import RUN_BOUNDS
+
+    b = RUN_BOUNDS["run.duration"]
+    return _number(text, float, "a number", lambda v: b.low < v <= b.high, f"seconds in {b.text()}")
+
+
+def duration_or_zero(text: str) -> float:
+    """argparse type: 0 (none) or simulated seconds as
+    [duration_seconds][mcl.cli.common.duration_seconds]."""
+    from mcl.run_bounds import RUN_BOUNDS
+
+    b = RUN_BOUNDS["run.duration"]
+    ok = lambda v: 0 <= v <= b.high  # noqa: E731
+    return _number(text, float, "a number", ok, f"0 or seconds in {b.text()}")
+
+
+def live_speed(text: str) -> float:
+    """argparse type: 0 (unpaced) or times real time within the run bound
+    ([RUN_BOUNDS][mcl.run_bounds.RUN_BOUNDS]; at least 0.01)."""
+    from mcl.run_bounds import RUN_BOUNDS
+
+    b = RUN_BOUNDS["live.speed"]
+    ok = lambda v: v == 0 or b.low <= v <= b.high  # noqa: E731
+    return _number(text, float, "a number", ok, f"0 (unpaced) or in {b.text()}")
 
 
 def number_list(text: str) -> tuple[float, ...]:

@@ -38,11 +38,11 @@ from mcl.cli.common import (
     check_env_builds,
     check_map,
     check_out,
+    duration_seconds,
     non_negative_float,
     non_negative_int,
     output_folder,
     path_arg,
-    positive_float,
     positive_int,
 )
 from mcl.cli.compile_notice import compile_notice, compile_report
@@ -94,7 +94,11 @@ def build_parser() -> Parser:
         "--seed", type=non_negative_int, default=0, metavar="N", help="start pose and noise seed"
     )
     parser.add_argument(
-        "--duration", type=positive_float, default=60.0, metavar="S", help="simulated seconds"
+        "--duration",
+        type=duration_seconds,
+        default=60.0,
+        metavar="S",
+        help="simulated seconds (at most a day)",
     )
     parser.add_argument(
         "--particles",

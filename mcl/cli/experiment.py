@@ -19,6 +19,7 @@ from mcl.cli.common import (
     check_map,
     check_out,
     check_resume,
+    duration_seconds,
     non_negative_float,
     number_list,
     output_folder,
@@ -97,7 +98,7 @@ def build_parser() -> Parser:
     add("--seeds", type=positive_int, default=3, metavar="N", help="number of seeds (0, 1, ...)")
     add(
         "--duration",
-        type=positive_float,
+        type=duration_seconds,
         default=None,
         metavar="S",
         help="simulated seconds per run (default: 60; global: 20; kidnap: kidnap time + 20)",

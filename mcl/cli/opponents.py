@@ -18,6 +18,7 @@ from mcl.cli.common import (
     Parser,
     check_map,
     check_out,
+    duration_seconds,
     non_negative_int,
     number_list,
     output_folder,
@@ -67,7 +68,8 @@ def build_parser() -> Parser:
     add("--methods", nargs="+", choices=list(METHODS), default=list(METHODS), metavar="NAME",
         help=f"filter variants, from: {', '.join(METHODS)}")  # fmt: skip
     add("--seeds", type=positive_int, default=5, metavar="N", help="seeds 0 .. N-1 per cell")
-    add("--duration", type=positive_float, default=30.0, metavar="S", help="seconds per run")
+    add("--duration", type=duration_seconds, default=30.0, metavar="S",
+        help="simulated seconds per run")  # fmt: skip
     add("--speed", type=positive_float, default=2.0, metavar="M/S", help="the cars' speed")
     add("--gaps", type=number_list, default=(2.0, 3.2, 4.4), metavar="M,M,M",
         help="metres of loop from the car to each opponent (boxes backend)")  # fmt: skip

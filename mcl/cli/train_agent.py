@@ -29,7 +29,8 @@ from mcl.cli.common import (
     Parser,
     check_env,
     check_out,
-    non_negative_float,
+    duration_or_zero,
+    duration_seconds,
     number_list,
     output_folder,
     path_arg,
@@ -129,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     add("--retrain", action="store_true", help="train even if OUT/<source>/model.zip exists")
     add("--no-eval", action="store_true", help="train only")
     add("--eval-seeds", type=positive_int, default=5, help="test episodes per policy and test")
-    add("--eval-seconds", type=positive_float, default=60.0, help="seconds per test episode")
+    add("--eval-seconds", type=duration_seconds, default=60.0,
+        help="simulated seconds per test episode")  # fmt: skip
     add(
         "--eval-filters",
         type=_filters,
@@ -175,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
         metavar="V,...",
         help="m/s of opponents 1, 2, ...: a race of K takes the first K (default 2.0, 2.4, 2.8, ...)",
     )
-    add("--video-seconds", type=non_negative_float, default=20.0, help="0: no video")
+    add("--video-seconds", type=duration_or_zero, default=20.0, help="0: no video")
     add("--out", type=path_arg, default=Path("runs/agent"), metavar="DIR",
         help="output folder: a new or empty one, or one racecar-sim made")  # fmt: skip
     args = parser.parse_args(argv)
