@@ -1,7 +1,9 @@
 """A longer fuzz campaign than the tests' (tests/fuzz): many seeds of hostile maps, settings,
-filter settings, actions, command lines and damaged bags, each batch in a worker process under a
-memory and a time limit. Prints a table per kind (clean errors, correct runs, problems, slowest
-case) and every problem found; exits 1 when there was one.
+filter settings, actions, command lines, damaged bags, command-line paths (``path``) and hostile
+scan headers (``scan``), each batch in a worker process under a memory and a time limit. Prints a
+table per kind (clean errors, correct runs, problems by kind: tracebacks, hangs, lost files,
+memory, wrong runs; the slowest case; the largest worker's peak memory) and every problem found;
+exits 1 when there was one.
 
     python scripts/fuzz.py                       # 200 cases of each kind, seeds from 1
     python scripts/fuzz.py --kinds map setting --cases 1000 --seed 7
@@ -10,6 +12,7 @@ case) and every problem found; exits 1 when there was one.
 from __future__ import annotations
 
 import argparse
+import resource
 import sys
 import time
 from pathlib import Path
@@ -17,9 +20,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.fuzz import mutations
-from tests.fuzz.harness import MEMORY_LIMIT, judge, run_cases
+from tests.fuzz.harness import MEMORY_LIMIT, PROBLEM_KINDS, judge, problem_kind, run_cases
 
-KINDS = ("setting", "filter", "map", "action", "cli", "bag")
+KINDS = ("setting", "filter", "map", "action", "cli", "bag", "path", "scan")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -35,12 +38,14 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--cases and --batch must be >= 1")
     memory = int(args.memory_gb * 2**30)
     problems: list[str] = []
-    print("| kind | cases | clean errors | correct runs | problems | slowest case (s) | wall (s) |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
+    names = " | ".join(f"{k}s" if k != "memory" else k for k in PROBLEM_KINDS)
+    print(f"| kind | cases | clean errors | correct runs | {names} | slowest case (s) | "
+          "peak worker RSS (MiB) | wall (s) |")  # fmt: skip
+    print("|---|" + "---:|" * (len(PROBLEM_KINDS) + 6))
     for kind in args.kinds:
         make = getattr(mutations, f"{kind}_cases")
         t0 = time.perf_counter()
-        counts = {"error": 0, "ok": 0, "bad": 0}
+        counts = {"error": 0, "ok": 0, "bad": 0, **dict.fromkeys(PROBLEM_KINDS, 0)}
         slowest = 0.0
         done, seed = 0, args.seed
         while done < args.cases:
@@ -51,6 +56,7 @@ def main(argv: list[str] | None = None) -> int:
                 problem = judge(case, result)
                 if problem is not None:
                     counts["bad"] += 1
+                    counts[problem_kind(result)] += 1
                     problems.append(f"[{kind}, seed {seed}] {case} -> {problem}")
                 elif result["outcome"] == "ok" or result.get("exit") == 0:
                     counts["ok"] += 1
@@ -59,8 +65,10 @@ def main(argv: list[str] | None = None) -> int:
             done += n
             seed += 1
         wall = time.perf_counter() - t0
-        print(f"| {kind} | {done} | {counts['error']} | {counts['ok']} | {counts['bad']} | "
-              f"{slowest:.1f} | {wall:.0f} |", flush=True)  # fmt: skip
+        peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # KiB on Linux
+        found = " | ".join(str(counts[k]) for k in PROBLEM_KINDS)
+        print(f"| {kind} | {done} | {counts['error']} | {counts['ok']} | {found} | "
+              f"{slowest:.1f} | {peak:.0f} | {wall:.0f} |", flush=True)  # fmt: skip
     for p in problems:
         print(p[:2000])
     return 1 if problems else 0

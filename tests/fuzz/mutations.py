@@ -10,6 +10,8 @@ import dataclasses
 import random
 from typing import Any
 
+from tests.fuzz.file_mutations import path_cases, scan_cases  # the file-safety kinds
+
 __all__ = [
     "HOSTILE_TEXTS",
     "HOSTILE_VALUES",
@@ -18,6 +20,8 @@ __all__ = [
     "cli_cases",
     "filter_cases",
     "map_cases",
+    "path_cases",
+    "scan_cases",
     "setting_cases",
 ]
 

@@ -1,5 +1,6 @@
-"""Seeded fuzzing: hostile maps, settings, filter settings, actions, command lines and damaged bags,
-each kind run in a worker process under a 3 GiB memory limit and a time limit. Every case must end
+"""Seeded fuzzing: hostile maps, settings, filter settings, actions, command lines, damaged bags,
+command-line paths and hostile scan headers, each kind run in a worker process under a 3 GiB
+memory limit and a time limit. Every case must end
 in one clear error or a correct run (tests/fuzz/harness.py says what counts).
 
 The cases are the same on every run (fixed seeds); ``scripts/fuzz.py`` runs a longer campaign with
@@ -11,7 +12,7 @@ from __future__ import annotations
 import pytest
 
 from tests.fuzz import mutations
-from tests.fuzz.harness import judge, run_cases
+from tests.fuzz.harness import judge, problem_kind, run_cases
 
 # kind -> (cases, seconds the worker may take: imports, numba's cached kernels, the cases)
 BUDGET = {
@@ -21,6 +22,8 @@ BUDGET = {
     "action": (30, 180),
     "cli": (8, 240),
     "bag": (12, 240),
+    "path": (16, 300),
+    "scan": (16, 300),
 }
 
 
@@ -62,3 +65,16 @@ def test_the_judge_refuses_what_is_not_a_clear_error() -> None:
     assert judge(case, {**cli, "exit": 1}) is not None
     assert judge(case, {**cli, "stderr": "Traceback (most recent call last):\n  x\n"}) is not None
     assert judge(case, {**cli, "left": ["out"]}) is not None
+    assert judge(case, {"outcome": "loss", "lost": ["user/data.txt"], "exit": 0}) is not None
+    raised = {**good, "type": "ValueError", "mro": ["ValueError"]}
+    assert judge({"kind": "scan", "command": True}, raised) is not None  # a command raised
+    assert judge({"kind": "scan"}, raised) is None  # the API's one clear error
+
+
+def test_problems_are_counted_by_kind() -> None:
+    assert problem_kind({"outcome": "loss", "lost": ["a"]}) == "loss"
+    assert problem_kind({"outcome": "lost", "end": "killed after the time limit of 9 s"}) == "hang"
+    assert problem_kind({"outcome": "lost", "end": "exit 1: ... MemoryError"}) == "memory"
+    assert problem_kind({"outcome": "error", "type": "MemoryError"}) == "memory"
+    assert problem_kind({"outcome": "wrong", "message": "scan not finite"}) == "wrong"
+    assert problem_kind({"outcome": "exit", "exit": 1, "stderr": "Traceback"}) == "traceback"

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from tests.fuzz.file_worker import remove_case_folder, run_path, run_scan
 from tests.fuzz.hostile_maps import alias_bomb, fake_png, small_png
 from tests.fuzz.mutations import decode
 
@@ -204,6 +205,8 @@ RUNNERS = {
     "action": run_action,
     "cli": run_cli,
     "bag": run_bag,
+    "path": run_path,
+    "scan": run_scan,
 }
 
 
@@ -225,7 +228,7 @@ def run_case(case: dict[str, Any]) -> dict[str, Any]:
             "where": "".join(traceback.format_exception(exc)[-3:])[-600:],
         }
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        remove_case_folder(tmp)
     result["seconds"] = time.perf_counter() - t0
     return result
 
