@@ -38,7 +38,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--cases and --batch must be >= 1")
     memory = int(args.memory_gb * 2**30)
     problems: list[str] = []
-    names = " | ".join(f"{k}s" if k != "memory" else k for k in PROBLEM_KINDS)
+    shown = {"traceback": "tracebacks", "hang": "hangs", "loss": "losses", "wrong": "wrong runs"}
+    names = " | ".join(shown.get(k, k) for k in PROBLEM_KINDS)
     print(f"| kind | cases | clean errors | correct runs | {names} | slowest case (s) | "
           "peak worker RSS (MiB) | wall (s) |")  # fmt: skip
     print("|---|" + "---:|" * (len(PROBLEM_KINDS) + 6))
