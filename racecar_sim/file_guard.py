@@ -14,10 +14,11 @@
   removes the marker it wrote and the folders it created, when they hold nothing else, with
   ``os.rmdir`` (which cannot remove a file or a folder that is not empty). Nothing here removes a
   tree.
-- **Names.** A path given on a command line must be one the operating system takes
+- **Names.** A path given on a command line must be one the operating system and Python take
   ([path_problem][racecar_sim.file_guard.path_problem]): not empty, no NUL, every name at most
   [NAME_MAX][racecar_sim.file_guard.NAME_MAX] bytes, the whole at most
-  [PATH_MAX][racecar_sim.file_guard.PATH_MAX] bytes.
+  [PATH_MAX][racecar_sim.file_guard.PATH_MAX] bytes and
+  [MAX_DEPTH][racecar_sim.file_guard.MAX_DEPTH] names.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from pathlib import Path
 
 __all__ = [
     "MARKER",
+    "MAX_DEPTH",
     "NAME_MAX",
     "PATH_MAX",
     "Claim",
@@ -56,6 +58,9 @@ NAME_MAX = 255
 """Bytes of one file or folder name (Linux's NAME_MAX; longer names are refused by the system)."""
 PATH_MAX = 4096
 """Bytes of a whole path with its terminating NUL (Linux's PATH_MAX)."""
+MAX_DEPTH = 256
+"""Most names in a path: Python's ``Path.mkdir(parents=True)`` (and rosbags' writer with it) makes
+one nested call per missing folder, and its recursion limit is 1000 calls."""
 
 
 class NotOurs(FileExistsError):
@@ -73,8 +78,9 @@ def shown(path: str | os.PathLike[str], limit: int = 120) -> str:
 
 def path_problem(text: str) -> str | None:
     """Why ``text`` cannot name a file or folder (None: it can): empty, a NUL character, a name
-    longer than [NAME_MAX][racecar_sim.file_guard.NAME_MAX] bytes or a path longer than
-    [PATH_MAX][racecar_sim.file_guard.PATH_MAX] - 1 bytes."""
+    longer than [NAME_MAX][racecar_sim.file_guard.NAME_MAX] bytes, a path longer than
+    [PATH_MAX][racecar_sim.file_guard.PATH_MAX] - 1 bytes or deeper than
+    [MAX_DEPTH][racecar_sim.file_guard.MAX_DEPTH] names."""
     if text == "":
         return "is empty; give a folder or file name"
     if "\0" in text:
@@ -82,7 +88,11 @@ def path_problem(text: str) -> str | None:
     raw = os.fsencode(text)
     if len(raw) >= PATH_MAX:
         return f"is {len(raw)} bytes long, more than the system's limit of {PATH_MAX - 1}"
-    for part in raw.split(b"/"):
+    parts = raw.split(b"/")
+    depth = sum(1 for part in parts if part not in (b"", b"."))
+    if depth > MAX_DEPTH:
+        return f"is {depth} folders deep, more than {MAX_DEPTH}"
+    for part in parts:
         if len(part) > NAME_MAX:
             name = shown(os.fsdecode(part), 40)
             return f"has a name of {len(part)} bytes ({name}), more than the system's {NAME_MAX}"
@@ -216,19 +226,24 @@ def claim_folder(folder: str | os.PathLike[str], mark: bool = True) -> Claim:
         if os.path.lexists(parent):
             break
         created.insert(0, parent)
+    made: list[Path] = []
     try:  # one level at a time: Path.mkdir(parents=True) recurses once per missing level
         for new in created:
-            new.mkdir()
+            try:
+                new.mkdir()
+                made.append(new)
+            except FileExistsError:  # "a/b/.." is "a", made one step before
+                if not new.is_dir():
+                    raise
         folder.mkdir(exist_ok=True)
     except OSError:  # e.g. a path too long for the system, found only part of the way down
-        for made in reversed(created):
-            if os.path.isdir(made) and not os.path.islink(made):
-                try:
-                    os.rmdir(made)
-                except OSError:
-                    break
+        for new in reversed(made):
+            try:
+                os.rmdir(new)
+            except OSError:
+                break
         raise
-    claim = Claim(folder, created)
+    claim = Claim(folder, made)
     if mark and not (is_marked(folder) or in_our_folder(folder / MARKER)):
         with open(folder / MARKER, "x", encoding="utf-8") as f:
             f.write(MARKER_TEXT)

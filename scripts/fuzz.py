@@ -25,6 +25,17 @@ from tests.fuzz.harness import MEMORY_LIMIT, PROBLEM_KINDS, judge, problem_kind,
 KINDS = ("setting", "filter", "map", "action", "cli", "bag", "path", "scan")
 
 
+def _short(value: object) -> object:
+    """``value`` with every text longer than 80 characters cut (a case may hold a 100 KB path)."""
+    if isinstance(value, str) and len(value) > 80:
+        return f"{value[:40]}...({len(value)} characters)...{value[-20:]}"
+    if isinstance(value, list):
+        return [_short(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _short(v) for k, v in value.items()}
+    return value
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="scripts/fuzz.py", description=__doc__.split("\n")[0])
     parser.add_argument("--kinds", nargs="+", choices=KINDS, default=list(KINDS))
@@ -58,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
                 if problem is not None:
                     counts["bad"] += 1
                     counts[problem_kind(result)] += 1
-                    problems.append(f"[{kind}, seed {seed}] {case} -> {problem}")
+                    problems.append(f"[{kind}, seed {seed}] {_short(case)} -> {problem}")
                 elif result["outcome"] == "ok" or result.get("exit") == 0:
                     counts["ok"] += 1
                 else:

@@ -255,6 +255,7 @@ _PATHS = {
     "long-name": (f"out/{_LONG_NAME}/x", "name of 256 bytes"),
     "long-path": ("/".join(["d" * 99] * 50), "bytes long"),
     "nul": ("out\0x", "NUL"),
+    "deep": ("/".join(["x"] * 300), "300 folders deep"),
 }
 
 

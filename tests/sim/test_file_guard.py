@@ -4,6 +4,8 @@ only paths the system can. Everything happens in temporary folders."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given
@@ -13,6 +15,7 @@ from mcl.error_log import HEADER, ErrorLogWriter
 from mcl.experiments.video import FrameWriter
 from racecar_sim.file_guard import (
     MARKER,
+    MAX_DEPTH,
     NAME_MAX,
     PATH_MAX,
     NotOurs,
@@ -32,6 +35,19 @@ def test_a_new_folder_is_claimed_marked_and_released_when_nothing_was_written(tm
     (tmp_path / "a" / "b" / "c" / "logs" / "empty").mkdir(parents=True)
     assert claim.release()
     assert list(tmp_path.iterdir()) == []  # the folders it created, and only those, are gone
+
+
+def test_a_path_through_dot_dot_is_claimed_and_released(tmp_path, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    claim = claim_folder(Path("a/./b/../c"))
+    assert (tmp_path / "a" / "c" / MARKER).is_file() and (tmp_path / "a" / "b").is_dir()
+    assert claim.release()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_folder_deeper_than_python_creates_is_refused_by_its_text() -> None:
+    assert "300 folders deep" in path_problem("/".join(["x"] * 300))
+    assert path_problem("/".join(["x"] * MAX_DEPTH)) is None
 
 
 def test_release_keeps_everything_once_a_file_was_written(tmp_path) -> None:
@@ -154,7 +170,11 @@ def test_a_link_to_a_folder_overlaps_it(tmp_path) -> None:
     assert overlaps(tmp_path / "alias" / "inner", tmp_path / "real")
 
 
-@given(st.lists(st.text(min_size=1, max_size=300).filter(lambda t: "/" not in t), max_size=20))
+_NAMES = st.lists(st.text(min_size=1, max_size=300).filter(lambda t: "/" not in t), max_size=20)
+_DEEP = st.lists(st.sampled_from(["x", "é", ".", ""]), min_size=240, max_size=280)
+
+
+@given(_NAMES | _DEEP)
 def test_path_problem_is_none_exactly_for_names_the_system_takes(parts) -> None:
     text = "/".join(parts)
     raw = [p.encode("utf-8", "surrogateescape") for p in parts]
@@ -163,6 +183,7 @@ def test_path_problem_is_none_exactly_for_names_the_system_takes(parts) -> None:
         and "\0" not in text
         and len(text.encode("utf-8", "surrogateescape")) < PATH_MAX
         and all(len(r) <= NAME_MAX for r in raw)
+        and sum(1 for p in parts if p not in ("", ".")) <= MAX_DEPTH
     )
     assert (path_problem(text) is None) is fine
 
