@@ -106,14 +106,12 @@ def is_marked(folder: Path) -> bool:
 
 
 def in_our_folder(path: str | os.PathLike[str]) -> bool:
-    """Whether ``path`` lies in one of our folders: a folder above it holds the marker, with no
-    link between them (a link could lead anywhere)."""
-    folder = Path(os.path.abspath(path)).parent
+    """Whether ``path`` lies in one of our folders: a folder above where it really is (links
+    resolved: a link in our folder could lead anywhere) holds the marker."""
+    folder = Path(os.path.realpath(Path(path).parent))
     while True:
         if is_marked(folder):
             return True
-        if folder.is_symlink():
-            return False
         if folder.parent == folder:
             return False
         folder = folder.parent

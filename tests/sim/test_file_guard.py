@@ -97,6 +97,12 @@ def test_a_subfolder_of_ours_is_ours_unless_reached_through_a_link(tmp_path) -> 
     assert not in_our_folder(tmp_path / "run" / "link" / "theirs.csv")
     with pytest.raises(NotOurs):
         writable(tmp_path / "run" / "link" / "theirs.csv")
+    (elsewhere / "sub").mkdir()
+    (tmp_path / "run" / "deep").symlink_to(elsewhere / "sub", target_is_directory=True)
+    # lexically run/theirs.csv, really elsewhere/theirs.csv: not ours
+    with pytest.raises(NotOurs):
+        writable(tmp_path / "run" / "deep" / ".." / "theirs.csv")
+    assert (elsewhere / "theirs.csv").read_text() == "theirs"
 
 
 def test_writable_refuses_links_folders_and_files_that_are_not_ours(tmp_path) -> None:
