@@ -23,6 +23,8 @@ from pathlib import Path
 from typing import NoReturn, Protocol
 
 from racecar_sim.file_guard import (
+    NAME_MAX,
+    PATH_MAX,
     NotOurs,
     claim_folder,
     folder_problem,
@@ -67,10 +69,18 @@ def _check_parent(parser: Parser, path: Path, flag: str) -> None:
 
 
 def check_out(parser: Parser, path: Path, flag: str = "--out", owned: bool = True) -> Path:
-    """Check that folder ``path`` can be created or written into (nothing is created here): it is
-    not a file, the folder above it is writable and, with ``owned``, it is new, empty or ours
+    """Check that folder ``path`` can be created or written into (nothing is created here): short
+    enough for any file name inside (at most 3839 bytes), not a file, the folder above it
+    writable and, with ``owned``, it is new, empty or ours
     ([folder_problem][racecar_sim.file_guard.folder_problem]). Without ``owned`` (a shared folder
     such as make-maps' maps folder) the caller checks each file it would replace."""
+    size = len(os.fsencode(path))
+    if size > PATH_MAX - 2 - NAME_MAX:
+        parser.fail(
+            flag,
+            f"is {size} bytes long; a folder's path may have at most {PATH_MAX - 2 - NAME_MAX} "
+            f"bytes, so that every file in it stays within the system's {PATH_MAX - 1}",
+        )
     try:
         if os.path.lexists(path) and not path.is_dir():
             parser.fail(flag, f"{shown(path)} exists and is not a folder")
@@ -107,6 +117,13 @@ def check_bag(parser: Parser, bag: Path, out: Path, flag: str = "--bag") -> Path
     from mcl.io.bag_writer import TOPICS
 
     check_out(parser, bag, flag, owned=False)
+    name = len(os.fsencode(bag.name))
+    if name + len(".mcap") > NAME_MAX:
+        parser.fail(
+            flag,
+            f"has a last name of {name} bytes; the recording's file <name>.mcap must stay "
+            f"within the system's {NAME_MAX}: at most {NAME_MAX - len('.mcap')}",
+        )
     try:
         if overlaps(bag, out):
             parser.fail(

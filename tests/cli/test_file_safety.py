@@ -240,7 +240,7 @@ def test_calibrate_noise_refuses_to_overwrite_a_file_it_did_not_write(tmp_path, 
 # ---------------------------------------------------------------------- path texts
 _OUT_COMMANDS = {
     "drive": [],
-    "replay": ["{bag}"],
+    "replay": ["{bag}", "--map", "corridor"],
     "experiment": [],
     "ablation": [],
     "fast-laps": [],
@@ -283,3 +283,27 @@ def test_a_path_the_system_cannot_take_is_one_line(
     assert_one_line_error(code, err, flag, fragment)
     assert len(err) < 500  # the path is cut short in the message
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bag", "map.yaml"]  # nothing made
+
+
+@pytest.mark.parametrize("sub", [s for s in _OUT_COMMANDS if s != "calibrate-noise"])
+def test_a_folder_path_leaves_room_for_the_files_in_it(sub, tmp_path, capsys, monkeypatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    args = [a.replace("{bag}", "a.bag").replace("{map}", "map.yaml") for a in _OUT_COMMANDS[sub]]
+    long = "/".join(["d" * 99] * 39)  # 3899 bytes: the folder fits, a file name in it may not
+    code, _, err = run([sub, *args, "--out", long], capsys)
+    assert_one_line_error(code, err, "--out", "at most 3839")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_bag_name_leaves_room_for_its_mcap_file(tmp_path, capsys, no_runs) -> None:
+    bag = tmp_path / ("n" * 251)  # n...n.mcap would be 256 bytes
+    code, _, err = run(["drive", *SHORT, "--bag", str(bag), "--out", str(tmp_path / "o")], capsys)
+    assert_one_line_error(code, err, "--bag", "at most 250")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_bag_name_of_250_bytes_is_recorded(tmp_path, capsys) -> None:
+    bag = tmp_path / ("n" * 250)
+    code, _, err = run(["drive", *SHORT, "--bag", str(bag), "--out", str(tmp_path / "o")], capsys)
+    assert code == 0, err
+    assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml", "n" * 250 + ".mcap"]

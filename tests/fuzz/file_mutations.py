@@ -27,10 +27,11 @@ made (with a user's note in it), ``recording`` a recording of ours, ``link`` a l
 
 _D = "d" * 99
 _PATHS: list[str] = [
-    "", ".", "..", "new", "new/", "a/./b/../c", "out\0x", "n" * 255, "n" * 256, "n" * 1000,
-    "é" * 127, "é" * 128, "/".join([_D] * 41), "/".join([_D] * 50), "x/" * 2000,
-    "/".join([_D] * 1000), "{user}", "{user}/inner", "{file}", "{file}/x", "{empty}", "{ours}",
-    "{ours}/sub", "{recording}", "{link}", "{link}/inner", "-", "--out", " ", "new\nline",
+    "", ".", "..", "new", "new/", "a/./b/../c", "out\0x", "n" * 250, "n" * 251, "n" * 255,
+    "n" * 256, "n" * 1000, "é" * 127, "é" * 128, "/".join([_D] * 38), "/".join([_D] * 39),
+    "/".join([_D] * 41), "/".join([_D] * 50), "x/" * 2000, "/".join([_D] * 1000), "{user}",
+    "{user}/inner", "{file}", "{file}/x", "{empty}", "{ours}", "{ours}/sub", "{recording}",
+    "{link}", "{link}/inner", "-", "--out", " ", "new\nline",
 ]  # fmt: skip
 """Path texts; ``{name}`` is the thing of [EXISTING][tests.fuzz.file_mutations.EXISTING] of that
 name."""
