@@ -3,14 +3,15 @@ that a command never writes into, replaces or removes what racecar-sim did not m
 ([file_guard][racecar_sim.file_guard]).
 
 - Every path flag's text must be a name the system takes ([path_arg][mcl.cli.out_paths.path_arg]):
-  ``''`` (which would be the current folder), a name over 255 bytes or a path over 4095 bytes stop
-  the command naming the flag.
-- ``--out`` is a new folder, an empty one, or one of ours
+  ``''`` (which would be the current folder), a name over 255 bytes, a path over 4095 bytes or
+  more than 256 folders deep stop the command naming the flag.
+- ``--out`` is a new folder, an empty one, or one of ours, with room for any file name inside
   ([check_out][mcl.cli.out_paths.check_out]); the command then claims it
   ([output_folder][mcl.cli.out_paths.output_folder]) and undoes the claim if it fails before writing
   anything.
 - ``--bag`` is a new folder or exactly a recording of ours, and neither holds the other's folder
-  nor lies in it ([check_bag][mcl.cli.out_paths.check_bag]).
+  nor lies in it ([check_bag][mcl.cli.out_paths.check_bag]); its name leaves room for
+  ``<name>.mcap``.
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ from racecar_sim.file_guard import (
     shown,
 )
 
+__all__ = ["check_bag", "check_file_out", "check_out", "output_folder", "path_arg"]
+
 
 class Parser(Protocol):
     """What the checks need of [mcl.cli.common.Parser][mcl.cli.common.Parser]."""
@@ -45,12 +48,10 @@ class Parser(Protocol):
         """Stop with ``PROBLEM`` (exit code 2)."""
 
 
-__all__ = ["check_bag", "check_file_out", "check_out", "output_folder", "path_arg"]
-
-
 def path_arg(text: str) -> Path:
-    """argparse type of a path flag: refuses ``''``, a NUL, a name over 255 bytes and a path over
-    4095 bytes ([path_problem][racecar_sim.file_guard.path_problem])."""
+    """argparse type of a path flag: refuses ``''``, a NUL, a name over 255 bytes, a path over
+    4095 bytes and one more than 256 folders deep
+    ([path_problem][racecar_sim.file_guard.path_problem])."""
     problem = path_problem(text)
     if problem is not None:
         raise argparse.ArgumentTypeError(problem)
