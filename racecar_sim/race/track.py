@@ -70,7 +70,7 @@ def _nearest(points, seg, seg_len2, xy, hint, window, out_i, out_t):
 
 def _track_text(path: Path) -> str:
     """The text of track file ``path``, read in bounded work: a regular file of at most
-    [MAX_TRACK_BYTES][racecar_sim.race.track.MAX_TRACK_BYTES] (a device such as /dev/zero, a pipe
+    ``MAX_TRACK_BYTES`` (a device such as /dev/zero, a pipe
     or a folder is refused before reading); bytes that are not UTF-8 are replaced.
 
     Raises:
@@ -138,7 +138,7 @@ class Track:
 
         Raises:
             ValueError: the file is missing, not a regular file (a device, a pipe, a folder),
-                longer than [MAX_TRACK_BYTES][racecar_sim.race.track.MAX_TRACK_BYTES] or not
+                longer than ``racecar_sim.race.track.MAX_TRACK_BYTES`` (1 MB) or not
                 such a table; the message names the file.
         """
         path = Path(path)
