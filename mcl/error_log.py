@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from racecar_sim.file_guard import starts_with, writable
+
 __all__ = ["HEADER", "ErrorLog", "ErrorLogWriter", "count_rows", "read_error_log"]
 
 HEADER: tuple[str, ...] = (
@@ -56,11 +58,17 @@ def _fmt(value: float) -> str:
 class ErrorLogWriter:
     """Writes the error log to ``path`` (created with its parents, truncated), flushing each row.
 
-    Usable as a context manager. The header is written (and flushed) on opening.
+    Usable as a context manager. The header is written (and flushed) on opening. An existing file
+    is replaced only when it is an error log (its first line is the header) or lies in one of
+    racecar-sim's folders ([writable][racecar_sim.file_guard.writable]).
+
+    Raises:
+        FileExistsError: ``path`` is another file
+            ([NotOurs][racecar_sim.file_guard.NotOurs]).
     """
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
-        self.path = Path(path)
+        self.path = writable(path, starts_with((_HEADER_LINE + "\n").encode()))
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file: io.TextIOWrapper | None = open(
             self.path, "w", encoding="utf-8", newline="", buffering=1

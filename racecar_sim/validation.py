@@ -162,7 +162,11 @@ def read_text(path: Path, limit: int = MAX_YAML_BYTES) -> str:
     size = path.stat().st_size
     if size > limit:
         raise YAMLRefused(f"{size} bytes, more than the {limit} read")
-    return path.read_text(encoding="utf-8", errors="replace")
+    with open(path, "rb") as f:  # at most limit + 1 bytes, whatever stat said (a device says 0)
+        raw = f.read(limit + 1)
+    if len(raw) > limit:
+        raise YAMLRefused(f"more than the {limit} bytes read")
+    return raw.decode("utf-8", errors="replace")
 
 
 def read_yaml_mapping(path: str | os.PathLike[str], what: str = "parameter file") -> dict[str, Any]:

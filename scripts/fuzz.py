@@ -1,7 +1,9 @@
 """A longer fuzz campaign than the tests' (tests/fuzz): many seeds of hostile maps, settings,
-filter settings, actions, command lines, damaged bags and the race's and the localization wrappers'
-API misused, each batch in a worker process under a memory and a time limit. Prints a table per kind (clean errors, correct runs, problems, slowest
-case, the workers' peak resident memory) and every problem found; exits 1 when there was one.
+filter settings, actions, command lines, damaged bags, command-line paths (``path``), hostile
+scan headers (``scan``) and the race's and the localization wrappers' API misused, each batch in
+a worker process under a memory and a time limit. Prints a table per kind (clean errors, correct
+runs, problems by kind: tracebacks, hangs, lost files, memory, wrong runs; the slowest case; the
+workers' peak resident memory) and every problem found; exits 1 when there was one.
 
     python scripts/fuzz.py                       # 200 cases of each kind, seeds from 1
     python scripts/fuzz.py --kinds map setting --cases 1000 --seed 7
@@ -17,9 +19,20 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.fuzz import mutations
-from tests.fuzz.harness import MEMORY_LIMIT, judge, run_cases
+from tests.fuzz.harness import MEMORY_LIMIT, PROBLEM_KINDS, judge, problem_kind, run_cases
 
-KINDS = ("setting", "filter", "map", "action", "cli", "bag", "race_api", "localization_api")
+KINDS = ("setting", "filter", "map", "action", "cli", "bag", "path", "scan", "race_api", "localization_api")
+
+
+def _short(value: object) -> object:
+    """``value`` with every text longer than 80 characters cut (a case may hold a 100 KB path)."""
+    if isinstance(value, str) and len(value) > 80:
+        return f"{value[:40]}...({len(value)} characters)...{value[-20:]}"
+    if isinstance(value, list):
+        return [_short(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _short(v) for k, v in value.items()}
+    return value
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -35,13 +48,15 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--cases and --batch must be >= 1")
     memory = int(args.memory_gb * 2**30)
     problems: list[str] = []
-    print("| kind | cases | clean errors | correct runs | problems | slowest case (s) "
-          "| peak worker RSS (MiB) | wall (s) |")  # fmt: skip
-    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    shown = {"traceback": "tracebacks", "hang": "hangs", "loss": "losses", "wrong": "wrong runs"}
+    names = " | ".join(shown.get(k, k) for k in PROBLEM_KINDS)
+    print(f"| kind | cases | clean errors | correct runs | {names} | slowest case (s) | "
+          "peak worker RSS (MiB) | wall (s) |")  # fmt: skip
+    print("|---|" + "---:|" * (len(PROBLEM_KINDS) + 6))
     for kind in args.kinds:
         make = getattr(mutations, f"{kind}_cases")
         t0 = time.perf_counter()
-        counts = {"error": 0, "ok": 0, "bad": 0}
+        counts = {"error": 0, "ok": 0, "bad": 0, **dict.fromkeys(PROBLEM_KINDS, 0)}
         slowest = peak = 0.0
         done, seed = 0, args.seed
         while done < args.cases:
@@ -53,7 +68,8 @@ def main(argv: list[str] | None = None) -> int:
                 problem = judge(case, result)
                 if problem is not None:
                     counts["bad"] += 1
-                    problems.append(f"[{kind}, seed {seed}] {case} -> {problem}")
+                    counts[problem_kind(result)] += 1
+                    problems.append(f"[{kind}, seed {seed}] {_short(case)} -> {problem}")
                 elif result["outcome"] == "ok" or result.get("exit") == 0:
                     counts["ok"] += 1
                 else:
@@ -61,7 +77,8 @@ def main(argv: list[str] | None = None) -> int:
             done += n
             seed += 1
         wall = time.perf_counter() - t0
-        print(f"| {kind} | {done} | {counts['error']} | {counts['ok']} | {counts['bad']} | "
+        found = " | ".join(str(counts[k]) for k in PROBLEM_KINDS)
+        print(f"| {kind} | {done} | {counts['error']} | {counts['ok']} | {found} | "
               f"{slowest:.1f} | {peak:.0f} | {wall:.0f} |", flush=True)  # fmt: skip
     for p in problems:
         print(p[:2000])

@@ -22,6 +22,7 @@ import numpy as np
 
 from mcl.agents.lap_env import LapTaskConfig
 from mcl.agents.task_env import make_task_env
+from racecar_sim.file_guard import claim_folder, writable
 
 __all__ = [
     "EpisodeResult",
@@ -226,9 +227,9 @@ def write_results(results: Sequence[EpisodeResult], out_dir: str | os.PathLike[s
     """eval.csv (one row per episode) and eval.md (:func:`summary_table` of the tests alone,
     :func:`race_table` of those with opponents) in ``out_dir``."""
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    claim_folder(out)
     csv_path, md_path = out / "eval.csv", out / "eval.md"
-    with csv_path.open("w", newline="", encoding="utf-8") as f:
+    with writable(csv_path).open("w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, list(EpisodeResult.__dataclass_fields__))
         writer.writeheader()
         for r in results:
@@ -244,7 +245,7 @@ def write_results(results: Sequence[EpisodeResult], out_dir: str | os.PathLike[s
             + race_table(results)
             + "\n"
         )
-    md_path.write_text(text, encoding="utf-8")
+    writable(md_path).write_text(text, encoding="utf-8")
     return [csv_path, md_path]
 
 

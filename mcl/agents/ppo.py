@@ -32,6 +32,7 @@ import numpy as np
 
 from mcl.agents.lap_env import LapTaskConfig
 from mcl.agents.task_env import make_task_env
+from racecar_sim.file_guard import claim_folder, writable
 from racecar_sim.validation import check_number
 
 __all__ = ["PPOSettings", "TrainReport", "load_policy", "require_sb3", "train"]
@@ -128,9 +129,9 @@ def train(
     if batched is None:
         batched = len(tasks) == 1 and not tasks[0].localized and not tasks[0].opponents
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    claim_folder(out)
     _one_thread()
-    (out / "config.json").write_text(
+    writable(out / "config.json").write_text(
         json.dumps(
             {
                 "task": asdict(tasks[0]) if len(tasks) == 1 else [asdict(t) for t in tasks],
@@ -183,7 +184,7 @@ def train(
 
         def __init__(self) -> None:
             super().__init__()
-            self.file = learning_path.open("w", newline="", encoding="utf-8")
+            self.file = writable(learning_path).open("w", newline="", encoding="utf-8")
             self.writer = csv.writer(self.file)
             self.writer.writerow(
                 [
@@ -214,7 +215,7 @@ def train(
                 )
                 self.file.flush()
             if self.num_timesteps >= self.next_save:
-                self.model.save(model_path)
+                self.model.save(writable(model_path))
                 self.next_save += save_every
             return max_minutes is None or time.perf_counter() - t0 < 60.0 * max_minutes
 
@@ -223,9 +224,9 @@ def train(
 
     model.learn(total_timesteps=timesteps, callback=Record(), progress_bar=progress)
     wall = time.perf_counter() - t0
-    model.save(model_path)
+    model.save(writable(model_path))
     done = int(model.num_timesteps)
-    (out / "train.json").write_text(
+    writable(out / "train.json").write_text(
         json.dumps(
             {
                 "timesteps": done,

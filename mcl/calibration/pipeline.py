@@ -33,9 +33,18 @@ from mcl.calibration.room_split import (
 from mcl.calibration.scan_match import ScanMatcher
 from mcl.calibration.scan_stats import RANGE_BINS, ScanFailureStats, failure_stats
 from mcl.io.bag_reader import BagData, read_bag
+from racecar_sim.file_guard import starts_with, writable
 from racecar_sim.maps import load_map
 
-__all__ = ["Calibration", "calibrate", "hit_sigma_for_ratio", "profile_document"]
+__all__ = [
+    "PROFILE_HEADER",
+    "Calibration",
+    "calibrate",
+    "hit_sigma_for_ratio",
+    "is_written_profile",
+    "profile_document",
+    "write_profile",
+]
 
 LIDAR_MAX_RANGE = 30.0
 """Metres: the Hokuyo's range_max in the shared bags, also the simulated lidar's range."""
@@ -284,12 +293,28 @@ def profile_document(cal: Calibration, sim_dt: float = 0.025) -> dict[str, Any]:
     }
 
 
+PROFILE_HEADER = (
+    "# Written by scripts/calibrate_noise.py; numbers and origin in docs/honest_noise.md.\n"
+)
+"""The first line of every profile written here (how an earlier one is recognised)."""
+
+
+def is_written_profile(path: Path) -> bool:
+    """Whether the file ``path`` is a profile
+    [write_profile][mcl.calibration.pipeline.write_profile] wrote (its first line)."""
+    return starts_with(PROFILE_HEADER.encode())(path)
+
+
 def write_profile(doc: dict[str, Any], path: str | os.PathLike[str]) -> Path:
-    """Write the profile ``doc`` as YAML to ``path`` (parents created)."""
+    """Write the profile ``doc`` as YAML to ``path`` (parents created).
+
+    Raises:
+        FileExistsError: ``path`` exists and is not a profile written here
+            ([NotOurs][racecar_sim.file_guard.NotOurs]).
+    """
     import yaml
 
-    path = Path(path)
+    path = writable(path, is_written_profile)
     path.parent.mkdir(parents=True, exist_ok=True)
-    header = "# Written by scripts/calibrate_noise.py; numbers and origin in docs/honest_noise.md.\n"
-    path.write_text(header + yaml.safe_dump(doc, sort_keys=False, width=100))
+    path.write_text(PROFILE_HEADER + yaml.safe_dump(doc, sort_keys=False, width=100))
     return path

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mcl.cli.common import Parser
+from mcl.cli.common import Parser, check_file_out, path_arg
 
 EXAMPLES = """\
 examples:
@@ -45,7 +45,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = Parser("racecar-sim calibrate-noise", __doc__, EXAMPLES)
     parser.add_argument("bags", nargs="*", type=Path, help="ROS 1 .bag files or ROS 2 bag folders")
     parser.add_argument("--map", type=Path, help="map YAML the car drove on (required)")
-    parser.add_argument("--out", type=Path, help="profile YAML to write (required)")
+    parser.add_argument(
+        "--out", type=path_arg, help="profile YAML to write: a new file or one it wrote (required)"
+    )
     parser.add_argument("--mount-offset", type=float, default=0.275, help="lidar ahead of base_link, m")
     parser.add_argument(
         "--start",
@@ -76,6 +78,9 @@ def main(argv: list[str] | None = None) -> int:
             parser.fail("BAG", f"{bag} not found")
     if not args.map.is_file():
         parser.fail("--map", f"{args.map}: file not found")
+    from mcl.calibration.pipeline import is_written_profile
+
+    check_file_out(parser, args.out, "--out", is_written_profile)
     if args.start is not None and len(args.start) != len(args.bags):
         parser.fail("--start", f"given {len(args.start)} times for {len(args.bags)} bags")
     if args.poses is not None:

@@ -5,7 +5,9 @@ is written.
 A mistake ends the command with ``racecar-sim SUBCOMMAND: error: --flag: the problem`` on stderr and
 exit code 2 (argparse's convention), no traceback, and no output folder created: subcommands check
 their map, env settings and flags first, then create ``--out`` with :func:`output_folder`, which
-removes the folder again if the command fails before writing anything into it.
+removes the folder again if the command fails before writing anything into it. The output paths'
+checks ([out_paths][mcl.cli.out_paths], re-exported here) keep a command from writing into,
+replacing or removing anything racecar-sim did not make.
 """
 
 from __future__ import annotations
@@ -17,13 +19,13 @@ import difflib
 import math
 import os
 import re
-import shutil
-import tempfile
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
 import yaml
+
+from mcl.cli.out_paths import check_bag, check_file_out, check_out, output_folder, path_arg
 
 __all__ = [
     "ENV_HELP",
@@ -32,15 +34,21 @@ __all__ = [
     "HelpFormatter",
     "Parser",
     "accept_negative_numbers",
+    "check_bag",
     "check_env",
     "check_env_builds",
+    "check_file_out",
     "check_map",
     "check_out",
     "check_resume",
+    "duration_or_zero",
+    "duration_seconds",
+    "live_speed",
     "non_negative_float",
     "non_negative_int",
     "number_list",
     "output_folder",
+    "path_arg",
     "positive_float",
     "positive_int",
 ]
@@ -161,6 +169,35 @@ def positive_int(text: str) -> int:
 def non_negative_int(text: str) -> int:
     """argparse type: a whole number >= 0."""
     return _number(text, int, "a whole number", lambda v: v >= 0, "a whole number >= 0")
+
+
+def duration_seconds(text: str) -> float:
+    """argparse type: simulated seconds within the run bound (a day;
+    [RUN_BOUNDS][mcl.run_bounds.RUN_BOUNDS])."""
+    from mcl.run_bounds import RUN_BOUNDS
+
+    b = RUN_BOUNDS["run.duration"]
+    return _number(text, float, "a number", lambda v: b.low < v <= b.high, f"seconds in {b.text()}")
+
+
+def duration_or_zero(text: str) -> float:
+    """argparse type: 0 (none) or simulated seconds as
+    [duration_seconds][mcl.cli.common.duration_seconds]."""
+    from mcl.run_bounds import RUN_BOUNDS
+
+    b = RUN_BOUNDS["run.duration"]
+    ok = lambda v: 0 <= v <= b.high  # noqa: E731
+    return _number(text, float, "a number", ok, f"0 or seconds in {b.text()}")
+
+
+def live_speed(text: str) -> float:
+    """argparse type: 0 (unpaced) or times real time within the run bound
+    ([RUN_BOUNDS][mcl.run_bounds.RUN_BOUNDS]; at least 0.01)."""
+    from mcl.run_bounds import RUN_BOUNDS
+
+    b = RUN_BOUNDS["live.speed"]
+    ok = lambda v: v == 0 or b.low <= v <= b.high  # noqa: E731
+    return _number(text, float, "a number", ok, f"0 (unpaced) or in {b.text()}")
 
 
 def number_list(text: str) -> tuple[float, ...]:
@@ -321,63 +358,11 @@ def check_env_builds(
         parser.fail("--env", str(exc))
 
 
-def check_out(parser: Parser, path: Path, flag: str = "--out") -> Path:
-    """Check that folder ``path`` can be created or written into (nothing is created here)."""
-    if path.exists() and not path.is_dir():
-        parser.fail(flag, f"{path} exists and is not a folder")
-    parent = path
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        parser.fail(flag, f"{parent} is not a folder")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        parser.fail(flag, f"cannot write into {parent}")
-    return path
-
-
 def check_resume(parser: Parser, config: object, out: Path, resume: bool) -> None:
     """With ``--resume``, refuse a folder made with other settings before anything runs (the
-    experiment's own check, :func:`mcl.experiments.runner.record_settings`, on a copy)."""
-    from mcl.experiments.runner import record_settings
+    experiment's own check, [settings_difference][mcl.experiments.runner.settings_difference])."""
+    from mcl.experiments.runner import settings_difference
 
-    recorded = out / "config.json"
-    if not (resume and recorded.is_file()):
-        return
-    with tempfile.TemporaryDirectory() as tmp:
-        copy = Path(tmp) / "config.json"
-        shutil.copyfile(recorded, copy)
-        try:
-            record_settings(config, copy, resume=True)
-        except ValueError as exc:
-            parser.error(str(exc).replace(str(Path(tmp)), str(out)))
-
-
-@contextlib.contextmanager
-def output_folder(parser: Parser, path: Path, flag: str = "--out") -> Iterator[Path]:
-    """Create folder ``path`` (and its parents) for the body (stop naming ``flag`` if it cannot be
-    made); if the body raises while nothing was written into the folders it created, remove them
-    again. Whatever was written is kept.
-
-    A map problem found only when the env is built or reset (:class:`racecar_sim.maps.MapError`:
-    no room for the car, no free start pose, no room for obstacles) ends the command like any
-    other mistake: one line and exit code 2.
-    """
-    from racecar_sim.maps import MapError
-
-    first_new: Path | None = None
-    for folder in [path, *path.parents]:
-        if folder.exists():
-            break
-        first_new = folder
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        parser.fail(flag, f"cannot create folder {path}: {exc.strerror or exc}")
-    try:
-        yield path
-    except BaseException as exc:
-        if first_new is not None and not any(p.is_file() for p in first_new.rglob("*")):
-            shutil.rmtree(first_new, ignore_errors=True)
-        if isinstance(exc, MapError):
-            parser.error(str(exc))
-        raise
+    problem = settings_difference(config, out / "config.json") if resume else None
+    if problem is not None:
+        parser.error(problem)

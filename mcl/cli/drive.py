@@ -33,14 +33,16 @@ from mcl.cli.common import (
     ENV_HELP,
     MAP_HELP,
     Parser,
+    check_bag,
     check_env,
     check_env_builds,
     check_map,
     check_out,
+    duration_seconds,
     non_negative_float,
     non_negative_int,
     output_folder,
-    positive_float,
+    path_arg,
     positive_int,
 )
 from mcl.cli.compile_notice import compile_notice, compile_report
@@ -83,13 +85,21 @@ def build_parser() -> Parser:
     parser = Parser("racecar-sim drive", __doc__, EXAMPLES)
     parser.add_argument("--map", default=DEFAULT_MAP, metavar="NAME|YAML", help=MAP_HELP)
     parser.add_argument(
-        "--out", type=Path, default=Path("out/drive"), metavar="DIR", help="output folder"
+        "--out",
+        type=path_arg,
+        default=Path("out/drive"),
+        metavar="DIR",
+        help="output folder: a new or empty one, or one racecar-sim made",
     )
     parser.add_argument(
         "--seed", type=non_negative_int, default=0, metavar="N", help="start pose and noise seed"
     )
     parser.add_argument(
-        "--duration", type=positive_float, default=60.0, metavar="S", help="simulated seconds"
+        "--duration",
+        type=duration_seconds,
+        default=60.0,
+        metavar="S",
+        help="simulated seconds (at most a day)",
     )
     parser.add_argument(
         "--particles",
@@ -129,11 +139,12 @@ def build_parser() -> Parser:
     )
     parser.add_argument(
         "--bag",
-        type=Path,
+        type=path_arg,
         default=None,
         metavar="BAGDIR",
-        help="also record the drive as a ROS 2 / MCAP bag in this folder, replaced if it exists "
-        "(default: no bag)",
+        help="also record the drive as a ROS 2 / MCAP bag in this new folder, outside --out (an "
+        "existing folder is replaced only when it holds exactly an earlier recording; default: "
+        "no bag)",
     )
     add_live_arguments(parser, "drive")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -153,9 +164,7 @@ def main(argv: list[str] | None = None) -> int:
         check_filter_map(parser, args.map, args.filter_map, env)
     out: Path = check_out(parser, args.out)
     if args.bag is not None:
-        check_out(parser, args.bag, "--bag")
-        if args.bag.resolve() == out.resolve():
-            parser.fail("--bag", "must differ from --out")
+        check_bag(parser, args.bag, out)
     live = check_live(parser, args.live, args.live_speed)
     try:
         spec = RunSpec(

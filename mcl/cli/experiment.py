@@ -19,9 +19,11 @@ from mcl.cli.common import (
     check_map,
     check_out,
     check_resume,
+    duration_seconds,
     non_negative_float,
     number_list,
     output_folder,
+    path_arg,
     positive_float,
     positive_int,
 )
@@ -97,7 +99,7 @@ def build_parser() -> Parser:
     add("--seeds", type=positive_int, default=3, metavar="N", help="number of seeds (0, 1, ...)")
     add(
         "--duration",
-        type=positive_float,
+        type=duration_seconds,
         default=None,
         metavar="S",
         help="simulated seconds per run (default: 60; global: 20; kidnap: kidnap time + 20)",
@@ -165,7 +167,8 @@ def build_parser() -> Parser:
     )
     add("--resume", action="store_true", help="skip runs whose log is complete")
     add("--no-plots", action="store_true", help="write no PNG plots")
-    add("--out", type=Path, default=Path("runs/experiment"), metavar="DIR", help="output folder")
+    add("--out", type=path_arg, default=Path("runs/experiment"), metavar="DIR",
+        help="output folder: a new or empty one, or one racecar-sim made")  # fmt: skip
     return parser
 
 

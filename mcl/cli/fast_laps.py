@@ -12,6 +12,9 @@ from mcl.cli.common import (
     check_env,
     check_map,
     check_out,
+    duration_seconds,
+    output_folder,
+    path_arg,
     positive_float,
     positive_int,
 )
@@ -32,12 +35,13 @@ def build_parser() -> Parser:
     """The command line of ``racecar-sim fast-laps``."""
     parser = Parser("racecar-sim fast-laps", DESCRIPTION, EXAMPLE)
     add = parser.add_argument
-    add("--out", type=Path, default=Path("runs/fast_laps"),
-        help="output folder (config.json, logs/, summary.md)")  # fmt: skip
+    add("--out", type=path_arg, default=Path("runs/fast_laps"),
+        help="output folder (config.json, logs/, summary.md): a new or empty one, or one "
+        "racecar-sim made")  # fmt: skip
     add("--map", default="basement_loop", help="bundled map with a known loop")
     add("--speed", type=positive_float, default=6.0, help="m/s the car holds, corners included")
     add("--seeds", type=positive_int, default=5, help="runs per motion model (starts round the loop)")
-    add("--duration", type=positive_float, default=60.0, help="simulated seconds per run")
+    add("--duration", type=duration_seconds, default=60.0, help="simulated seconds per run")
     add("--particles", type=positive_int, default=1500, help="particles per filter")
     add("--workers", type=positive_int, default=None, help="processes (default: the CPU count)")
     add("--env", action="append", default=[], metavar="NAME=VALUE", help=ENV_HELP)
@@ -61,7 +65,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         n_particles=args.particles, env=dict(env),
     )  # fmt: skip
     compile_notice()
-    rows, _ = run_fast_laps(cfg, out, workers=args.workers, progress=True)
+    with output_folder(parser, out):
+        rows, _ = run_fast_laps(cfg, out, workers=args.workers, progress=True)
     print(markdown_table(rows, cfg.diverged_m))
     print(f"wrote {out / 'summary.md'}")
     return 0

@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 import time
 
-from mcl.cli.common import Parser, non_negative_float
+from mcl.cli.common import Parser, live_speed
 from mcl.io.live import LiveServer, parse_live_address
 
 __all__ = ["Pacer", "add_live_arguments", "check_live", "start_live_view"]
@@ -25,10 +25,11 @@ def add_live_arguments(parser: Parser, what: str) -> None:
     )
     parser.add_argument(
         "--live-speed",
-        type=non_negative_float,
+        type=live_speed,
         default=1.0,
         metavar="X",
-        help="with --live: X times real time, 0 as fast as it runs (default: %(default)s)",
+        help="with --live: X times real time (0.01 to 1000), 0 as fast as it runs "
+        "(default: %(default)s)",
     )
 
 

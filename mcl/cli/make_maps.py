@@ -10,7 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from mcl.cli.common import Parser, check_out, output_folder
+from mcl.cli.common import Parser, check_out, output_folder, path_arg
 from racecar_sim.maps import draw
 
 _bundled = importlib.import_module("racecar_sim.maps.bundled")  # the module (maps.bundled is a function)
@@ -45,7 +45,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = Parser("racecar-sim make-maps", (draw.__doc__ or "").split("\n\n")[0], EXAMPLES)
     parser.add_argument(
         "--out",
-        type=Path,
+        type=path_arg,
         default=None,
         metavar="DIR",
         help="output folder (default: the checkout's maps/; installed: ./maps)",
@@ -54,10 +54,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     notice = None
     if args.out is None:
         args.out, notice = default_out()
-    out = check_out(parser, args.out)
+    out = check_out(parser, args.out, owned=False)
+    problem = draw.draw_problem(out)
+    if problem is not None:
+        parser.fail("--out", problem)
     if notice is not None:
         print(notice)
-    with output_folder(parser, out):
+    with output_folder(parser, out, mark=False):
         for path in draw.draw_maps(out):
             img = cv2.imread(str(path.with_suffix(".png")), cv2.IMREAD_UNCHANGED)
             h, w = img.shape

@@ -18,9 +18,11 @@ from mcl.cli.common import (
     Parser,
     check_map,
     check_out,
+    duration_seconds,
     non_negative_int,
     number_list,
     output_folder,
+    path_arg,
     positive_float,
     positive_int,
 )
@@ -33,6 +35,7 @@ from mcl.experiments.opponents_run import (
     run_opponents,
     run_row,
 )
+from racecar_sim.file_guard import writable
 
 EXAMPLES = """\
 examples:
@@ -65,13 +68,15 @@ def build_parser() -> Parser:
     add("--methods", nargs="+", choices=list(METHODS), default=list(METHODS), metavar="NAME",
         help=f"filter variants, from: {', '.join(METHODS)}")  # fmt: skip
     add("--seeds", type=positive_int, default=5, metavar="N", help="seeds 0 .. N-1 per cell")
-    add("--duration", type=positive_float, default=30.0, metavar="S", help="seconds per run")
+    add("--duration", type=duration_seconds, default=30.0, metavar="S",
+        help="simulated seconds per run")  # fmt: skip
     add("--speed", type=positive_float, default=2.0, metavar="M/S", help="the cars' speed")
     add("--gaps", type=number_list, default=(2.0, 3.2, 4.4), metavar="M,M,M",
         help="metres of loop from the car to each opponent (boxes backend)")  # fmt: skip
     add("--particles", type=positive_int, default=1500, metavar="N", help="particles")
     add("--backend", choices=BACKENDS, default="boxes", help="where the opponents come from")
-    add("--out", type=Path, default=Path("runs/opponents"), metavar="DIR", help="output folder")
+    add("--out", type=path_arg, default=Path("runs/opponents"), metavar="DIR",
+        help="output folder: a new or empty one, or one racecar-sim made")  # fmt: skip
     return parser
 
 
@@ -111,7 +116,7 @@ def _run(args, out: Path) -> int:
     table = opponents_table(results)
     _write_csv(out / "summary.csv", table)
     text = markdown_table(table)
-    (out / "summary.md").write_text(text)
+    writable(out / "summary.md").write_text(text)
     print(text, end="")
     return 0
 
@@ -127,7 +132,7 @@ def markdown_table(table: list[dict]) -> str:
 
 
 def _write_csv(path: Path, rows: list[dict]) -> None:
-    with open(path, "w", newline="") as f:
+    with open(writable(path), "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)

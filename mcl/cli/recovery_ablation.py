@@ -28,6 +28,7 @@ from mcl.cli.common import (
     check_out,
     check_resume,
     output_folder,
+    path_arg,
     positive_int,
 )
 from mcl.cli.compile_notice import compile_notice
@@ -75,7 +76,8 @@ def build_parser() -> Parser:
         help="processes (default: the number of cores)",
     )
     add("--resume", action="store_true", help="skip runs whose log is complete")
-    add("--out", type=Path, default=Path("runs/ablation"), metavar="DIR", help="output folder")
+    add("--out", type=path_arg, default=Path("runs/ablation"), metavar="DIR",
+        help="output folder: a new or empty one, or one racecar-sim made")  # fmt: skip
     return parser
 
 

@@ -24,10 +24,12 @@ from mcl.cli.common import (
     non_negative_float,
     non_negative_int,
     output_folder,
+    path_arg,
     positive_int,
 )
 from mcl.cli.compile_notice import compile_notice, compile_report
 from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
+from racecar_sim.file_guard import shown
 
 EXAMPLES = """\
 examples:
@@ -42,7 +44,7 @@ def build_parser() -> Parser:
     """The ``racecar-sim replay`` options."""
     parser = Parser("racecar-sim replay", __doc__, EXAMPLES)
     parser.add_argument(
-        "bag", type=Path, nargs="?", help="a ROS 1 .bag, a ROS 2 bag folder, or its .mcap/.db3"
+        "bag", type=path_arg, nargs="?", help="a ROS 1 .bag, a ROS 2 bag folder, or its .mcap/.db3"
     )
     parser.add_argument(
         "--map",
@@ -51,7 +53,11 @@ def build_parser() -> Parser:
         help="the map to localize on (required; a bundled name or a map_server YAML)",
     )
     parser.add_argument(
-        "--out", type=Path, default=Path("out/replay"), metavar="DIR", help="output folder"
+        "--out",
+        type=path_arg,
+        default=Path("out/replay"),
+        metavar="DIR",
+        help="output folder: a new or empty one, or one racecar-sim made",
     )
     parser.add_argument(
         "--init",
@@ -133,12 +139,14 @@ def main(argv: list[str] | None = None) -> int:
         parser.fail("--mount-offset", f"{args.mount_offset}: metres in [0, 5)")
     out: Path = check_out(parser, args.out)
     live = check_live(parser, args.live, args.live_speed)
-    if not args.bag.exists():
-        parser.fail("bag", f"{args.bag} does not exist")
     try:
+        if not args.bag.exists():
+            parser.fail("bag", f"{shown(args.bag)} does not exist")
         data = read_bag(args.bag, args.scan_topic, args.odom_topic, args.mount_offset)
     except BagError as exc:
         parser.fail("bag", str(exc))
+    except OSError as exc:
+        parser.fail("bag", f"{shown(args.bag)}: {exc.strerror or exc}")
     for w in data.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(data.summary())

@@ -28,8 +28,12 @@ from mcl.cli.common import (
     ENV_HELP,
     Parser,
     check_env,
-    non_negative_float,
+    check_out,
+    duration_or_zero,
+    duration_seconds,
     number_list,
+    output_folder,
+    path_arg,
     positive_float,
     positive_int,
 )
@@ -126,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:
     add("--retrain", action="store_true", help="train even if OUT/<source>/model.zip exists")
     add("--no-eval", action="store_true", help="train only")
     add("--eval-seeds", type=positive_int, default=5, help="test episodes per policy and test")
-    add("--eval-seconds", type=positive_float, default=60.0, help="seconds per test episode")
+    add("--eval-seconds", type=duration_seconds, default=60.0,
+        help="simulated seconds per test episode")  # fmt: skip
     add(
         "--eval-filters",
         type=_filters,
@@ -172,8 +177,9 @@ def main(argv: list[str] | None = None) -> int:
         metavar="V,...",
         help="m/s of opponents 1, 2, ...: a race of K takes the first K (default 2.0, 2.4, 2.8, ...)",
     )
-    add("--video-seconds", type=non_negative_float, default=20.0, help="0: no video")
-    add("--out", type=Path, default=Path("runs/agent"), metavar="DIR", help="output folder")
+    add("--video-seconds", type=duration_or_zero, default=20.0, help="0: no video")
+    add("--out", type=path_arg, default=Path("runs/agent"), metavar="DIR",
+        help="output folder: a new or empty one, or one racecar-sim made")  # fmt: skip
     args = parser.parse_args(argv)
     args.env = check_env(parser, args.env)
     most = max((*args.opponents, *(args.eval_opponents or ())), default=0)
@@ -186,13 +192,22 @@ def main(argv: list[str] | None = None) -> int:
         parser.fail("--pose", "a race (--opponents) runs no MCL: train on truth or none")
     if args.eval_opponents is None:
         args.eval_opponents = tuple(sorted(set(args.opponents)))
+    check_out(parser, args.out)
 
-    from mcl.agents.ppo import PPOSettings, load_policy, require_sb3, train
+    from mcl.agents.ppo import require_sb3
 
     try:
         require_sb3()
     except ImportError as exc:
         parser.error(str(exc))
+    with output_folder(parser, args.out):
+        return _train_and_evaluate(args)
+
+
+def _train_and_evaluate(args: argparse.Namespace) -> int:
+    """Train (or reuse) a policy per --pose in ``args.out``, then evaluate them."""
+    from mcl.agents.ppo import PPOSettings, load_policy, train
+
     settings = PPOSettings(n_envs=args.envs)
     models: dict[str, Path] = {}
     for source in args.pose:

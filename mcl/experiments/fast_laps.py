@@ -29,6 +29,7 @@ from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.runner import run_pending
 from mcl.experiments.runs import RunResult, RunSpec
 from mcl.motion_model import MotionModelParams
+from racecar_sim.file_guard import writable
 
 __all__ = ["FastLapConfig", "SeriesRow", "fast_lap_specs", "markdown_table", "run_fast_laps",
            "summarize_fast_laps"]  # fmt: skip
@@ -188,5 +189,6 @@ def run_fast_laps(
         progress=progress, stream=stream, diverged_m=cfg.diverged_m,
     )  # fmt: skip
     rows = summarize_fast_laps(results, cfg.diverged_m)
-    (out / "summary.md").write_text(markdown_table(rows, cfg.diverged_m) + "\n", encoding="utf-8")
+    summary = markdown_table(rows, cfg.diverged_m) + "\n"
+    writable(out / "summary.md").write_text(summary, encoding="utf-8")
     return rows, results

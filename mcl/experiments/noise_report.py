@@ -16,6 +16,7 @@ from mcl.error_log import read_error_log
 from mcl.experiments.metrics import ErrorStats
 from mcl.experiments.runs import RunResult
 from mcl.motion_model import uniform_to_gaussian
+from racecar_sim.file_guard import writable
 
 if TYPE_CHECKING:
     from mcl.experiments.noise_config import ExperimentConfig
@@ -157,7 +158,7 @@ def write_summary(
         "run_id", "series", "scheme", "coefficient", "nominal", "seed", "status",
         *_stats_fields(), "wall_s", "n_collisions", "error",
     ]  # fmt: skip
-    with runs_path.open("w", newline="", encoding="utf-8") as f:
+    with writable(runs_path).open("w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, run_fields)
         writer.writeheader()
         for r in results:
@@ -177,7 +178,7 @@ def write_summary(
                     "error": r.error,
                 }
             )
-    with csv_path.open("w", newline="", encoding="utf-8") as f:
+    with writable(csv_path).open("w", newline="", encoding="utf-8") as f:
         rows = [row.csv_row() for row in summary]
         writer = csv.DictWriter(f, list(rows[0]) if rows else ["series"])
         writer.writeheader()
@@ -201,7 +202,7 @@ def write_summary(
         lines += ["## Failed runs", ""]
         lines += [f"- `{r.spec.run_id}`: {r.error}" for r in failed]
         lines.append("")
-    md_path.write_text("\n".join(lines), encoding="utf-8")
+    writable(md_path).write_text("\n".join(lines), encoding="utf-8")
     return [runs_path, csv_path, md_path]
 
 

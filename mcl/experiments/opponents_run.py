@@ -32,6 +32,7 @@ from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.opponents import OpponentsScenario
 from mcl.filter_params import DEFAULT_PARTICLES
 from mcl.localization import LocalizationConfig
+from mcl.run_bounds import check_duration
 from mcl.sensor_params import SensorModelParams
 from mcl.wrapper import LocalizationWrapper
 
@@ -83,8 +84,7 @@ class OpponentRun:
             raise ValueError(f"OpponentRun.method = {self.method!r}; choose one of {list(METHODS)}")
         if self.backend not in BACKENDS:
             raise ValueError(f"OpponentRun.backend = {self.backend!r}; choose one of {BACKENDS}")
-        if not (math.isfinite(self.duration) and self.duration > 0):
-            raise ValueError(f"OpponentRun.duration = {self.duration!r} must be positive seconds")
+        check_duration("OpponentRun", self.duration)
         if not (math.isfinite(self.speed) and self.speed > 0):
             raise ValueError(f"OpponentRun.speed = {self.speed!r} must be positive m/s")
 

@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from mcl.error_log import ErrorLog
+from racecar_sim.file_guard import writable
 
 __all__ = ["SeriesPoints", "plot_error_vs_coefficient", "plot_error_vs_time", "plot_overlay"]
 
@@ -33,7 +34,7 @@ _STYLES: dict[str, dict[str, object]] = {
 
 def save_figure(fig: plt.Figure, path: str | os.PathLike[str]) -> Path:
     """Write ``fig`` as PNG to ``path`` (folders created), close it, return the path."""
-    path = Path(path)
+    path = writable(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=_DPI)
     plt.close(fig)

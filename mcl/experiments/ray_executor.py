@@ -28,6 +28,7 @@ from typing import Any
 
 from mcl.experiments.executors import Runner, worker_died
 from mcl.experiments.runs import RunResult, RunSpec
+from racecar_sim.file_guard import writable
 
 __all__ = ["RayExecutor", "require_ray"]
 
@@ -138,5 +139,5 @@ class RayExecutor:
             return worker_died(spec, path, f"Ray: {type(exc).__name__}: {first}")
         for name, data in (files or {}).items():
             path.parent.mkdir(parents=True, exist_ok=True)
-            (path.parent / name).write_bytes(data)
+            writable(path.parent / name).write_bytes(data)
         return result

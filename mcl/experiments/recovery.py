@@ -52,6 +52,7 @@ from mcl.experiments.recovery_plots import write_recovery_plots
 from mcl.experiments.recovery_report import write_tables
 from mcl.experiments.runner import Executor, run_pending, run_spec_safely
 from mcl.experiments.runs import RunResult, RunSpec
+from racecar_sim.file_guard import writable
 
 __all__ = [
     "RECOVERY_SCENARIOS",
@@ -99,7 +100,7 @@ def run_recovery_safely(spec: RunSpec, log_path: Path, diverged_m: float = DIVER
     (``<log>.json``) so that ``resume`` can judge the run without running it again."""
     result = run_spec_safely(spec, log_path, diverged_m)
     if result.status == "ok":
-        _outcome_path(log_path).write_text(json.dumps(result.outcome), encoding="utf-8")
+        writable(_outcome_path(log_path)).write_text(json.dumps(result.outcome), encoding="utf-8")
     return result
 
 

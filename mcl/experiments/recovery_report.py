@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mcl.experiments.convergence import RecoveryStats
+from racecar_sim.file_guard import writable
 
 if TYPE_CHECKING:
     from mcl.experiments.recovery_config import RecoveryConfig, RecoveryRun
@@ -95,7 +96,7 @@ def write_tables(
     out = Path(out_dir)
     runs_path, md_path = out / "runs.csv", out / "summary.md"
     fields = ["run_id", "seed", "status", *RecoveryStats.__dataclass_fields__, "wall_s", "error"]
-    with runs_path.open("w", newline="", encoding="utf-8") as f:
+    with writable(runs_path).open("w", newline="", encoding="utf-8") as f:
         writer = csv.DictWriter(f, fields)
         writer.writeheader()
         for r in runs:
@@ -136,5 +137,5 @@ def write_tables(
         summary_markdown(config, runs),
         "",
     ]
-    md_path.write_text("\n".join(text), encoding="utf-8")
+    writable(md_path).write_text("\n".join(text), encoding="utf-8")
     return [runs_path, md_path]

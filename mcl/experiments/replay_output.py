@@ -29,6 +29,7 @@ import numpy as np
 from mcl.experiments.plots import save_figure
 from mcl.experiments.replay import COLUMNS, ReplayResult
 from mcl.experiments.video import FrameWriter
+from racecar_sim.file_guard import claim_folder, writable
 from racecar_sim.maps import OccupancyMap
 
 __all__ = [
@@ -47,7 +48,7 @@ def write_trajectory_csv(result: ReplayResult, path: str | os.PathLike[str]) -> 
     extra = result.position_error is not None
     if extra:
         header += ["position_error", "heading_error"]
-    with path.open("w", newline="") as fh:
+    with writable(path).open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         for i, row in enumerate(result.rows):
@@ -218,7 +219,7 @@ def write_outputs(
 ) -> list[Path]:
     """Every file of the module docstring into folder ``out``; returns their paths."""
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    claim_folder(out)
     paths = [
         write_trajectory_csv(result, out / "trajectory.csv"),
         plot_trajectory(result, occupancy_map, out / "trajectory.png", every),

@@ -23,6 +23,7 @@ from mcl.error_log import read_error_log
 from mcl.experiments.executors import Executor, Runner, worker_died
 from mcl.experiments.metrics import DIVERGED_M, error_stats
 from mcl.experiments.runs import RunResult, RunSpec, run_one
+from racecar_sim.file_guard import claim_folder, writable
 
 __all__ = [
     "EXECUTORS",
@@ -36,6 +37,7 @@ __all__ = [
     "record_settings",
     "run_pending",
     "run_spec_safely",
+    "settings_difference",
     "skipped_result",
     "worker_died",
 ]
@@ -188,23 +190,39 @@ def execute_runs(
     return results
 
 
+def settings_difference(config: Any, path: Path) -> str | None:
+    """Why runs recorded in ``path`` (a ``config.json``) cannot be resumed with ``config``, naming
+    the settings that differ; None when they are the same or nothing is recorded."""
+    if not path.is_file():
+        return None
+    settings = json.dumps(asdict(config), sort_keys=True, default=str)
+    before = path.read_text(encoding="utf-8").strip()
+    if before == settings:
+        return None
+    try:
+        old = json.loads(before)
+    except ValueError:
+        old = {}
+    new = json.loads(settings)
+    changed = sorted(k for k in new if not isinstance(old, dict) or old.get(k) != new[k])
+    return (
+        f"--resume: {path.parent} holds runs with other settings ({', '.join(changed)} "
+        "differ); use another output folder or drop --resume"
+    )
+
+
 def record_settings(config: Any, path: Path, resume: bool) -> None:
     """Record an experiment config (a dataclass) as JSON in ``path``; with ``resume``, refuse a folder
-    made with other settings, naming the settings that differ.
+    made with other settings, naming the settings that differ
+    ([settings_difference][mcl.experiments.runner.settings_difference]).
 
     Logs are only reusable by runs with the same settings (map, particles, env, ...).
     """
+    problem = settings_difference(config, path) if resume else None
+    if problem is not None:
+        raise ValueError(problem)
     settings = json.dumps(asdict(config), sort_keys=True, default=str)
-    if resume and path.is_file():
-        before = path.read_text(encoding="utf-8").strip()
-        if before != settings:
-            old, new = json.loads(before), json.loads(settings)
-            changed = sorted(k for k in new if old.get(k) != new[k])
-            raise ValueError(
-                f"--resume: {path.parent} holds runs with other settings ({', '.join(changed)} "
-                "differ); use another output folder or drop --resume"
-            )
-    path.write_text(settings + "\n", encoding="utf-8")
+    writable(path).write_text(settings + "\n", encoding="utf-8")
 
 
 def run_pending(
@@ -223,6 +241,9 @@ def run_pending(
 ) -> list[RunResult]:
     """Run ``specs`` into ``out/logs/<run_id>.csv``; the results in the order of ``specs``.
 
+    ``out`` is claimed first ([claim_folder][racecar_sim.file_guard.claim_folder]: a new, empty or
+    racecar-sim folder; [NotOurs][racecar_sim.file_guard.NotOurs] for any other).
+
     The folder's ``config.json`` records ``config`` (see :func:`record_settings`). With ``resume``,
     ``reuse(spec, log_path)`` may return a ``"skipped"`` result for a run whose output is complete;
     every other run goes to :func:`execute_runs` on ``executor`` (default: a pool of ``workers``
@@ -234,6 +255,7 @@ def run_pending(
     workers = workers if workers is not None else (os.cpu_count() or 1)
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    claim_folder(out)
     (out / "logs").mkdir(parents=True, exist_ok=True)
     record_settings(config, out / "config.json", resume)
     by_id: dict[str, RunResult] = {}

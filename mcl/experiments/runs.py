@@ -30,6 +30,7 @@ from mcl.experiments.scenarios import make_scenario
 from mcl.filter_params import DEFAULT_PARTICLES
 from mcl.localization import LocalizationConfig
 from mcl.motion_model import MotionModelParams
+from mcl.run_bounds import check_duration
 from mcl.sensor_model import SensorModel
 from mcl.wrapper import LocalizationWrapper
 from racecar_sim.drivers import PurePursuit, WallFollower, waypoints_from_drive
@@ -103,10 +104,7 @@ class RunSpec:
             raise ValueError(f"RunSpec.driver = {self.driver!r}; choose one of {sorted(DRIVERS)}")
         if self.drive_on not in DRIVE_ON:
             raise ValueError(f"RunSpec.drive_on = {self.drive_on!r}; choose one of {DRIVE_ON}")
-        if not (isinstance(self.duration, int | float) and math.isfinite(self.duration)):
-            raise ValueError(f"RunSpec.duration = {self.duration!r} must be a number of seconds")
-        if self.duration <= 0:
-            raise ValueError(f"RunSpec.duration = {self.duration!r} must be positive seconds")
+        check_duration("RunSpec", self.duration)
         n = self.n_particles
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise ValueError(f"RunSpec.n_particles = {n!r} must be a positive integer")

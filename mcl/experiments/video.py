@@ -8,6 +8,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from racecar_sim.file_guard import writable
+
 __all__ = ["FrameWriter"]
 
 
@@ -16,7 +18,9 @@ class FrameWriter:
 
     The video writer is opened on the first frame (its size fixes the video's). When OpenCV cannot
     open an mp4 writer, the frames go to ``<path without suffix>_frames/frame_00000.png``, ... .
-    Frames with odd sizes are padded by one row / column (many codecs need even sizes).
+    Frames with odd sizes are padded by one row / column (many codecs need even sizes). An
+    existing file is replaced only in racecar-sim's own folders
+    ([writable][racecar_sim.file_guard.writable]; FileExistsError on the first frame otherwise).
 
     Attributes:
         path: the mp4, or the folder of PNG frames after a fallback (known after the first frame).
@@ -38,6 +42,7 @@ class FrameWriter:
         self._size: tuple[int, int] | None = None
 
     def _open(self, width: int, height: int) -> None:
+        writable(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if not self._force_png:
             fourcc = cv2.VideoWriter_fourcc(*"mp4v")
@@ -75,7 +80,7 @@ class FrameWriter:
             self._writer.write(bgr)
         else:
             assert self._png_dir is not None
-            cv2.imwrite(str(self._png_dir / f"frame_{self.n_frames:05d}.png"), bgr)
+            cv2.imwrite(str(writable(self._png_dir / f"frame_{self.n_frames:05d}.png")), bgr)
         self.n_frames += 1
 
     def close(self) -> None:

@@ -34,6 +34,7 @@ import numpy as np
 
 from mcl.io.bag_order import TimeOrder, copies_warning
 from mcl.io.salvage import Copies, salvage_bag
+from mcl.io.scan_checks import scan_problem, scan_warning
 from mcl.io.tf_mount import BASE_FRAME, static_mount, yaw_of
 
 __all__ = [
@@ -272,6 +273,9 @@ def read_bag(
             raise BagError(f"{path.name}: no odometry message could be read on {odom_topic}")
         first = col.first
         angles = first.angle_min + first.angle_increment * np.arange(col.scans[0].size)
+        mismatch = scan_warning(first, col.scans[0].size)
+        if mismatch is not None:
+            warnings.append(mismatch)
         scan_frame = str(first.header.frame_id)
 
         mount_source = "argument"
@@ -363,6 +367,9 @@ class _Collected:
         if topic == scan_topic:
             ranges = np.asarray(msg.ranges, dtype=np.float64)
             if self.first is None:
+                problem = scan_problem(msg, ranges.size)
+                if problem is not None:
+                    raise BagError(f"{path.name}: the first scan on {scan_topic} {problem}")
                 self.first = msg
             elif ranges.size != self.scans[0].size:
                 raise BagError(

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import math
 import os
-import shutil
 import struct
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -29,17 +28,18 @@ from typing import TYPE_CHECKING
 import gymnasium as gym
 import numpy as np
 
+from mcl.io.bag_folder import remove_recording
 from racecar_sim.maps import OccupancyMap
 
 if TYPE_CHECKING:
     from mcl.io.live import LiveServer
 
-__all__ = ["EPOCH_NS", "BagRecorder", "DriveRecorder", "start_live"]
+__all__ = ["EPOCH_NS", "TOPICS", "BagRecorder", "DriveRecorder", "start_live"]
 
 EPOCH_NS = 946_684_800 * 10**9
 """Nanoseconds of the bag's time 0 (2000-01-01 00:00:00 UTC)."""
 
-_TYPES = {
+TOPICS = {
     "/scan": "sensor_msgs/msg/LaserScan",
     "/odom": "nav_msgs/msg/Odometry",
     "/tf": "tf2_msgs/msg/TFMessage",
@@ -49,6 +49,8 @@ _TYPES = {
     "/pf/particles": "geometry_msgs/msg/PoseArray",
     "/map": "nav_msgs/msg/OccupancyGrid",
 }
+"""Topic -> ROS 2 message type of every recording (a folder is replaced only when its bag has
+exactly these: [bag_folder][mcl.io.bag_folder])."""
 
 
 class BagRecorder:
@@ -56,15 +58,21 @@ class BagRecorder:
     live to Foxglove (:class:`mcl.io.live.LiveServer`); use as a context manager.
 
     Args:
-        path: the bag folder to create (replaced when ``overwrite``); None writes no bag.
+        path: the bag folder to create; None writes no bag. An existing folder is replaced
+            when ``overwrite`` and it holds exactly a recording of ours
+            ([recording_problem][mcl.io.bag_folder.recording_problem]), else refused.
         occupancy_map: written once to ``/map``.
         angles: (B,) car-frame beam angles of the scans, radians, evenly spaced.
         range_max: metres; the lidar's range (range_min is 0.02 m).
         mount_offset: metres from base_link forward to the lidar (written to ``/tf_static``).
         scan_period: seconds between scans (LaserScan.scan_time).
         max_particles: particles per ``/pf/particles`` message (an even stride through them).
-        overwrite: replace an existing folder at ``path``.
+        overwrite: replace an existing recording of ours at ``path``.
         live: a Foxglove server that gets every message too (see :mod:`mcl.io.live`).
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is False, or it is not exactly a
+            recording of ours ([NotOurs][racecar_sim.file_guard.NotOurs]; nothing is removed).
     """
 
     def __init__(
@@ -85,10 +93,10 @@ class BagRecorder:
         if path is None and live is None:
             raise ValueError("BagRecorder needs a bag folder, a live server or both")
         self.path = Path(path) if path is not None else None
-        if self.path is not None and self.path.exists():
+        if self.path is not None and os.path.lexists(self.path):
             if not overwrite:
                 raise FileExistsError(f"{self.path} exists")
-            shutil.rmtree(self.path)
+            remove_recording(self.path, TOPICS)
         self.ts = get_typestore(Stores.ROS2_HUMBLE)
         self.live = live
         self._t = self.ts.types
@@ -105,7 +113,7 @@ class BagRecorder:
             self._writer.open()
             self._cons = {
                 topic: self._writer.add_connection(topic, kind, typestore=self.ts)
-                for topic, kind in _TYPES.items()
+                for topic, kind in TOPICS.items()
             }
         self._last_odom: np.ndarray | None = None
         self._map_written = False
@@ -118,7 +126,7 @@ class BagRecorder:
 
     def _write(self, topic: str, t: float, msg) -> None:
         if self.wants(topic):
-            self._write_raw(topic, t, self.ts.serialize_cdr(msg, _TYPES[topic]))
+            self._write_raw(topic, t, self.ts.serialize_cdr(msg, TOPICS[topic]))
 
     def _write_raw(self, topic: str, t: float, data: bytes) -> None:
         ns = self._stamp_ns(t)
@@ -325,7 +333,7 @@ def start_live(address: str | int) -> LiveServer:
 
     from mcl.io.live import LiveServer
 
-    return LiveServer(address, _TYPES, get_typestore(Stores.ROS2_HUMBLE))
+    return LiveServer(address, TOPICS, get_typestore(Stores.ROS2_HUMBLE))
 
 
 class DriveRecorder:

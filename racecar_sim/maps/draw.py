@@ -32,6 +32,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from racecar_sim.file_guard import NotOurs, replace_problem
 from racecar_sim.maps.bundled import maps_dir
 
 RESOLUTION = 0.05  # metres per cell
@@ -337,9 +338,41 @@ def map_yaml(name: str, resolution: float = RESOLUTION, origin: Point = (0.0, 0.
     )
 
 
+def _drawn_here(yaml_path: Path, name: str) -> bool:
+    """Whether ``yaml_path`` is the YAML [draw_maps][racecar_sim.maps.draw.draw_maps] writes for
+    map ``name`` (its exact text)."""
+    text = map_yaml(name).encode()
+    with open(yaml_path, "rb") as f:
+        return f.read(len(text) + 1) == text
+
+
+def draw_problem(out_dir: Path) -> str | None:
+    """Why [draw_maps][racecar_sim.maps.draw.draw_maps] may not write into ``out_dir`` (None: it
+    may): a ``<name>.yaml`` or ``<name>.png`` of a bundled map is there and was not drawn here. A
+    YAML is ours when its text is exactly [map_yaml][racecar_sim.maps.draw.map_yaml]'s; a PNG when
+    the YAML beside it is ours (or the folder is racecar-sim's,
+    [file_guard][racecar_sim.file_guard])."""
+    for name in MAPS:
+        yaml_path = Path(out_dir) / f"{name}.yaml"
+        for path in (yaml_path, yaml_path.with_suffix(".png")):
+            problem = replace_problem(path, lambda _p, y=yaml_path, n=name: _drawn_here(y, n))
+            if problem is not None:
+                return problem
+    return None
+
+
 def draw_maps(out_dir: Path) -> list[Path]:
-    """Draw every map into ``out_dir`` (created if needed) and return the YAML paths."""
+    """Draw every map into ``out_dir`` (created if needed) and return the YAML paths.
+
+    Raises:
+        FileExistsError: a map file there was not drawn here
+            ([draw_problem][racecar_sim.maps.draw.draw_problem]); checked for every map before
+            any is written ([NotOurs][racecar_sim.file_guard.NotOurs]).
+    """
     out_dir = Path(out_dir)
+    problem = draw_problem(out_dir)
+    if problem is not None:
+        raise NotOurs(problem)
     out_dir.mkdir(parents=True, exist_ok=True)
     yamls: list[Path] = []
     for name, draw in MAPS.items():

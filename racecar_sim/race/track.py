@@ -21,9 +21,10 @@ import numba as nb
 import numpy as np
 
 from racecar_sim.drivers.pure_pursuit import resample_polyline
+from racecar_sim.file_guard import writable
 from racecar_sim.maps import OccupancyMap
 
-__all__ = ["LOOP_STARTS", "Track", "centre_loop", "resolve_track"]
+__all__ = ["LOOP_STARTS", "MAX_TRACK_BYTES", "Track", "centre_loop", "resolve_track"]
 
 LOOP_STARTS: dict[str, tuple[float, float, float]] = {
     "basement_loop": (9.0, 2.5, 0.0),  # south hallway, driving east (island on the left)
@@ -32,6 +33,9 @@ LOOP_STARTS: dict[str, tuple[float, float, float]] = {
 """Where the wall follower starts recording the loop of a bundled map (world x m, y m, theta)."""
 
 _CSV_HEADER = "# x_m, y_m, w_tr_right_m, w_tr_left_m"
+MAX_TRACK_BYTES = 1_000_000
+"""Largest track file read (bytes), as a map's YAML: about 25,000 rows of four numbers, a
+2.5 km loop at 0.1 m spacing (f1tenth's largest centerlines have a few thousand rows)."""
 _SEARCH_WINDOW = 40  # segments either side of the last nearest one searched per step
 _WIDTH_REACH = 4.0  # metres searched to either side for the walls when centring a loop
 _ALCOVE = 2.5  # metres: openings up to twice this long beside the track do not count as track
@@ -62,6 +66,29 @@ def _nearest(points, seg, seg_len2, xy, hint, window, out_i, out_t):
                 best, bi, bt = d2, i, t
         out_i[k] = bi
         out_t[k] = bt
+
+
+def _track_text(path: Path) -> str:
+    """The text of track file ``path``, read in bounded work: a regular file of at most
+    ``MAX_TRACK_BYTES`` (a device such as /dev/zero, a pipe
+    or a folder is refused before reading); bytes that are not UTF-8 are replaced.
+
+    Raises:
+        ValueError: one line naming the file.
+    """
+    try:
+        if not path.is_file():
+            what = "not a regular file" if os.path.lexists(path) else "not found"
+            raise ValueError(f"track file {path}: {what}")
+        with open(path, "rb") as f:
+            raw = f.read(MAX_TRACK_BYTES + 1)
+    except OSError as exc:
+        raise ValueError(f"track file {path}: cannot read it ({exc.strerror})") from None
+    if len(raw) > MAX_TRACK_BYTES:
+        raise ValueError(
+            f"track file {path}: more than {MAX_TRACK_BYTES:,} bytes, longer than any track"
+        )
+    return raw.decode("utf-8", errors="replace")
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,18 +137,18 @@ class Track:
         A last row repeating the first (a closed file) is dropped.
 
         Raises:
-            ValueError: the file is missing or not such a table; the message names the file.
+            ValueError: the file is missing, not a regular file (a device, a pipe, a folder),
+                longer than ``racecar_sim.race.track.MAX_TRACK_BYTES`` (1 MB) or not
+                such a table; the message names the file.
         """
         path = Path(path)
+        rows = [
+            line
+            for line in _track_text(path).splitlines()
+            if line.strip() and not line.lstrip().startswith("#")
+        ]
         try:
-            rows = [
-                line
-                for line in path.read_text().splitlines()
-                if line.strip() and not line.lstrip().startswith("#")
-            ]
             data = np.array([[float(v) for v in r.replace(";", ",").split(",")] for r in rows])
-        except OSError as exc:
-            raise ValueError(f"track file {path}: cannot read it ({exc.strerror})") from None
         except ValueError:
             raise ValueError(
                 f"track file {path}: rows must be numbers 'x_m, y_m, w_tr_right_m, w_tr_left_m'"
@@ -141,8 +168,13 @@ class Track:
             raise ValueError(f"track file {path}: {exc}") from None
 
     def to_csv(self, path: str | os.PathLike[str]) -> Path:
-        """Write the track in f1tenth's centerline format (widths 0 when unknown); returns the path."""
-        path = Path(path)
+        """Write the track in f1tenth's centerline format (widths 0 when unknown); returns the path.
+
+        Raises:
+            FileExistsError: ``path`` exists outside racecar-sim's folders
+                ([writable][racecar_sim.file_guard.writable]).
+        """
+        path = writable(path)
         widths = self.widths if self.widths is not None else np.zeros_like(self.points)
         np.savetxt(
             path,

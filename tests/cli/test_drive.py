@@ -13,6 +13,7 @@ import pytest
 import mcl.experiments.video
 from mcl.error_log import read_error_log
 from mcl.experiments.video import FrameWriter
+from racecar_sim.file_guard import MARKER
 
 REPO = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.filterwarnings(
@@ -64,7 +65,7 @@ def test_main_job_writes_log_plot_and_video(tmp_path, capsys) -> None:
 def test_main_job_without_video(tmp_path, capsys) -> None:
     out = tmp_path / "novideo"
     drive.main(["--out", str(out), "--duration", "0.5", "--particles", "50", "--video-fps", "0"])
-    assert sorted(p.name for p in out.iterdir()) == ["error.png", "error_log.csv"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "error.png", "error_log.csv"]
     assert "drive.mp4" not in capsys.readouterr().out
 
 

@@ -13,6 +13,7 @@ import mcl.cli.recovery_ablation
 from mcl.cli.main import main
 from mcl.experiments.noise_sweep import ExperimentConfig
 from mcl.experiments.runner import record_settings
+from racecar_sim.file_guard import MARKER, claim_folder
 
 
 @pytest.fixture
@@ -54,9 +55,12 @@ def assert_one_line_error(code: int, err: str, flag: str, fragment: str) -> str:
 DRIVE_MISTAKES = [
     (["--map", "basment_loop"], "--map", "did you mean 'basement_loop'"),
     (["--map", "{missing}"], "--map", "not found"),
-    (["--duration", "-5"], "--duration", "> 0"),
-    (["--duration", "0"], "--duration", "> 0"),
+    (["--duration", "-5"], "--duration", "(0, 86400]"),
+    (["--duration", "0"], "--duration", "(0, 86400]"),
     (["--duration", "soon"], "--duration", "'soon'"),
+    (["--duration", "1e9"], "--duration", "seconds in (0, 86400]"),
+    (["--live-speed", "1e-9"], "--live-speed", "0 (unpaced) or in [0.01, 1000]"),
+    (["--live-speed", "-1"], "--live-speed", "0 (unpaced) or in [0.01, 1000]"),
     (["--particles", "0"], "--particles", ">= 1"),
     (["--particles", "1.5"], "--particles", "whole number"),
     (["--seed", "-1"], "--seed", ">= 0"),
@@ -87,7 +91,8 @@ EXPERIMENT_MISTAKES = [
     (["--seeds", "0"], "--seeds", ">= 1"),
     (["--seeds", "three"], "--seeds", "whole number"),
     (["--workers", "0"], "--workers", ">= 1"),
-    (["--duration", "-1"], "--duration", "> 0"),
+    (["--duration", "-1"], "--duration", "(0, 86400]"),
+    (["--duration", "1e9"], "--duration", "(0, 86400]"),
     (["--particles", "0"], "--particles", ">= 1"),
     (["--env", "lidar_rate=abc"], "--env lidar_rate", "must be a number, got 'abc'"),
     (["--env", "beams=100"], "--env beams", "unknown setting"),
@@ -150,7 +155,7 @@ def test_resume_into_a_folder_made_with_other_settings_stops_before_running(
     tmp_path, capsys, no_runs
 ) -> None:
     out = tmp_path / "sweep"
-    out.mkdir()
+    claim_folder(out)  # as an earlier experiment left it
     recorded = out / "config.json"
     record_settings(ExperimentConfig(seeds=1), recorded, resume=False)
     before = recorded.read_text()
@@ -158,7 +163,7 @@ def test_resume_into_a_folder_made_with_other_settings_stops_before_running(
     assert_one_line_error(code, err, "--resume", "seeds")
     assert str(out) in err
     assert recorded.read_text() == before  # the folder's record is untouched
-    assert sorted(p.name for p in out.iterdir()) == ["config.json"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "config.json"]
     settings = json.loads(before)
     assert settings["seeds"] == 1
 

@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-__all__ = ["MAX_MESSAGE", "MEMORY_LIMIT", "judge", "run_cases"]
+__all__ = ["MAX_MESSAGE", "MEMORY_LIMIT", "PROBLEM_KINDS", "judge", "problem_kind", "run_cases"]
 
 ROOT = Path(__file__).resolve().parents[2]
 MEMORY_LIMIT = 3 << 30
@@ -88,8 +88,10 @@ def judge(case: dict[str, Any], result: dict[str, Any]) -> str | None:
         if not lines[0].startswith("racecar-sim ") or len(lines[0]) > MAX_MESSAGE + 100:
             return f"not a one-line error: {lines[0][:300]}"
         return None
+    if outcome == "loss":
+        return f"lost files it did not make: {result['lost'][:5]}"
     if outcome == "error":
-        if case.get("kind") == "cli":  # a command must not raise: that is a traceback
+        if case.get("kind") == "cli" or case.get("command"):  # a command raising is a traceback
             return f"raised {result['type']}: {result['message'][:300]}\n{result['where']}"
         message = result["message"]
         # a case may name more clear types (a TypeError for the wrong kind of env), which must
@@ -101,3 +103,27 @@ def judge(case: dict[str, Any], result: dict[str, Any]) -> str | None:
             return f"not one short line ({len(message)} chars): {message[:300]!r}"
         return None
     return f"{outcome}: {result.get('message') or result.get('end')}"
+
+
+PROBLEM_KINDS = ("traceback", "hang", "loss", "memory", "wrong")
+"""How a problem is counted in a campaign (scripts/fuzz.py)."""
+
+
+def problem_kind(result: dict[str, Any]) -> str:
+    """Which of [PROBLEM_KINDS][tests.fuzz.harness.PROBLEM_KINDS] a judged problem is: a file lost
+    (``loss``), the time limit (``hang``), the memory limit or a MemoryError (``memory``), a wrong
+    run (``wrong``), else an exception, exit code or stderr that is not one clear line
+    (``traceback``)."""
+    outcome = result["outcome"]
+    end = str(result.get("end", ""))
+    if outcome == "loss":
+        return "loss"
+    if outcome == "lost" and "time limit" in end:
+        return "hang"
+    if result.get("type") == "MemoryError" or (
+        outcome == "lost" and ("MemoryError" in end or "exit -9" in end or "Cannot allocate" in end)
+    ):
+        return "memory"
+    if outcome == "wrong":
+        return "wrong"
+    return "traceback"

@@ -12,6 +12,7 @@ import random
 from typing import Any
 
 from tests.fuzz.api_cases import localization_api_cases, race_api_cases
+from tests.fuzz.file_mutations import path_cases, scan_cases  # the file-safety kinds
 
 __all__ = [
     "HOSTILE_TEXTS",
@@ -22,7 +23,9 @@ __all__ = [
     "filter_cases",
     "localization_api_cases",
     "map_cases",
+    "path_cases",
     "race_api_cases",
+    "scan_cases",
     "setting_cases",
 ]
 

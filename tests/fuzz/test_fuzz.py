@@ -1,7 +1,7 @@
 """Seeded fuzzing: hostile maps, settings, filter settings, actions, command lines, damaged bags,
-and the race's and the localization wrappers' API misused, each kind run in a worker process under
-a 3 GiB memory limit and a time limit. Every case must end in one clear error or a correct run
-(tests/fuzz/harness.py says what counts).
+command-line paths, hostile scan headers and the race's and the localization wrappers' API
+misused, each kind run in a worker process under a 3 GiB memory limit and a time limit. Every
+case must end in one clear error or a correct run (tests/fuzz/harness.py says what counts).
 
 The cases are the same on every run (fixed seeds); ``scripts/fuzz.py`` runs a longer campaign with
 other seeds.
@@ -12,7 +12,7 @@ from __future__ import annotations
 import pytest
 
 from tests.fuzz import mutations
-from tests.fuzz.harness import judge, run_cases
+from tests.fuzz.harness import judge, problem_kind, run_cases
 
 # kind -> (cases, seconds the worker may take: imports, numba's cached kernels, the cases)
 BUDGET = {
@@ -24,6 +24,8 @@ BUDGET = {
     "bag": (12, 240),
     "race_api": (24, 240),
     "localization_api": (24, 240),
+    "path": (16, 300),
+    "scan": (16, 300),
 }
 
 
@@ -72,3 +74,16 @@ def test_the_judge_refuses_what_is_not_a_clear_error() -> None:
     assert judge(wrap, type_error) is None
     assert judge(wrap, {**type_error, "message": "'NoneType' object is not iterable"}) is not None
     assert judge(case, type_error) is not None
+    assert judge(case, {"outcome": "loss", "lost": ["user/data.txt"], "exit": 0}) is not None
+    raised = {**good, "type": "ValueError", "mro": ["ValueError"]}
+    assert judge({"kind": "scan", "command": True}, raised) is not None  # a command raised
+    assert judge({"kind": "scan"}, raised) is None  # the API's one clear error
+
+
+def test_problems_are_counted_by_kind() -> None:
+    assert problem_kind({"outcome": "loss", "lost": ["a"]}) == "loss"
+    assert problem_kind({"outcome": "lost", "end": "killed after the time limit of 9 s"}) == "hang"
+    assert problem_kind({"outcome": "lost", "end": "exit 1: ... MemoryError"}) == "memory"
+    assert problem_kind({"outcome": "error", "type": "MemoryError"}) == "memory"
+    assert problem_kind({"outcome": "wrong", "message": "scan not finite"}) == "wrong"
+    assert problem_kind({"outcome": "exit", "exit": 1, "stderr": "Traceback"}) == "traceback"

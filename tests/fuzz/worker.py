@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from tests.fuzz.api_runners import run_localization_api, run_race_api
+from tests.fuzz.file_worker import remove_case_folder, run_path, run_scan
 from tests.fuzz.hostile_maps import alias_bomb, fake_png, small_png
 from tests.fuzz.mutations import decode
 
@@ -208,6 +209,8 @@ RUNNERS = {
     "action": run_action,
     "cli": run_cli,
     "bag": run_bag,
+    "path": run_path,
+    "scan": run_scan,
 }
 
 
@@ -229,7 +232,7 @@ def run_case(case: dict[str, Any]) -> dict[str, Any]:
             "where": "".join(traceback.format_exception(exc)[-3:])[-600:],
         }
     finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        remove_case_folder(tmp)
     result["seconds"] = time.perf_counter() - t0
     result["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # KiB
     return result

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ from race_helpers import QUIET, hall_map
 from racecar_sim.race.env import RaceEnv
 from racecar_sim.race.laps import LapCounter
 from racecar_sim.race.loops import centerline_for_map
-from racecar_sim.race.track import Track
+from racecar_sim.race.track import MAX_TRACK_BYTES, Track
 
 
 def circle(radius: float = 5.0, n: int = 400) -> Track:
@@ -38,12 +39,30 @@ def test_f1tenth_centerline_csv_loads_as_it_is(tmp_path):
 
 
 def test_bad_track_files_are_named(tmp_path):
-    with pytest.raises(ValueError, match=r"missing\.csv: cannot read it"):
+    with pytest.raises(ValueError, match=r"missing\.csv: not found"):
         Track.from_csv(tmp_path / "missing.csv")
     bad = tmp_path / "bad.csv"
     bad.write_text("# x_m,y_m\n1,2\nthree,4\n5,6\n")
     with pytest.raises(ValueError, match=r"bad\.csv: rows must be numbers"):
         Track.from_csv(bad)
+
+
+def test_a_track_file_is_read_in_bounded_work(tmp_path):
+    big = tmp_path / "big.csv"
+    row = "1.0000,2.0000,0.5000,0.5000\n"
+    big.write_text(row * (MAX_TRACK_BYTES // len(row) + 1))  # just over the limit
+    with pytest.raises(ValueError, match=r"big\.csv: more than 1,000,000 bytes"):
+        Track.from_csv(big)
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)  # opening it would wait for a writer forever
+    for path in (fifo, tmp_path, "/dev/zero"):
+        with pytest.raises(ValueError, match="not a regular file"):
+            Track.from_csv(path)
+
+
+def test_race_env_on_an_endless_track_file_is_one_clear_error():
+    with pytest.raises(ValueError, match="track file /dev/zero: not a regular file"):
+        RaceEnv("basement_loop", n_cars=2, track="/dev/zero")
 
 
 def _drive(counter: LapCounter, angles: np.ndarray, dt: float = 0.1) -> None:
