@@ -20,11 +20,13 @@ along the track, as an opponent sees them) and of the track
    ``standstill_gap + merge_headway v`` to it). On the way across, the cars ahead in the lanes
    it sweeps cap its speed so that it is out of their way (at ``lateral_speed``) before it is
    within ``min_gap`` of them.
-3. **Giving way.** A car with another close behind (bumper gap within ``yield_range``) wants a
-   line ``yield_offset`` to the side away from it (to the right when it is straight behind;
+3. **Giving way.** A car with another close behind (bumper gap within ``yield_range``), and no
+   slower car within twice that ahead in its own lane, wants a line ``yield_offset`` to the side
+   away from it (to the right when it is straight behind;
    where it is when there are cars close behind on both sides), so that the follower passes on
    the other side; otherwise it wants the centerline. Where the track is too narrow for two
-   cars it holds its lane, and the follower stays behind.
+   cars it holds its lane, and the follower stays behind. A car with a faster one beside it eases
+   off by ``pass_ease``, so that the pass is over sooner.
 4. **Room.** A lane that ends before the pass is done merges towards the centerline like a
    zip: the cars ahead between it and the centerline count as cars in the lane. In a lane that
    runs out the car brakes at ``brake`` to stop before the end (the centerline never runs out).
@@ -33,7 +35,8 @@ along the track, as an opponent sees them) and of the track
    turning its heading back along the track, to 0.3 m beyond that gap, while nothing is within
    ``standstill_gap`` behind it.
 6. **Last check.** Whatever the lanes say, the car slows to stop short of any point of another
-   car's box in the corridor straight ahead of its own box (half a ``side_gap`` wider each side).
+   car's box in the corridor ahead of its own box along the line it follows (half a ``side_gap``
+   wider each side).
 
 The lane chosen moves the line followed sideways at ``lateral_speed``. Rules and numbers:
 [RacingRules][racecar_sim.race.racing_rules.RacingRules]. Frames: world (poses, track), track
@@ -63,6 +66,8 @@ _MIN_PASS_TIME = 3.0  # seconds of driving a lane must fit when it passes nobody
 _CREEP = 0.05  # m/s: slower than this is standing
 _PULL_OUT_RADIUS = 1.5  # lookaheads: the radius of the arcs of a pull-out from standing
 _BACK_OFF = 0.3  # metres backed off beyond the gap a pull-out needs
+_FASTER = 0.1  # m/s faster than a car ahead is closing on it
+_SETTLE = 0.05  # metres of side gap a car still settling into its lane may lack
 _STRAIGHTEN = 2.0  # 1/s: how fast backing off turns the heading back along the track
 
 
@@ -153,11 +158,18 @@ class RacingDriver:
         in_dest = near.in_dest | (ending[:, None] & to_centre)
         v_dest = self._lane_speeds(near, in_dest, reach)
         v_across, stuck = self._crossing_speeds(near, in_dest)
-        # a lane change must not cut in front of a car beside or just behind
+        # a lane change must not cut in front of a car beside or just behind: towards one not
+        # straight behind it (half a lane over or more)
         merge = near.rear_gap < r.standstill_gap + r.merge_headway * near.v
-        cut_in = ~near.ahead & near.in_swept & ~near.in_mine[None, :] & merge[None, :]
+        off_line = np.abs(near.lat - lat_i) > near.sep / 2
+        toward = np.abs(near.lat[None, :] - lanes[:, None]) < np.abs(near.lat - lat_i)[None, :]
+        close_by = ~near.ahead & merge & off_line
+        cut_in = near.in_swept & toward & close_by[None, :]
+        # gives way to a car close behind, unless it is closing on a slower car itself
         behind = ~near.ahead & (near.rear_gap < r.yield_range)
-        line = self._line(lat_i, near.lat[behind])
+        slower = near.ahead & near.in_mine & (near.gap < 2 * r.yield_range)
+        busy = (slower & (near.v < self.speed - _FASTER)).any()
+        line = 0.0 if busy else self._line(lat_i, near.lat[behind])
         score = (
             v_dest
             - r.line_cost * np.abs(lanes - line)
@@ -177,7 +189,12 @@ class RacingDriver:
         self._backing = bool(stuck[k].any()) and not close_behind.any() and r.reverse_speed > 0
         if self._backing:
             return -r.reverse_speed
-        return max(min(float(v_dest[k]), float(v_across[k])), 0.0)
+        speed = min(float(v_dest[k]), float(v_across[k]))
+        # a faster car beside it, passing: ease off so that the pass is over sooner
+        beside = (np.abs(near.rear_gap + t.car.length) < t.car.length) & ~near.in_mine
+        if (beside & (near.v > float(t.speed[self.index]) + _FASTER)).any():
+            speed = min(speed, self.speed - r.pass_ease)
+        return max(speed, 0.0)
 
     def _near(self, lat_i: float) -> _Near:
         """The other cars within ``horizon`` along the track, against every lane."""
@@ -207,7 +224,7 @@ class RacingDriver:
         to_gain = (
             near.gap + 2 * self.traffic.car.length + r.standstill_gap + r.merge_headway * near.v
         )
-        passed = near.ahead & near.in_mine & ~near.in_dest
+        passed = near.ahead & near.in_mine & ~near.in_dest & (near.v < v_free - _FASTER)
         need = np.where(passed, v_free * to_gain / closing, 0.0).max(axis=1, initial=0.0)
         need = np.minimum(np.maximum(need, v_free * _MIN_PASS_TIME), r.horizon)
         reach = self.room.reach(float(self.traffic.s[self.index]), self.lanes, r.horizon)
@@ -233,9 +250,10 @@ class RacingDriver:
         it sweeps on the way across, and (lanes x cars) the standing cars it is too close to
         pull out round."""
         r = self.rules
-        across = near.ahead & near.in_swept & ~in_dest
         way = np.sign(self.lanes - near.lat_i)[:, None]
-        clear = np.maximum(way * (near.lat + way * near.sep - near.lat_i), 0.0)  # sideways, m
+        beside = near.sep - _SETTLE  # lateral offsets apart that count as out of the way
+        clear = np.maximum(way * (near.lat + way * beside - near.lat_i), 0.0)  # sideways, m
+        across = near.ahead & near.in_swept & ~in_dest & (clear > 0)
         t_move = np.maximum(clear / r.lateral_speed, max(self.traffic.dt, 1e-3))
         squeeze = near.v + (near.gap - r.min_gap) / t_move
         pull_out = self._pull_out(clear)
@@ -264,18 +282,22 @@ class RacingDriver:
             return lat_i
         return self.rules.yield_offset if right else -self.rules.yield_offset
 
-    def clear_speed(self, pose: np.ndarray) -> float:
-        """The speed (m/s) that stops the car at ``pose`` short of every other car's box in the
-        corridor straight ahead of its own (inf when the corridor is clear)."""
-        t, r = self.traffic, self.rules
-        pts = t.outlines()[self._others].reshape(-1, 2) - pose[:2]
-        c, s = math.cos(pose[2]), math.sin(pose[2])
-        x = c * pts[:, 0] + s * pts[:, 1]
-        y = -s * pts[:, 0] + c * pts[:, 1]
-        inside = (x > 0.0) & (np.abs(y) < t.car.width / 2 + r.side_gap / 2)
+    def clear_speed(self) -> float:
+        """The speed (m/s) that stops the car short of every point of another car's box in the
+        corridor ahead of its own along the line it follows (the line moving from its lateral
+        offset to the one followed over a lookahead; inf when the corridor is clear)."""
+        t, r, i = self.traffic, self.rules, self.index
+        length = t.track.length
+        ahead = np.mod(t.outline_s[self._others] - t.s[i] + length / 2, length) - length / 2
+        lat_i = float(t.lateral[i])
+        offset = lat_i if self.offset is None else self.offset
+        line = lat_i + (offset - lat_i) * np.clip(ahead / r.lookahead, 0.0, 1.0)
+        inside = (ahead > 0.0) & (
+            np.abs(t.outline_lateral[self._others] - line) < t.car.width / 2 + r.side_gap / 2
+        )
         if not inside.any():
             return math.inf
-        room = float(x[inside].min()) - self._front - r.min_gap
+        room = float(ahead[inside].min()) - self._front - r.min_gap
         return math.sqrt(2.0 * r.brake * max(room, 0.0))
 
     # ------------------------------------------------------------------ the driver protocol
@@ -295,7 +317,8 @@ class RacingDriver:
         p = np.asarray(pose, dtype=np.float64).reshape(-1)
         if p.shape != (3,) or not np.isfinite(p).all():
             raise ValueError(f"pose must be three finite numbers [x, y, theta], got {pose!r}")
-        speed = min(self.decide(), self.clear_speed(p))
+        speed = self.decide()
+        speed = min(speed, self.clear_speed()) if speed > 0 else speed
         assert self.offset is not None and self.target is not None
         step = self.rules.lateral_speed * self.traffic.dt
         self.offset += min(max(self.target - self.offset, -step), step)

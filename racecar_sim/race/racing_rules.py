@@ -35,6 +35,8 @@ RACING_BOUNDS: dict[str, Bound] = {
     "yield_offset": Bound(0.0, 2.0, "m", "off the centerline while making room"),
     "reverse_speed": Bound(0.0, 2.0, "m/s", "backing off from a car pulled up too close to pull "
                            "out round it (0: never); the car's reverse limit is 2 m/s"),
+    "pass_ease": Bound(0.0, 2.0, "m/s", "below its own speed a car drives while a faster one "
+                       "passes beside it"),
     "brake": Bound(0.5, 20.0, "m/s^2", "planned braking for room running out and cars ahead"),
     "lookahead": Bound(0.1, 10.0, "m", "pure pursuit's look-ahead along the line"),
     "line_cost": Bound(0.0, 10.0, "m/s per m", "speed given up to drive on the line wanted"),
@@ -65,6 +67,7 @@ class RacingRules:
         yield_offset: metres off the centerline while making room.
         reverse_speed: m/s of backing off from a car pulled up closer than ``standstill_gap``
             when it wants to pull out round it (0: never).
+        pass_ease: m/s below its own speed a car drives while a faster one passes beside it.
         brake: m/s^2 of planned braking (for room running out and for the last check ahead).
         lookahead: metres of pure pursuit's look-ahead along the line.
         line_cost: m/s of speed given up per metre away from the line wanted.
@@ -77,15 +80,16 @@ class RacingRules:
     standstill_gap: float = 0.4
     min_gap: float = 0.15
     response: float = 0.5
-    side_gap: float = 0.2
+    side_gap: float = 0.18
     wall_margin: float = 0.12
     max_offset: float = 0.6
-    lane_step: float = 0.15
-    lateral_speed: float = 0.5
+    lane_step: float = 0.1
+    lateral_speed: float = 0.8
     merge_headway: float = 0.3
     yield_range: float = 2.5
     yield_offset: float = 0.3
     reverse_speed: float = 0.5
+    pass_ease: float = 0.3
     brake: float = 3.0
     lookahead: float = 1.0
     line_cost: float = 0.3

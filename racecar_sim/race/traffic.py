@@ -4,8 +4,8 @@
 the track's frame once per step, for all cars at once: arc length ``s``, lateral offset, speed along
 the track, and the gaps along the track between every pair of cars. The speeds are what an opponent
 sees: the change of a car's place on the track between two updates, not the simulator's twist. It
-also holds each car's outline (points on its box's edges, world frame) for the drivers' last check
-ahead.
+also places each car's outline (points on its box's edges) in the track's frame, for the drivers'
+last check ahead.
 
 The race updates it: ``RacecarRace-v0`` after every reset and step; with
 [RaceEnv][racecar_sim.race.env.RaceEnv] call ``traffic.update(env.poses, env.world.time)`` after
@@ -42,6 +42,8 @@ class Traffic:
         speed: (N,) metres per second along the track (0 at a reset).
         gaps: (N, N) metres along the track from car i's rear axle forwards to car j's,
             in [-length / 2, length / 2) (negative: j is behind i).
+        outline_s, outline_lateral: (N, P) arc length and lateral offset (metres) of P points
+            on the edges of each car's box.
         time: seconds of the last update.
         dt: seconds between the last two updates (0 after a reset).
     """
@@ -70,6 +72,8 @@ class Traffic:
         self.lateral = np.zeros(n_cars)
         self.speed = np.zeros(n_cars)
         self.gaps = np.zeros((n_cars, n_cars))
+        self.outline_s = np.zeros((n_cars, len(self._outline)))
+        self.outline_lateral = np.zeros((n_cars, len(self._outline)))
         self.time = 0.0
         self.dt = 0.0
         self._hint = np.full(n_cars, -1, dtype=np.int64)
@@ -103,6 +107,11 @@ class Traffic:
         self.s, self.lateral, self._hint = self.track.locate(poses[:, :2], self._hint)
         length = self.track.length
         self.gaps = np.mod(self.s[None, :] - self.s[:, None] + length / 2, length) - length / 2
+        points = self.outlines().reshape(-1, 2)
+        hint = np.repeat(self._hint, len(self._outline))  # each point near its car's place
+        s, lateral, _ = self.track.locate(points, hint)
+        self.outline_s = s.reshape(self.n_cars, -1)
+        self.outline_lateral = lateral.reshape(self.n_cars, -1)
 
     def outlines(self) -> np.ndarray:
         """(N, P, 2) world points on the edges of every car's box at the last update."""

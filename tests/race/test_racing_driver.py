@@ -159,9 +159,9 @@ def test_the_last_check_stops_short_of_a_car_across_the_lane() -> None:
     across[2] += math.pi / 2
     t.reset(np.array([pose(track, 5.0), across]))
     driver = RacingDriver(t, 0, 3.0)
-    assert driver.clear_speed(t.poses[0]) < 2.0
+    assert driver.clear_speed() < 2.0
     t.reset(np.array([pose(track, 5.0), pose(track, 6.0, 0.6)]))
-    assert driver.clear_speed(t.poses[0]) == math.inf  # beside the lane
+    assert driver.clear_speed() == math.inf  # beside the lane
 
 
 def test_rules_refuse_bad_numbers_naming_them() -> None:
