@@ -24,8 +24,8 @@ class LaneRoom:
     """The lateral room of ``track`` for a car ``width`` metres wide keeping ``margin`` metres
     from the edges, sampled every ``spacing`` metres along the track.
 
-    A track without widths ([widths][racecar_sim.race.track.Track.widths] None) has room everywhere;
-    give it its widths first ([with_widths][racecar_sim.race.track.with_widths]).
+    A track without widths (``Track.widths`` None) has room everywhere; give it its widths first
+    ([with_widths][racecar_sim.race.track.with_widths]).
 
     Attributes:
         low, high: (K,) metres, the smallest and largest lateral offset (left positive) at which

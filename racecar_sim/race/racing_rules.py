@@ -44,7 +44,7 @@ RACING_BOUNDS: dict[str, Bound] = {
     "horizon": Bound(1.0, 100.0, "m", "track ahead and behind in which cars count; room is "
                      "checked over the pass's length up to this"),
 }
-"""Field -> its bound (the rules' table, as [BOUNDS][racecar_sim.bounds.BOUNDS] is the env's)."""
+"""Field -> its bound (the racing rules' table, as ``racecar_sim.bounds.BOUNDS`` is the env's)."""
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ other cars (they follow at a safe gap, pass where the track is wide enough and g
 [RacingDriver][racecar_sim.race.racing_driver.RacingDriver]), or the project's drivers blind to
 them (pure pursuit on the centerline, the lidar wall follower). The grid puts the opponents
 slowest first, on pole, and the agent last: the faster cars catch the slower ones and have to
-pass them. The world is a :class:`~racecar_sim.race.env.RaceEnv` of ``K + 1`` cars, so car 0
+pass them. The world is a [RaceEnv][racecar_sim.race.env.RaceEnv] of ``K + 1`` cars, so car 0
 sees the opponents in its scan and can hit them; its spaces, reward and info are the race's for
 ``car_0``. Opponents that crash stop where they are (still in the way); the episode ends when
 car 0 touches anything (unless ``terminate_on_collision=False``). Works without pettingzoo; SB3,
@@ -57,7 +57,9 @@ class RacecarRaceEnv(gym.Env):
             The grid puts the opponents slowest first (pole) and the agent last.
         opponent_rules: the ``"racing"`` drivers' numbers
             ([RacingRules][racecar_sim.race.racing_rules.RacingRules] or a mapping of its fields).
-        track, config, settings: as :class:`~racecar_sim.race.env.RaceEnv`.
+        track: as [RaceEnv][racecar_sim.race.env.RaceEnv].
+        config: as [RaceEnv][racecar_sim.race.env.RaceEnv].
+        settings: as [RaceEnv][racecar_sim.race.env.RaceEnv] (every car's).
         render_mode: ``"rgb_array"`` or None.
 
     ``info`` is car 0's race info plus ``opponent_poses`` (K, 3) (rear axles, world).
@@ -182,7 +184,8 @@ class RacecarRaceEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-        """Start a race; ``options`` as :meth:`RaceEnv.reset` (``{"poses": (K + 1, 3)}``)."""
+        """Start a race; ``options`` as [RaceEnv.reset][racecar_sim.race.env.RaceEnv.reset]
+        (``{"poses": (K + 1, 3)}``; without poses the cars stand on ``grid``)."""
         super().reset(seed=seed)
         if seed is None:  # a fresh stream of seeds from the env's generator
             seed = int(self.np_random.integers(2**31))

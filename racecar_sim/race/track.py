@@ -290,7 +290,7 @@ def centre_loop(
 
 def with_widths(track: Track, grid: OccupancyMap) -> Track:
     """``track`` itself when its widths are known, else the same points with their free widths
-    measured on ``grid`` as [centre_loop][racecar_sim.race.track.centre_loop] measures them
+    measured on ``grid`` as ``centre_loop`` measures them
     (openings beside the track shorter than about 5 m do not count)."""
     if track.widths is not None:
         return track
