@@ -41,7 +41,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="counts of opponents, e.g. 1,2,3")  # fmt: skip
     parser.add_argument("--seeds", type=int, default=10, help="races per map and count (0 ...)")
     parser.add_argument("--duration", type=float, default=60.0, help="simulated seconds per race")
-    parser.add_argument("--n-beams", type=int, default=1080, help="lidar beams per car")
+    parser.add_argument("--n-beams", type=int, default=61,
+                        help="lidar beams per car (the racing drivers do not read the scans)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=Path("out/race_matrix"),
                         help="folder for races.csv and matrix.md")  # fmt: skip
     args = parser.parse_args(argv)
