@@ -39,7 +39,8 @@ along the track, as an opponent sees them) and of the track
    wider each side).
 
 The lane chosen moves the line followed sideways at ``lateral_speed``. Rules and numbers:
-[RacingRules][racecar_sim.race.racing_rules.RacingRules]. Frames: world (poses, track), track
+[RacingRules][racecar_sim.race.racing_rules.RacingRules]; the per-step arithmetic is numba
+(``racecar_sim.race.racing_kernels``). Frames: world (poses, track), track
 (arc length, lateral offset), car (x forward, y left, at the rear axle).
 """
 
@@ -47,45 +48,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from racecar_sim.drivers.base import as_action
 from racecar_sim.params import nested
+from racecar_sim.race import racing_kernels as kernels
 from racecar_sim.race.lanes import LaneRoom
 from racecar_sim.race.racing_rules import RacingRules
 from racecar_sim.race.traffic import Traffic
 
 __all__ = ["RacingDriver"]
 
-_TIE_BREAK = 1e-3  # m/s per metre left: of two equal lanes the left one (pass on the left)
-_STRAIGHT_BEHIND = 0.05  # metres: a follower this close to the car's lateral is straight behind
-_MIN_PASS_TIME = 3.0  # seconds of driving a lane must fit when it passes nobody
-_CREEP = 0.05  # m/s: slower than this is standing
-_PULL_OUT_RADIUS = 1.5  # lookaheads: the radius of the arcs of a pull-out from standing
-_BACK_OFF = 0.3  # metres backed off beyond the gap a pull-out needs
-_FASTER = 0.1  # m/s faster than a car ahead is closing on it
-_SETTLE = 0.05  # metres of side gap a car still settling into its lane may lack
 _STRAIGHTEN = 2.0  # 1/s: how fast backing off turns the heading back along the track
-
-
-@dataclass(frozen=True)
-class _Near:
-    """The other cars within the horizon at one step (arrays over them; lanes x cars for the
-    masks ``in_dest`` and ``in_swept``)."""
-
-    lat: np.ndarray  # metres left of the centerline
-    v: np.ndarray  # m/s along the track (not below 0)
-    ahead: np.ndarray  # rear axle ahead of this car's
-    gap: np.ndarray  # metres bumper to bumper to a car ahead
-    rear_gap: np.ndarray  # metres bumper to bumper to a car behind
-    sep: float  # metres between lateral offsets that keep two cars side_gap apart
-    in_dest: np.ndarray  # in the lane
-    in_swept: np.ndarray  # in the lanes swept from the car's lateral offset to the lane
-    in_mine: np.ndarray  # in the car's own lane
-    lat_i: float  # the car's own lateral offset
 
 
 class RacingDriver:
@@ -128,6 +104,7 @@ class RacingDriver:
         self.lanes = np.arange(-half, half + 1) * r.lane_step
         """(M,) the lateral offsets weighed, metres (left positive)."""
         self.room = LaneRoom(traffic.track, car.width, r.wall_margin)
+        self._numbers = np.array([getattr(r, name) for name in kernels.NUMBERS])
         self._others = np.arange(traffic.n_cars) != index
         self._front = car.length - car.rear_overhang
         self._wheelbase = car.wheelbase
@@ -146,159 +123,32 @@ class RacingDriver:
     def decide(self) -> float:
         """Choose the lane (``target``) from the traffic picture; returns the speed, m/s (negative
         while backing off)."""
-        t, r, lanes = self.traffic, self.rules, self.lanes
-        lat_i = float(t.lateral[self.index])
+        t, i = self.traffic, self.index
+        lat_i = float(t.lateral[i])
         if self.target is None:
-            self.target = float(lanes[np.argmin(np.abs(lanes - lat_i))])
+            self.target = float(self.lanes[np.argmin(np.abs(self.lanes - lat_i))])
             self.offset = lat_i
-        near = self._near(lat_i)
-        reach, ending = self._room(near)
-        # a lane that ends merges towards the centerline: the cars ahead on the way are followed
-        to_centre = _within(near.lat, np.minimum(lanes, 0.0), np.maximum(lanes, 0.0), near.sep)
-        in_dest = near.in_dest | (ending[:, None] & to_centre)
-        v_dest = self._lane_speeds(near, in_dest, reach)
-        v_across, stuck = self._crossing_speeds(near, in_dest)
-        # a lane change must not cut in front of a car beside or just behind: towards one not
-        # straight behind it (half a lane over or more)
-        merge = near.rear_gap < r.standstill_gap + r.merge_headway * near.v
-        off_line = np.abs(near.lat - lat_i) > near.sep / 2
-        toward = np.abs(near.lat[None, :] - lanes[:, None]) < np.abs(near.lat - lat_i)[None, :]
-        close_by = ~near.ahead & merge & off_line
-        cut_in = near.in_swept & toward & close_by[None, :]
-        # gives way to a car close behind, unless it is closing on a slower car itself
-        behind = ~near.ahead & (near.rear_gap < r.yield_range)
-        slower = near.ahead & near.in_mine & (near.gap < 2 * r.yield_range)
-        busy = (slower & (near.v < self.speed - _FASTER)).any()
-        line = 0.0 if busy else self._line(lat_i, near.lat[behind])
-        score = (
-            v_dest
-            - r.line_cost * np.abs(lanes - line)
-            - r.switch_cost * np.abs(lanes - self.target)
-            + _TIE_BREAK * lanes
-        )
-        current = np.abs(lanes - self.target) < 1e-9
-        score = np.where(cut_in.any(axis=1) | (ending & ~current), -np.inf, score)
-        if np.isfinite(score).any():
-            k = int(np.argmax(score))
-        else:  # boxed in: stay in the lane the car is in
-            k = int(np.argmin(np.abs(lanes - lat_i)))
-        self.target = float(lanes[k])
-        # pulled up too close behind a standing car to pull out round it: back off if nothing
-        # is close behind
-        close_behind = ~near.ahead & near.in_swept[k] & (near.rear_gap < r.standstill_gap)
-        self._backing = bool(stuck[k].any()) and not close_behind.any() and r.reverse_speed > 0
-        if self._backing:
-            return -r.reverse_speed
-        speed = min(float(v_dest[k]), float(v_across[k]))
-        # a faster car beside it, passing: ease off so that the pass is over sooner
-        beside = (np.abs(near.rear_gap + t.car.length) < t.car.length) & ~near.in_mine
-        if (beside & (near.v > float(t.speed[self.index]) + _FASTER)).any():
-            speed = min(speed, self.speed - r.pass_ease)
-        return max(speed, 0.0)
-
-    def _near(self, lat_i: float) -> _Near:
-        """The other cars within ``horizon`` along the track, against every lane."""
-        t, r, lanes = self.traffic, self.rules, self.lanes
-        i = self.index
-        near = self._others & (np.abs(t.gaps[i]) < r.horizon)
-        d, lat = t.gaps[i][near], t.lateral[near]
-        sep = t.car.width + r.side_gap
-        return _Near(
-            lat=lat,
-            v=np.maximum(t.speed[near], 0.0),
-            ahead=d >= 0,
-            gap=d - t.car.length,
-            rear_gap=-d - t.car.length,
-            sep=sep,
-            in_dest=_within(lat, lanes, lanes, sep),
-            in_swept=_within(lat, np.minimum(lanes, lat_i), np.maximum(lanes, lat_i), sep),
-            in_mine=np.abs(lat - lat_i) < sep,
-            lat_i=lat_i,
-        )
-
-    def _room(self, near: _Near) -> tuple[np.ndarray, np.ndarray]:
-        """Per lane, metres ahead it fits (up to ``horizon``), and whether it ends before the
-        pass it makes is done (or within a few seconds of driving)."""
-        r, v_free = self.rules, self.speed
-        closing = np.maximum(v_free - near.v, 0.1)
-        to_gain = (
-            near.gap + 2 * self.traffic.car.length + r.standstill_gap + r.merge_headway * near.v
-        )
-        passed = near.ahead & near.in_mine & ~near.in_dest & (near.v < v_free - _FASTER)
-        need = np.where(passed, v_free * to_gain / closing, 0.0).max(axis=1, initial=0.0)
-        need = np.minimum(np.maximum(need, v_free * _MIN_PASS_TIME), r.horizon)
-        reach = self.room.reach(float(self.traffic.s[self.index]), self.lanes, r.horizon)
-        return reach, (reach < need) & (np.abs(self.lanes) > 1e-9)
-
-    def _lane_speeds(self, near: _Near, in_dest: np.ndarray, reach: np.ndarray) -> np.ndarray:
-        """Per lane, the speed the cars ahead in it (headway) and its room ahead allow."""
-        r = self.rules
-        # behind a standing car, stop where the car can still pull out round it
-        aside = np.maximum(near.sep - np.abs(near.lat - near.lat_i), 0.0)
-        stop_gap = np.where(near.v < _CREEP, np.maximum(r.standstill_gap, self._pull_out(aside)),
-                            r.standstill_gap)  # fmt: skip
-        follow = (r.response * near.v + near.gap - stop_gap) / (r.response + r.headway)
-        follow = np.where(near.gap < r.min_gap, 0.0, follow)
-        v_dest = np.where(near.ahead & in_dest, follow, np.inf).min(axis=1, initial=np.inf)
-        v_room = np.sqrt(2.0 * r.brake * np.maximum(reach - r.standstill_gap, 0.0))
-        open_ahead = (np.abs(self.lanes) < 1e-9) | (reach >= r.horizon)
-        v_dest = np.minimum(v_dest, np.where(open_ahead, np.inf, v_room))
-        return np.clip(v_dest, 0.0, self.speed)
-
-    def _crossing_speeds(self, near: _Near, in_dest: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per lane, the speed that keeps the car out of the way of the cars ahead in the lanes
-        it sweeps on the way across, and (lanes x cars) the standing cars it is too close to
-        pull out round."""
-        r = self.rules
-        way = np.sign(self.lanes - near.lat_i)[:, None]
-        beside = near.sep - _SETTLE  # lateral offsets apart that count as out of the way
-        clear = np.maximum(way * (near.lat + way * beside - near.lat_i), 0.0)  # sideways, m
-        across = near.ahead & near.in_swept & ~in_dest & (clear > 0)
-        t_move = np.maximum(clear / r.lateral_speed, max(self.traffic.dt, 1e-3))
-        squeeze = near.v + (near.gap - r.min_gap) / t_move
-        pull_out = self._pull_out(clear)
-        if self._backing:  # backs off beyond the gap needed, then pulls out
-            pull_out = pull_out + _BACK_OFF
-        standing = float(self.traffic.speed[self.index]) < _CREEP
-        stuck = across & (near.gap < pull_out) & (near.v < _CREEP) & standing
-        squeeze = np.where(stuck, 0.0, squeeze)
-        return np.where(across, squeeze, np.inf).min(axis=1, initial=np.inf), stuck
-
-    def _pull_out(self, sideways: np.ndarray) -> np.ndarray:
-        """Metres of gap a standing car needs to move ``sideways`` metres before reaching the
-        car ahead: two arcs of 1.5 lookaheads' radius, plus ``min_gap``."""
-        radius = _PULL_OUT_RADIUS * self.rules.lookahead
-        return self.rules.min_gap + 2.0 * np.sqrt(sideways * radius)
-
-    def _line(self, lat_i: float, followers: np.ndarray) -> float:
-        """The lateral offset wanted (metres) with cars close behind at lateral ``followers``:
-        away from them (to the right of one straight behind), held where they are on both
-        sides, the centerline when there are none."""
-        if followers.size == 0:
-            return 0.0
-        left = bool((followers > lat_i + _STRAIGHT_BEHIND).any())
-        right = bool((followers < lat_i - _STRAIGHT_BEHIND).any())
-        if left and right:
-            return lat_i
-        return self.rules.yield_offset if right else -self.rules.yield_offset
+        near = self._others & (np.abs(t.gaps[i]) < self.rules.horizon)
+        k, speed, self._backing = kernels.decide(
+            self.lanes, self.target, self._backing, lat_i, float(t.speed[i]), self.speed,
+            float(t.s[i]), t.dt, t.car.length, t.car.width, t.gaps[i][near], t.lateral[near],
+            t.speed[near], self._numbers, self.room.low, self.room.high, self.room.spacing,
+        )  # fmt: skip
+        self.target = float(self.lanes[k])
+        return float(speed)
 
     def clear_speed(self) -> float:
         """The speed (m/s) that stops the car short of every point of another car's box in the
         corridor ahead of its own along the line it follows (the line moving from its lateral
         offset to the one followed over a lookahead; inf when the corridor is clear)."""
         t, r, i = self.traffic, self.rules, self.index
-        length = t.track.length
-        ahead = np.mod(t.outline_s[self._others] - t.s[i] + length / 2, length) - length / 2
         lat_i = float(t.lateral[i])
         offset = lat_i if self.offset is None else self.offset
-        line = lat_i + (offset - lat_i) * np.clip(ahead / r.lookahead, 0.0, 1.0)
-        inside = (ahead > 0.0) & (
-            np.abs(t.outline_lateral[self._others] - line) < t.car.width / 2 + r.side_gap / 2
-        )
-        if not inside.any():
-            return math.inf
-        room = float(ahead[inside].min()) - self._front - r.min_gap
-        return math.sqrt(2.0 * r.brake * max(room, 0.0))
+        return float(kernels.clear_speed(
+            t.outline_s, t.outline_lateral, self._others, float(t.s[i]), lat_i, offset,
+            t.track.length, r.lookahead, t.car.width / 2 + r.side_gap / 2, self._front, r.min_gap,
+            r.brake,
+        ))  # fmt: skip
 
     # ------------------------------------------------------------------ the driver protocol
     def __call__(self, obs: Mapping[str, Any] | None, pose: np.ndarray | None = None) -> np.ndarray:
@@ -335,9 +185,3 @@ class RacingDriver:
         steer = min(max(steer, -self._max_steer), self._max_steer)
         return as_action(steer, speed)
 
-
-def _within(lat: np.ndarray, low: np.ndarray, high: np.ndarray, sep: float) -> np.ndarray:
-    """(M, N): whether lateral offsets ``lat`` (N,) come closer than ``sep`` to the bands
-    ``[low, high]`` (M,) (metres)."""
-    outside = np.maximum(lat[None, :] - high[:, None], low[:, None] - lat[None, :])
-    return outside < sep
