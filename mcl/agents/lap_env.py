@@ -78,8 +78,8 @@ class LapTaskConfig:
         opponents: scripted cars racing the agent (0: the agent drives alone in
             ``RacecarSim-v0``; more: ``RacecarRace-v0`` on the map's centerline, the agent
             starting last on the grid, :mod:`mcl.agents.race_task`).
-        opponent_driver: their driver (``"pure_pursuit"`` on the centerline or
-            ``"wall_follower"``).
+        opponent_driver: their driver (``"racing"``: knows the other cars, follows, passes and
+            gives way; ``"pure_pursuit"`` on the centerline blind to them; ``"wall_follower"``).
         opponent_speeds: m/s, one per opponent (None: ``RacecarRace-v0``'s 2.0, 2.4, 2.8, ...).
     """
 
@@ -100,7 +100,7 @@ class LapTaskConfig:
     start_heading_sd: float = 0.15
     env: tuple[tuple[str, Any], ...] = ()
     opponents: int = 0
-    opponent_driver: str = "pure_pursuit"
+    opponent_driver: str = "racing"
     opponent_speeds: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:

@@ -1,15 +1,17 @@
 """The lap task against scripted opponents: :class:`~mcl.agents.lap_env.LapTask` on ``RacecarRace-v0``.
 
 ``LapTaskConfig(opponents=K)`` puts the agent's car (car 0) in a
-:class:`racecar_sim.race.single.RacecarRaceEnv` with ``K`` scripted opponents (pure pursuit on
-the centerline or the wall follower, each at its own speed). The task is the lap task's, on the
+:class:`racecar_sim.race.single.RacecarRaceEnv` with ``K`` scripted opponents (by default racing
+drivers that know the other cars; pure pursuit on the centerline blind to them, or the wall
+follower; each at its own speed). The task is the lap task's, on the
 race's track (the map's centerline), with these differences:
 
-* **start**: the race's staggered grid (:func:`racecar_sim.race.grid.start_grid`) with the agent
-  in the *last* slot and opponent ``k`` in slot ``k - 1`` (with the default speeds the slowest,
-  2.0 m/s, starts on pole and the fastest just ahead of the agent). The grid stands behind the start line when ``start_s`` is 0 (the tests), or behind a
-  uniformly drawn point of the track when ``start_s`` is None (training: every part of the track,
-  with the pack ahead). Drawn points keep the grid off the half-lap point, where the race order
+* **start**: the race's grid ([grid_at][racecar_sim.race.single.RacecarRaceEnv.grid_at]: single
+  file on the centerline, the opponents slowest first on pole, the agent in the *last* slot, so
+  with the default speeds the fastest opponent starts just ahead of the agent). The grid stands
+  behind the start line when ``start_s`` is 0 (the tests), or behind a uniformly drawn point of
+  the track when ``start_s`` is None (training: every part of the track, with the pack ahead).
+  Drawn points keep the grid off the half-lap point, where the race order
   wraps (:mod:`racecar_sim.race.laps`), and a point where the track has no room for the
   grid is drawn again.
 * **reward**: progress minus the penalty on a step with *any* contact, wall or car (and in
@@ -29,7 +31,6 @@ import gymnasium as gym
 
 from mcl.agents.lap_env import LapTask, LapTaskConfig
 from mcl.agents.race_tally import RaceTally
-from racecar_sim.race.grid import start_grid
 from racecar_sim.race.single import RacecarRaceEnv
 
 __all__ = ["RaceLapTask", "make_race_lap_env"]
@@ -61,13 +62,12 @@ class RaceLapTask(LapTask):
         self._race_laps: tuple[int, list[float]] = (0, [])
 
     def _start_pose(self) -> list[list[float]]:
-        """(K + 1, 3) rear-axle world poses: the grid with the agent (row 0) in the last slot."""
+        """(K + 1, 3) rear-axle world poses: the race's single-file grid (the agent last) behind
+        ``start_s``, or behind a drawn point of the track."""
         cfg, track, car = self.config, self.track, self._car
-        is_free = self.env.unwrapped.race.cars[0].physics.pose_is_free
-        order = [self.n_cars - 1, *range(self.n_cars - 1)]
+        race = self.env.unwrapped
         if cfg.start_s is not None:
-            grid = start_grid(track, self.n_cars, car, is_free, gap=_GRID_GAP, at=cfg.start_s)
-            return grid[order].tolist()
+            return race.grid_at(cfg.start_s).tolist()
         length = track.length
         span = self.n_cars * (car.length + _GRID_GAP) + 1.0  # metres of track the grid covers
         for _ in range(_GRID_DRAWS):  # a drawn point where the track is too narrow: draw again
@@ -75,10 +75,9 @@ class RaceLapTask(LapTask):
             if at >= length / 2:  # keep [at - span, at] clear of the half-lap wrap
                 at += span
             try:
-                grid = start_grid(track, self.n_cars, car, is_free, gap=_GRID_GAP, at=at)
+                return race.grid_at(at).tolist()
             except ValueError:
                 continue
-            return grid[order].tolist()
         raise ValueError(f"no room for a grid of {self.n_cars} cars in {_GRID_DRAWS} draws")
 
     def begin(self, info: dict[str, Any]) -> None:

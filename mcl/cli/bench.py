@@ -25,6 +25,7 @@ BENCHMARKS: dict[str, str] = {
     "soak": "a 2-hour headless drive: peak memory at 10, 60 and 120 simulated minutes",
     "live": "a localized drive with and without the Foxglove live view (steps/s)",
     "dynamics": "the single-track car vs f1tenth_gym (skidpad, open loop) and its speed cost",
+    "race_matrix": "scripted races on the loop maps: contacts, passes, laps per car by speed",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 

@@ -169,7 +169,12 @@ def main(argv: list[str] | None = None) -> int:
         metavar="K[,K...]",
         help="test against each count (default: the --opponents counts)",
     )
-    add("--opponent-driver", choices=DRIVERS, default="pure_pursuit", help="the opponents' driver")
+    add(
+        "--opponent-driver",
+        choices=DRIVERS,
+        default="racing",
+        help="the opponents' driver (racing: knows the other cars; pure_pursuit: blind to them)",
+    )
     add(
         "--opponent-speeds",
         type=number_list,

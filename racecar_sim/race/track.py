@@ -24,7 +24,7 @@ from racecar_sim.drivers.pure_pursuit import resample_polyline
 from racecar_sim.file_guard import writable
 from racecar_sim.maps import OccupancyMap
 
-__all__ = ["LOOP_STARTS", "MAX_TRACK_BYTES", "Track", "centre_loop", "resolve_track"]
+__all__ = ["LOOP_STARTS", "MAX_TRACK_BYTES", "Track", "centre_loop", "resolve_track", "with_widths"]
 
 LOOP_STARTS: dict[str, tuple[float, float, float]] = {
     "basement_loop": (9.0, 2.5, 0.0),  # south hallway, driving east (island on the left)
@@ -219,6 +219,27 @@ class Track:
         s = self._start_s[idx] + frac * np.sqrt(self._seg_len2[idx])
         return np.mod(s, self.length), idx
 
+    def locate(
+        self, xy: np.ndarray, hint: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where world points ``xy`` (N, 2) are on the loop: arc lengths ``s`` (N,) in
+        [0, length), signed lateral offsets (N,) (metres, positive left of the driving direction)
+        and the nearest segments (N,) for the next call's ``hint`` (as
+        [arc_lengths][racecar_sim.race.track.Track.arc_lengths])."""
+        xy = np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2)
+        s, idx = self.arc_lengths(xy, hint)
+        seg = self._seg[idx]
+        rel = xy - self.points[idx]
+        lateral = (seg[:, 0] * rel[:, 1] - seg[:, 1] * rel[:, 0]) / np.sqrt(self._seg_len2[idx])
+        return s, lateral, idx
+
+    def offset_point(self, s: float, lateral: float) -> np.ndarray:
+        """World point (2,) ``lateral`` metres left (negative: right) of the loop at arc length
+        ``s`` (metres), across the segment there."""
+        i = self._segment(s)
+        seg = self._seg[i] / math.sqrt(self._seg_len2[i])
+        return self.point_at(s) + lateral * np.array([-seg[1], seg[0]])
+
     def point_at(self, s: np.ndarray | float) -> np.ndarray:
         """World points (..., 2) at arc lengths ``s`` (metres, taken modulo the length)."""
         s = np.mod(np.asarray(s, dtype=np.float64), self.length)
@@ -297,6 +318,18 @@ def centre_loop(
         pts = resample_polyline(pts, spacing, loop=True)
     ext = _rolling_min(_free_extent(grid, pts, _normals(pts)), int(_ALCOVE / spacing))
     return Track(pts, np.stack([ext[:, 0], ext[:, 1]], axis=1))
+
+
+def with_widths(track: Track, grid: OccupancyMap) -> Track:
+    """``track`` itself when its widths are known, else the same points with their free widths
+    measured on ``grid`` as ``centre_loop`` measures them
+    (openings beside the track shorter than about 5 m do not count)."""
+    if track.widths is not None:
+        return track
+    spacing = track.length / len(track.points)
+    half = max(1, int(_ALCOVE / spacing))
+    ext = _rolling_min(_free_extent(grid, track.points, _normals(track.points)), half)
+    return Track(track.points, ext)
 
 
 def resolve_track(

@@ -18,6 +18,7 @@ from mcl.agents.lap_env import LapTaskConfig, make_lap_env
 from mcl.agents.race_tally import RaceTally
 from mcl.agents.task_env import make_task_env
 from racecar_sim.drivers import PurePursuit
+from racecar_sim.race.grid import start_grid
 from racecar_sim.race.single import RacecarRaceEnv
 
 FAST = (("n_beams", 181),)
@@ -46,10 +47,9 @@ def _race(agent_line: float, opponent, steps: int, pole: str = "opponent"):
     race = RacecarRaceEnv(
         opponents=1, opponent_driver=[opponent], terminate_on_collision=False, n_beams=181
     )
-    obs, info = race.reset(seed=0)
-    if pole == "opponent":  # the grid's first two slots, swapped: car 0 behind, on the right
-        grid = np.array([info["pose"], info["opponent_poses"][0]])
-        obs, info = race.reset(seed=0, options={"poses": grid[::-1]})
+    # the staggered grid's first two slots: pole on the left, second on the right
+    grid = start_grid(race.track, 2, race.car_params, race.race.cars[0].physics.pose_is_free)
+    obs, info = race.reset(seed=0, options={"poses": grid[::-1] if pole == "opponent" else grid})
     drive = (
         _parked
         if agent_line is None

@@ -18,7 +18,7 @@ def test_check_env_passes():
 def test_opponents_race_on_their_own_drivers():
     env = gym.make(
         "RacecarRace-v0", map="basement_loop", opponents=2, opponent_driver=["pure_pursuit", "wall_follower"],
-        opponent_speeds=[2.0, 1.5], n_beams=61,
+        opponent_speeds=[1.5, 2.0], n_beams=61,  # the blind pure pursuit slower, on pole
     )  # fmt: skip
     _, info = env.reset(seed=1)
     start = info["opponent_poses"].copy()

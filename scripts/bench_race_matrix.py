@@ -1,0 +1,8 @@
+"""Thin wrapper: ``racecar-sim bench race-matrix`` (see :mod:`mcl.bench.race_matrix`)."""
+
+import sys
+
+from mcl.cli.bench import run_script
+
+if __name__ == "__main__":
+    sys.exit(run_script("race_matrix"))
