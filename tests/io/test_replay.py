@@ -213,12 +213,31 @@ def test_a_replay_on_the_wrong_map_warns_and_its_picture_says_not_found(
     assert "NOT FOUND" in titles[0] and "found at" not in titles[0]
 
 
-def test_a_replay_on_the_right_map_is_found_without_a_warning(recorded, room, tmp_path, capsys):
+def test_a_replay_on_the_right_map_is_found_without_a_warning(
+    recorded, room, tmp_path, capsys, monkeypatch
+):
+    """Found at once, no warning, and trajectory.png draws the ground truth over the estimate
+    (dashed, so that both show where they agree)."""
+    import mcl.experiments.replay_output as replay_output
+
+    lines: dict[str, object] = {}
+    real_save = replay_output.save_figure
+
+    def save_and_read_lines(fig, path):
+        if not lines:
+            lines.update({line.get_label(): line for line in fig.axes[0].get_lines()})
+            lines["title"] = fig.axes[0].get_title()
+        return real_save(fig, path)
+
+    monkeypatch.setattr(replay_output, "save_figure", save_and_read_lines)
     out = tmp_path / "right"
     argv = ["replay", str(recorded[0]), "--map", room_yaml(room, tmp_path), "--out", str(out)]
     assert main([*argv, "--init", "5,2,0", "--video-fps", "0"]) == 0
     captured = capsys.readouterr()
     assert "warning" not in captured.err and "found the car at 0.0" in captured.out
+    truth, estimate = lines["ground truth"], lines["estimate (base_link, position sd < 0.5 m)"]
+    assert truth.get_zorder() > estimate.get_zorder() and truth.get_linestyle() == "--"
+    assert truth.get_linewidth() < estimate.get_linewidth() and "found at" in lines["title"]
 
 
 def _result_of(fit: np.ndarray, sd: np.ndarray, hz: float = 40.0):
