@@ -10,6 +10,10 @@ Prints the results table and writes into ``--out``:
                   its estimate and particles, and a panel with the race clock, the laps, the
                   standings and a legend (race_frames/*.png when OpenCV cannot write mp4)
 
+With ``--live [HOST:]PORT`` the race streams to Foxglove as it runs (the map, every car's pose
+and, localized, its estimate and particles; :mod:`mcl.io.race_stream`), paced at ``--live-speed``
+times real time.
+
 The default race is 4 cars on the default map (basement_loop) for 60 s, pure pursuit on the
 centerline at 2.0, 2.4, 2.8 and 3.2 m/s, the fastest on pole: drivers that do not know each other
 (the wall follower slows for a car in its path, pure pursuit does not) race without contact from
@@ -37,6 +41,7 @@ from mcl.cli.common import (
     positive_int,
 )
 from mcl.cli.compile_notice import compile_notice, compile_report
+from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
 from mcl.experiments.race_drivers import DRIVER_NAMES, DriverError, DriverSpec, parse_drivers
 from mcl.experiments.race_run import GRID_ORDERS, RaceSetup, RaceSpec
 from racecar_sim.maps import DEFAULT_MAP
@@ -89,6 +94,7 @@ def build_parser() -> Parser:
     add("--env", action="append", default=[], metavar="NAME=VALUE", help=ENV_HELP)
     add("--video-fps", type=non_negative_float, default=10.0, metavar="FPS",
         help="video frames per simulated second (0: no video)")  # fmt: skip
+    add_live_arguments(parser, "race")
     add("--quiet", action="store_true", help="no progress bar")
     return parser
 
@@ -156,13 +162,36 @@ def main(argv: list[str] | None = None) -> int:
         track=args.track, grid=args.grid, localize=args.localize, particles=args.particles,
         seed=args.seed, env=env,
     )  # fmt: skip
+    live = check_live(parser, args.live, args.live_speed)
     compile_notice()
     setup = _setup(parser, spec, render=args.video_fps > 0)
-    with output_folder(parser, out):
-        return _race(spec, setup, out, args.video_fps, not args.quiet)
+    from mcl.io.race_stream import RaceStream, start_race_live
+
+    server = start_live_view(parser, live, start_race_live)
+    on_step = None
+    if server is not None:
+        stream, pace = RaceStream(setup.race, server), Pacer(args.live_speed)
+
+        def on_step(env: Any, obs: dict, infos: dict) -> None:
+            stream(env, obs, infos)
+            pace(float(next(iter(infos.values()))["time"]))
+
+    try:
+        with output_folder(parser, out):
+            return _race(spec, setup, out, args.video_fps, not args.quiet, on_step)
+    finally:
+        if server is not None:
+            server.close()
 
 
-def _race(spec: RaceSpec, setup: RaceSetup, out: Path, video_fps: float, progress: bool) -> int:
+def _race(
+    spec: RaceSpec,
+    setup: RaceSetup,
+    out: Path,
+    video_fps: float,
+    progress: bool,
+    on_step: Any = None,
+) -> int:
     """The race into the existing folder ``out``, then the table."""
     from mcl.experiments.race_frames import RaceFrames
     from mcl.experiments.race_run import run_race
@@ -181,7 +210,7 @@ def _race(spec: RaceSpec, setup: RaceSetup, out: Path, video_fps: float, progres
 
     try:
         result = run_race(spec, setup, on_frame=on_frame, frame_every=frame_every,
-                          progress=progress)  # fmt: skip
+                          on_step=on_step, progress=progress)  # fmt: skip
     finally:
         if video is not None:
             video.close()
