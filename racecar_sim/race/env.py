@@ -11,6 +11,7 @@ progress, laps, lap times and race order (:mod:`racecar_sim.race.laps`). Needs t
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import functools
 import os
 from collections.abc import Mapping
@@ -78,7 +79,10 @@ class RaceEnv(ParallelEnv):
     ## Reset
     ``reset(seed=s)`` seeds car ``i`` with ``s + i`` (or a list of seeds);
     ``options={"poses": array (N, 3)}`` places the cars (rear-axle world poses; ``ValueError``
-    naming the car that would overlap a wall or another car). Without poses the cars stand on the
+    naming the car that would overlap a wall or another car). Other options are ignored, as
+    PettingZoo's API allows (its API test passes ``{"options": 1}``), except a near miss of
+    ``"poses"`` (``"pose"``, ``"Poses"``): a ``ValueError``, since the race would otherwise start
+    from the grid. Without poses the cars stand on the
     track's staggered start grid (:func:`~racecar_sim.race.grid.start_grid`; it holds track length
     / (car length + 0.3 m) cars, more is a ``ValueError``), or at random free places clear of each
     other when there is no track. The same seed gives the same race.
@@ -201,9 +205,11 @@ class RaceEnv(ParallelEnv):
         self._needs_reset = True  # until this reset goes through
         seeds = car_seeds(seed, n)
         options = check_options("RaceEnv.reset", options)
-        unknown = sorted(set(options) - {"poses"})
-        if unknown:
-            gym.logger.warn(f"RaceEnv.reset ignores unknown option(s) {unknown}; known: ['poses']")
+        for key in options:  # others are ignored, as PettingZoo's API has it; a typo is not
+            if key != "poses" and difflib.get_close_matches(key.strip().lower(), ["poses"]):
+                raise ValueError(
+                    f"RaceEnv.reset: unknown option {short(key)} (did you mean 'poses'?)"
+                )
         poses = options.get("poses")
         # The last race's ghosts leave the cars' spaces first: the grid's room check queries car
         # 0's space, where another car's ghost on a slot would take the slot's room.
