@@ -5,7 +5,6 @@ and (with stable-baselines3) a policy trained by the project races from the comm
 from __future__ import annotations
 
 import csv
-import importlib.util
 import json
 from dataclasses import asdict
 
@@ -14,14 +13,12 @@ import pytest
 
 from mcl.agents.lap_env import LapTask, LapTaskConfig
 from mcl.agents.policy_driver import PolicyDriver, load_policy_driver, task_of_model
+from tests.skips import NO_SB3, RL_MISSING
 
 pytest.importorskip("pettingzoo", reason="RaceEnv needs the [race] extra (pettingzoo)")
 from racecar_sim.race.env import RaceEnv
 
-NEEDS_SB3 = pytest.mark.skipif(
-    importlib.util.find_spec("stable_baselines3") is None,
-    reason="stable-baselines3 is not installed (pip install torch==2.13.0 -e '.[rl]')",
-)
+NEEDS_SB3 = pytest.mark.skipif(NO_SB3, reason=RL_MISSING)
 
 
 @pytest.fixture(scope="module")
