@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import warnings
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -307,8 +308,10 @@ class RacecarEnv(gym.Env):
         Returns None (with a warning) when the env was made without ``render_mode="rgb_array"``.
         """
         if self.render_mode is None:
-            gym.logger.warn(
-                "render() called without a render_mode; make the env with render_mode='rgb_array'"
+            warnings.warn(  # a plain warning: gym.logger.warn's colour codes end up in logs
+                "render() called without a render_mode; make the env with render_mode='rgb_array'",
+                UserWarning,
+                stacklevel=2,
             )
             return None
         renderer = self.renderer

@@ -14,6 +14,7 @@ import dataclasses
 import difflib
 import functools
 import os
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -327,8 +328,10 @@ class RaceEnv(ParallelEnv):
         """RGB uint8 (H, W, 3): the map, every car's last scan hits and its box in its own colour
         (:data:`CAR_COLOURS`), the track's centerline when there is one."""
         if self.render_mode is None:
-            gym.logger.warn(
-                "render() called without a render_mode; make the env with render_mode='rgb_array'"
+            warnings.warn(  # a plain warning: gym.logger.warn's colour codes end up in logs
+                "render() called without a render_mode; make the env with render_mode='rgb_array'",
+                UserWarning,
+                stacklevel=2,
             )
             return None
         if self._renderer is None:

@@ -33,6 +33,14 @@ def test_pettingzoo_parallel_api_test_passes():
         parallel_api_test(env, num_cycles=200)
 
 
+def test_render_without_a_render_mode_warns_in_plain_text():
+    for env in (RaceEnv(HALL, n_cars=1, n_beams=61), RacecarEnv(HALL, n_beams=61)):
+        env.reset(seed=0)
+        with pytest.warns(UserWarning, match="without a render_mode") as caught:
+            assert env.render() is None
+        assert "\x1b" not in str(caught[0].message)  # no terminal colour codes in logs
+
+
 def test_options_it_does_not_know_are_ignored_but_a_misspelt_poses_is_refused():
     env = RaceEnv(HALL, n_cars=2, n_beams=61)
     with warnings.catch_warnings():
