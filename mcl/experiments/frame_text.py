@@ -45,7 +45,7 @@ def _swatch(img: np.ndarray, kind: str, x: int, y: int, colour: Colour) -> None:
         cv2.circle(img, (x + 3, y + 5), 3, colour, -1)
         cv2.arrowedLine(img, (x + 3, y + 5), (x + 16, y + 5), colour, 1, tipLength=0.4)
     elif kind == "line":
-        cv2.line(img, (x, y + 5), (x + 16, y + 5), colour, 1, cv2.LINE_AA)
+        cv2.line(img, (x, y + 5), (x + 16, y + 5), colour, 1, cv2.LINE_8)
     else:
         raise ValueError(f"legend swatch {kind!r}: one of {LEGEND_KINDS}")
 

@@ -9,8 +9,8 @@
   found the car (and the true path when known, dashed over the estimate); "not found" in the
   title when the estimate never fitted the scans to the map.
 - ``scan_fit.png``: scan_fit and the particle count against time.
-- ``replay.mp4``: the map, the particles, the scan from the estimate, at ``fps`` frames per second
-  of recording (PNG frames when OpenCV cannot write mp4).
+- ``replay.mp4``: the map, the particles, the scan from the estimate, and a legend, at ``fps``
+  frames per second of recording (PNG frames when OpenCV cannot write mp4).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from mcl.experiments.frame_text import draw_legend
 from mcl.experiments.plots import save_figure
 from mcl.experiments.replay import COLUMNS, FIT_WINDOW_S, FOUND_SD, GOOD_FIT, ReplayResult
 from mcl.experiments.video import FrameWriter
@@ -188,6 +189,14 @@ def plot_scan_fit(result: ReplayResult, path: str | os.PathLike[str]) -> Path:
     return save_figure(fig, path)
 
 
+REPLAY_LEGEND_BGR = (
+    ("particles", (0, 160, 0), "dots"),
+    ("scan drawn from the estimate", (0, 0, 220), "dots"),
+    ("estimate (base_link)", (0, 140, 255), "arrow"),
+)
+"""The video's legend: what its frames draw, in their colours (the frames are drawn in BGR)."""
+
+
 def write_video(
     result: ReplayResult,
     occupancy_map: OccupancyMap,
@@ -230,6 +239,7 @@ def write_video(
                 cv2.putText(
                     frame, text, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA
                 )
+            draw_legend(frame, REPLAY_LEGEND_BGR, "bottom-left")
             writer.write(frame[:, :, ::-1].copy())
     return writer
 
