@@ -5,7 +5,7 @@ and every ``RacecarSim-v0`` setting applies to every car. What a race adds (see
 :class:`~racecar_sim.race.world.RaceWorld`): each lidar sees the other cars' boxes exactly as it
 sees walls, cars collide with each other as pymunk bodies, and on a track the info carries
 progress, laps, lap times and race order (:mod:`racecar_sim.race.laps`). Needs the ``race`` extra
-(``pip install 'racecar-sim[race]'``: pettingzoo).
+(pettingzoo; in the checkout ``.venv/bin/pip install -e '.[race]'``).
 """
 
 from __future__ import annotations
