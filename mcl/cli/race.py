@@ -151,6 +151,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     env = check_env(parser, args.env)
+    for name, flag in (("track", "--track"), ("terminate_on_collision", None)):
+        if name in dict(env):
+            parser.fail(f"--env {name}", f"set the track with {flag}" if flag else
+                        "a race keeps every car racing after a contact and counts the contacts")  # fmt: skip
     check_map(parser, args.map, env=env)
     if args.track is not None and not Path(args.track).is_file():
         parser.fail("--track", f"{args.track} does not exist")

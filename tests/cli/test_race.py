@@ -113,6 +113,9 @@ def test_laps_end_the_race_when_the_first_car_completes_them(tmp_path, capsys) -
         (["--map", "corridor"], "--map", "needs a track"),
         (["--track", "nowhere.csv"], "--track", "does not exist"),
         (["--duration", "0"], "--duration", "must be a number > 0"),
+        (["--env", "track=auto"], "--env track", "with --track"),
+        (["--env", "terminate_on_collision=true"], "--env terminate_on_collision", "counts"),
+        (["--live", "nohost:"], "--live", "PORT"),
     ],
 )
 def test_mistakes_are_one_line_and_exit_2(tmp_path, capsys, argv, flag, fragment) -> None:
