@@ -4,12 +4,12 @@ numba compiles a kernel on its first call and keeps it in an on-disk cache (``ca
 first run after an install, a checkout or an edit spends 20-50 s of wall time compiling on a 2-core
 machine and later runs load the kernels in well under a second. Nothing is printed by the library:
 at the first compile of a kernel of ``racecar_sim`` or ``mcl`` in a process it logs one INFO
-message on the ``racecar_sim`` logger (:data:`LOGGER`); ``logging.basicConfig(level=logging.INFO)``
-shows it. A kernel loaded from the cache is not a compile (numba fires its ``numba:compile`` event
-only on a cache miss), so a warm run logs nothing.
+message on the ``racecar_sim`` logger ([`LOGGER`][racecar_sim.compile_log.LOGGER]);
+``logging.basicConfig(level=logging.INFO)`` shows it. A kernel loaded from the cache is not a
+compile (numba fires its ``numba:compile`` event only on a cache miss), so a warm run logs nothing.
 
-:func:`on_first_compile` is the hook under it, which the ``racecar-sim`` commands use for their own
-notice on stderr.
+[`on_first_compile`][racecar_sim.compile_log.on_first_compile] is the hook under it, which the
+``racecar-sim`` commands use for their own notice on stderr.
 """
 
 from __future__ import annotations

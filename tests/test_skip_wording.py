@@ -31,6 +31,9 @@ def test_a_missing_shared_file_is_named_by_its_resolved_path() -> None:
     with pytest.raises(pytest.skip.Exception) as skipped:
         need_shared("maps/../maps/no_such_map.yaml")
     reason = str(skipped.value)
-    assert str((SHARED / "maps" / "no_such_map.yaml").resolve()) in reason and ".." not in reason.split(":")[0]
+    assert (
+        str((SHARED / "maps" / "no_such_map.yaml").resolve()) in reason
+        and ".." not in reason.split(":")[0]
+    )
     assert reason == shared_missing(SHARED / "maps" / "no_such_map.yaml")
     assert RL_MISSING.endswith("pip install torch==2.13.0 -e '.[rl]'")

@@ -1,12 +1,13 @@
 """A trained lap policy as a driver of any car: ``driver(obs, pose) -> [steer rad, speed m/s]``.
 
 ``racecar-sim train-agent`` writes ``model.zip`` (the PPO policy) beside ``config.json`` (its
-lap task, :class:`~mcl.agents.lap_env.LapTaskConfig`). :func:`load_policy_driver` reads both and
-gives a driver with the protocol of the project's drivers (:mod:`racecar_sim.drivers`), so that a
+lap task, ``LapTaskConfig``).
+[`load_policy_driver`][mcl.agents.policy_driver.load_policy_driver] reads both and gives a driver
+with the protocol of the project's drivers (``racecar_sim.drivers``), so that a
 race can put the policy in any car: each call builds the task's observation (the car's scan, its
 odometry and the pose it drives on, against the race's track) with
-[LapTask.observe][mcl.agents.lap_env.LapTask.observe], asks the policy, and turns its action into
-[steer, speed] with [LapTask.command][mcl.agents.lap_env.LapTask.command]. The pose is the one the
+``LapTask.observe``, asks the policy, and turns its action into
+[steer, speed] with ``LapTask.command``. The pose is the one the
 caller gives: the true pose, or the car's MCL estimate in a localized race. A policy trained on
 ``pose_source="none"`` gets no pose, as in training.
 """
@@ -123,8 +124,9 @@ def load_policy_driver(
         raise ValueError(f"{path} is not a stable-baselines3 PPO model: {exc}") from None
     # the pose comes with each call, so the task builds its observation from the given pose
     source = "none" if config.pose_source == "none" else "truth"
-    task = LapTask(car_env, replace(config, pose_source=source, localize=False, opponents=0),
-                   track=track)  # fmt: skip
+    task = LapTask(
+        car_env, replace(config, pose_source=source, localize=False, opponents=0), track=track
+    )
     expected = getattr(model.observation_space, "shape", None)
     if expected != task.observation_space.shape:
         raise ValueError(

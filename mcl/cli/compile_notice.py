@@ -1,6 +1,7 @@
 """Numba's first compile, as the commands tell the user about it: a notice when the first kernel
-actually compiles (:func:`compile_notice`) and the wall-clock seconds the compiles took, measured
-(:func:`compile_report`). A run whose kernels all come from numba's on-disk cache says nothing."""
+actually compiles ([`compile_notice`][mcl.cli.compile_notice.compile_notice]) and the wall-clock
+seconds the compiles took, measured ([`compile_report`][mcl.cli.compile_notice.compile_report]). A
+run whose kernels all come from numba's on-disk cache says nothing."""
 
 from __future__ import annotations
 
@@ -16,12 +17,13 @@ __all__ = ["COMPILE_SECONDS", "compile_notice", "compile_report"]
 COMPILE_SECONDS = (20, 50)
 """Seconds of wall time numba took to compile the kernels of one drive on first runs on 2-core
 machines (20 s on a calm one, 35 s on a fresh one, up to ~50 s when other work shares the cores);
-the commands measure and print their own (:func:`compile_report`)."""
+the commands measure and print their own
+([`compile_report`][mcl.cli.compile_notice.compile_report])."""
 
 
 class _CompileClock:
     """Wall-clock seconds this process spends in numba compiles (``numba:compile`` events; a
-    kernel loaded from the on-disk cache is not one), from :meth:`start` on."""
+    kernel loaded from the on-disk cache is not one), from ``start`` on."""
 
     def __init__(self) -> None:
         self._listener: Any = None
@@ -50,7 +52,8 @@ _stop_notice: list[Callable[[], None]] = []  # the notice's listener while it li
 
 def compile_notice(stream: TextIO | None = None) -> None:
     """From now on, say so on ``stream`` (default stderr) when numba starts compiling the first
-    kernel of ours, and measure the compiles (:func:`compile_report` prints the seconds).
+    kernel of ours, and measure the compiles
+    ([`compile_report`][mcl.cli.compile_notice.compile_report] prints the seconds).
 
     Nothing is said when every kernel comes from numba's on-disk cache: the notice is numba's own
     ``numba:compile`` event ([on_first_compile][racecar_sim.compile_log.on_first_compile]), which
@@ -74,8 +77,9 @@ def compile_notice(stream: TextIO | None = None) -> None:
 
 def compile_report(stream: TextIO | None = None) -> float:
     """Stop listening; print the wall-clock seconds this process spent compiling numba kernels
-    (not loading them from the cache) since :func:`compile_notice`, and return them (0, and
-    nothing printed, when nothing was compiled)."""
+    (not loading them from the cache) since
+    [`compile_notice`][mcl.cli.compile_notice.compile_notice], and return them (0, and nothing
+    printed, when nothing was compiled)."""
     for stop in _stop_notice:
         stop()
     _stop_notice.clear()

@@ -11,7 +11,7 @@ Prints the results table and writes into ``--out``:
                   standings and a legend (race_frames/*.png when OpenCV cannot write mp4)
 
 With ``--live [HOST:]PORT`` the race streams to Foxglove as it runs (the map, every car's pose
-and, localized, its estimate and particles; :mod:`mcl.io.race_stream`), paced at ``--live-speed``
+and, localized, its estimate and particles; mcl.io.race_stream), paced at ``--live-speed``
 times real time.
 
 The default race is 4 cars on the default map (basement_loop) for 60 s, pure pursuit on the
@@ -68,32 +68,77 @@ def build_parser() -> Parser:
     parser = Parser("racecar-sim race", __doc__, EXAMPLES)
     add = parser.add_argument
     add("--map", default=DEFAULT_MAP, metavar="NAME|YAML", help=MAP_HELP)
-    add("--track", default=None, metavar="CSV",
+    add(
+        "--track",
+        default=None,
+        metavar="CSV",
         help="the track's centerline, f1tenth's CSV (x_m, y_m, w_tr_right_m, w_tr_left_m; "
-        "default: the map's own on basement_loop and office)")  # fmt: skip
+        "default: the map's own on basement_loop and office)",
+    )
     add("--out", type=Path, default=Path("out/race"), metavar="DIR", help="output folder")
     add("--cars", type=positive_int, default=DEFAULT_CARS, metavar="N", help="cars in the race")
-    add("--drivers", default="pursuit", metavar="LIST",
+    add(
+        "--drivers",
+        default="pursuit",
+        metavar="LIST",
         help="one driver, or one per car, comma-separated: "
-        + "; ".join(f"{k}: {v}" for k, v in DRIVER_NAMES.items()))  # fmt: skip
-    add("--speeds", type=number_list, default=None, metavar="LIST",
+        + "; ".join(f"{k}: {v}" for k, v in DRIVER_NAMES.items()),
+    )
+    add(
+        "--speeds",
+        type=number_list,
+        default=None,
+        metavar="LIST",
         help="m/s, one for every car or one per car (the wall follower's on a straight, pure "
-        "pursuit's, the most a policy gets; default: 2.0, 2.4, 2.8, ... per car)")  # fmt: skip
-    add("--grid", choices=GRID_ORDERS, default="fastest-first",
-        help="the start grid's order: the fastest car on pole, the slowest, or car 0 first")  # fmt: skip
-    add("--duration", type=positive_float, default=60.0, metavar="S",
-        help="simulated seconds at most")  # fmt: skip
-    add("--laps", type=positive_int, default=None, metavar="N",
-        help="end when the first car completes N laps (default: race --duration seconds)")  # fmt: skip
-    add("--localize", action="store_true",
-        help="a particle filter per car (beam skipping on); the cars drive on their estimates")  # fmt: skip
-    add("--particles", type=positive_int, default=1000, metavar="N",
-        help="particles per car's filter, with --localize")  # fmt: skip
-    add("--seed", type=non_negative_int, default=0, metavar="N",
-        help="the race's seed (car i: seed + i)")  # fmt: skip
+        "pursuit's, the most a policy gets; default: 2.0, 2.4, 2.8, ... per car)",
+    )
+    add(
+        "--grid",
+        choices=GRID_ORDERS,
+        default="fastest-first",
+        help="the start grid's order: the fastest car on pole, the slowest, or car 0 first",
+    )
+    add(
+        "--duration",
+        type=positive_float,
+        default=60.0,
+        metavar="S",
+        help="simulated seconds at most",
+    )
+    add(
+        "--laps",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="end when the first car completes N laps (default: race --duration seconds)",
+    )
+    add(
+        "--localize",
+        action="store_true",
+        help="a particle filter per car (beam skipping on); the cars drive on their estimates",
+    )
+    add(
+        "--particles",
+        type=positive_int,
+        default=1000,
+        metavar="N",
+        help="particles per car's filter, with --localize",
+    )
+    add(
+        "--seed",
+        type=non_negative_int,
+        default=0,
+        metavar="N",
+        help="the race's seed (car i: seed + i)",
+    )
     add("--env", action="append", default=[], metavar="NAME=VALUE", help=ENV_HELP)
-    add("--video-fps", type=non_negative_float, default=10.0, metavar="FPS",
-        help="video frames per simulated second (0: no video)")  # fmt: skip
+    add(
+        "--video-fps",
+        type=non_negative_float,
+        default=10.0,
+        metavar="FPS",
+        help="video frames per simulated second (0: no video)",
+    )
     add_live_arguments(parser, "race")
     add("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -138,7 +183,9 @@ def _setup(parser: Parser, spec: RaceSpec, render: bool) -> RaceSetup:
         parser.fail("--track" if spec.track is not None else "--map", str(exc))
     top = setup.race.car_params.max_speed
     if max(spec.speeds) > top:
-        parser.fail("--speeds", f"{max(spec.speeds):g} m/s is faster than the car's top speed, {top:g} m/s")
+        parser.fail(
+            "--speeds", f"{max(spec.speeds):g} m/s is faster than the car's top speed, {top:g} m/s"
+        )
     try:
         start_poses(setup.race, spec)
     except ValueError as exc:
@@ -153,19 +200,30 @@ def main(argv: list[str] | None = None) -> int:
     env = check_env(parser, args.env)
     for name, flag in (("track", "--track"), ("terminate_on_collision", None)):
         if name in dict(env):
-            parser.fail(f"--env {name}", f"set the track with {flag}" if flag else
-                        "a race keeps every car racing after a contact and counts the contacts")  # fmt: skip
+            parser.fail(
+                f"--env {name}",
+                f"set the track with {flag}"
+                if flag
+                else "a race keeps every car racing after a contact and counts the contacts",
+            )
     check_map(parser, args.map, env=env)
     if args.track is not None and not Path(args.track).is_file():
         parser.fail("--track", f"{args.track} does not exist")
     out: Path = check_out(parser, args.out)
     n = args.cars
     spec = RaceSpec(
-        map=str(args.map), drivers=_drivers(parser, args.drivers, n),
-        speeds=_speeds(parser, args.speeds, n), duration=args.duration, laps=args.laps,
-        track=args.track, grid=args.grid, localize=args.localize, particles=args.particles,
-        seed=args.seed, env=env,
-    )  # fmt: skip
+        map=str(args.map),
+        drivers=_drivers(parser, args.drivers, n),
+        speeds=_speeds(parser, args.speeds, n),
+        duration=args.duration,
+        laps=args.laps,
+        track=args.track,
+        grid=args.grid,
+        localize=args.localize,
+        particles=args.particles,
+        seed=args.seed,
+        env=env,
+    )
     live = check_live(parser, args.live, args.live_speed)
     compile_notice()
     setup = _setup(parser, spec, render=args.video_fps > 0)
@@ -213,14 +271,21 @@ def _race(
             video.write(frames(frame, state))
 
     try:
-        result = run_race(spec, setup, on_frame=on_frame, frame_every=frame_every,
-                          on_step=on_step, progress=progress)  # fmt: skip
+        result = run_race(
+            spec,
+            setup,
+            on_frame=on_frame,
+            frame_every=frame_every,
+            on_step=on_step,
+            progress=progress,
+        )
     finally:
         if video is not None:
             video.close()
     paths = write_results(result, out)
     print(markdown_table(result))
-    print(f"\n{result.seconds:.1f} s raced in {result.wall_time:.1f} s of wall time ({result.steps} steps)")
+    wall = f"{result.wall_time:.1f} s of wall time ({result.steps} steps)"
+    print(f"\n{result.seconds:.1f} s raced in {wall}")
     names = [p.name for p in paths]
     if video is not None and video.n_frames:
         kind = "mp4" if video.kind == "mp4" else "PNG frames"

@@ -56,9 +56,10 @@ def draw_legend(
     corner: str = "bottom-left",
     scale: float = 0.42,
 ) -> tuple[int, int, int, int]:
-    """Draw a legend box of ``entries`` (text, RGB colour, swatch kind of :data:`LEGEND_KINDS`)
-    in a ``corner`` of ``img`` (``"top-left"``, ``"top-right"``, ``"bottom-left"``,
-    ``"bottom-right"``), in place; returns the box (x0, y0, x1, y1) in pixels."""
+    """Draw a legend box of ``entries`` (text, RGB colour, swatch kind of
+    [`LEGEND_KINDS`][mcl.experiments.frame_text.LEGEND_KINDS]) in a ``corner`` of ``img``
+    (``"top-left"``, ``"top-right"``, ``"bottom-left"``, ``"bottom-right"``), in place; returns the
+    box (x0, y0, x1, y1) in pixels."""
     if not entries:
         raise ValueError("a legend needs at least one entry")
     row, pad = 16, 6

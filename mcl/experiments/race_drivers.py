@@ -11,8 +11,9 @@ Names (``racecar-sim race --drivers``):
   ``[rl]``), on the pose it is given ([PolicyDriver][mcl.agents.policy_driver.PolicyDriver]).
 
 Every driver is called as ``driver(obs, pose) -> [steer rad, speed m/s]`` and may have a
-``reset()``; :func:`make_driver` is the only place that builds them, so a new kind of driver
-(e.g. one that knows where the other cars are) joins every race through it.
+``reset()``; [`make_driver`][mcl.experiments.race_drivers.make_driver] is the only place that builds
+them, so a new kind of driver (e.g. one that knows where the other cars are) joins every race
+through it.
 """
 
 from __future__ import annotations
@@ -26,7 +27,14 @@ import numpy as np
 
 from racecar_sim.drivers import Driver, PurePursuit, WallFollower
 
-__all__ = ["DRIVER_NAMES", "DriverError", "DriverSpec", "drive_pose", "make_driver", "parse_drivers"]
+__all__ = [
+    "DRIVER_NAMES",
+    "DriverError",
+    "DriverSpec",
+    "drive_pose",
+    "make_driver",
+    "parse_drivers",
+]
 
 DRIVER_NAMES: Mapping[str, str] = {
     "wall": "the lidar wall follower (sees the other cars as lidar hits)",
@@ -83,8 +91,8 @@ def parse_drivers(text: str, n_cars: int) -> tuple[DriverSpec, ...]:
 
 
 def make_driver(spec: DriverSpec, race: Any, car: int, speed: float) -> Driver:
-    """The driver of car ``car`` of ``race`` (a :class:`racecar_sim.RaceEnv` with a track) at
-    ``speed`` m/s.
+    """The driver of car ``car`` of ``race`` (a
+    [`racecar_sim.RaceEnv`][racecar_sim.race.env.RaceEnv] with a track) at ``speed`` m/s.
 
     Raises:
         DriverError: a policy file that is missing or not a lap policy, or a policy without

@@ -2,8 +2,9 @@
 localized, each car's MCL estimate (an arrow) and particles (dots) in its colour, and a panel on
 the right with the race clock, the lap counter, the standings and a legend.
 
-The overlay is drawn with a :class:`racecar_sim.render.MapRenderer` of the race's map at the
-default scale, the geometry ``RaceEnv.render()`` draws with, so labels sit on the cars.
+The overlay is drawn with a [`racecar_sim.render.MapRenderer`][racecar_sim.render.MapRenderer] of
+the race's map at the default scale, the geometry ``RaceEnv.render()`` draws with, so labels sit on
+the cars.
 """
 
 from __future__ import annotations
@@ -28,8 +29,8 @@ def _colour(i: int) -> tuple[int, int, int]:
 
 
 class RaceFrames:
-    """Call with a race frame and its :class:`~mcl.experiments.race_run.RaceState`: the labelled
-    frame (the map, then the panel; see the module doc).
+    """Call with a race frame and its [`RaceState`][mcl.experiments.race_run.RaceState]: the
+    labelled frame (the map, then the panel; see the module doc).
 
     Args:
         occupancy_map: the race's map.
@@ -79,11 +80,15 @@ class RaceFrames:
             text = f"{info['rank']}  {i}  {spec.drivers[i].name[:12]:<12s} {spec.speeds[i]:.1f} m/s"
             put_label(panel, text, (32, y), scale=0.45, outline=None)
             put_label(panel, str(info["lap"]), (PANEL_WIDTH - 30, y), scale=0.5, outline=None)
-        legend = [("car (true pose), its number", (90, 90, 90), "box"),
-                  ("its lidar hits", (170, 170, 170), "dots"),
-                  ("track centerline", (200, 200, 200), "line")]  # fmt: skip
+        legend = [
+            ("car (true pose), its number", (90, 90, 90), "box"),
+            ("its lidar hits", (170, 170, 170), "dots"),
+            ("track centerline", (200, 200, 200), "line"),
+        ]
         if spec.localize:
-            legend += [("MCL estimate", (0, 0, 0), "arrow"),
-                       ("its particles (car's colour)", (90, 90, 90), "dots")]  # fmt: skip
+            legend += [
+                ("MCL estimate", (0, 0, 0), "arrow"),
+                ("its particles (car's colour)", (90, 90, 90), "dots"),
+            ]
         draw_legend(panel, legend, "bottom-left")
         return panel

@@ -1,16 +1,18 @@
 """A race of N cars on a map's track, every car driven by one of the project's drivers, with an
 optional particle filter per car: what ``racecar-sim race`` runs.
 
-:func:`run_race` builds a :class:`racecar_sim.RaceEnv` (cars keep racing after a contact:
+[`run_race`][mcl.experiments.race_run.run_race] builds a
+[`racecar_sim.RaceEnv`][racecar_sim.race.env.RaceEnv] (cars keep racing after a contact:
 ``terminate_on_collision=False``; contacts are counted), wraps it in
-:class:`mcl.race_wrapper.LocalizedRaceEnv` when ``localize`` (each car then drives on its own
-MCL estimate, started around its true start pose), puts the cars on the track's start grid in
-the order ``grid`` asks for, builds each car's driver with
-[make_driver][mcl.experiments.race_drivers.make_driver] and steps the race for ``duration``
-seconds, or until the first car completes ``laps`` laps. The result has, per car: its finishing
-position (race order by distance covered along the centerline, :mod:`racecar_sim.race.laps`),
-laps, lap times, wall and car contacts (separate contacts, :class:`~mcl.agents.race_tally.RaceTally`)
-and, localized, the mean and largest position error of its filter.
+``mcl.race_wrapper.LocalizedRaceEnv`` when ``localize`` (each car
+then drives on its own MCL estimate, started around its true start pose), puts the cars on the
+track's start grid in the order ``grid`` asks for, builds each car's driver with
+[make_driver][mcl.experiments.race_drivers.make_driver] and steps the race for ``duration`` seconds,
+or until the first car completes ``laps`` laps. The result has, per car: its finishing position
+(race order by distance covered along the centerline,
+``racecar_sim.race.laps``), laps, lap times, wall and car contacts (separate
+contacts, ``RaceTally``) and, localized, the mean and largest
+position error of its filter.
 
 Grid orders: ``fastest-first`` (the default: the fastest car on pole, so that cars that do not
 know each other do not run into a slower car ahead at the start), ``slowest-first`` (the faster
@@ -59,7 +61,7 @@ class RaceSpec:
         duration: simulated seconds at most.
         laps: end the race when the first car completes this many laps (None: run ``duration``).
         track: a centerline CSV (None: the map's own, for the bundled loop maps).
-        grid: one of :data:`GRID_ORDERS`.
+        grid: one of [`GRID_ORDERS`][mcl.experiments.race_run.GRID_ORDERS].
         localize: a particle filter per car; the cars drive on their estimates.
         particles: particles per filter.
         seed: the race's seed (car ``i`` gets ``seed + i``).
@@ -115,8 +117,8 @@ class CarResult:
 
 @dataclass
 class RaceResult:
-    """What :func:`run_race` gives: the cars by finishing position, the simulated seconds raced,
-    the steps, the wall-clock seconds, the track's length (m)."""
+    """What [`run_race`][mcl.experiments.race_run.run_race] gives: the cars by finishing position,
+    the simulated seconds raced, the steps, the wall-clock seconds, the track's length (m)."""
 
     cars: list[CarResult]
     seconds: float
@@ -138,8 +140,8 @@ class RaceState:
 
 
 def grid_order(speeds: tuple[float, ...], order: str) -> list[int]:
-    """The cars from pole backwards (``order``: one of :data:`GRID_ORDERS`; ties keep the
-    listed order)."""
+    """The cars from pole backwards (``order``: one of
+    [`GRID_ORDERS`][mcl.experiments.race_run.GRID_ORDERS]; ties keep the listed order)."""
     cars = list(range(len(speeds)))
     if order == "fastest-first":
         return sorted(cars, key=lambda i: -speeds[i])
@@ -151,7 +153,7 @@ def grid_order(speeds: tuple[float, ...], order: str) -> list[int]:
 @dataclass
 class RaceSetup:
     """A race ready to start: the env stepped (the race, or its LocalizedRaceEnv), the
-    :class:`racecar_sim.RaceEnv` itself, and each car's driver."""
+    [`racecar_sim.RaceEnv`][racecar_sim.race.env.RaceEnv] itself, and each car's driver."""
 
     env: Any
     race: Any
@@ -169,15 +171,22 @@ def setup_race(spec: RaceSpec, render: bool = False) -> RaceSetup:
     from racecar_sim.race.env import RaceEnv
 
     settings = {**dict(spec.env), "terminate_on_collision": False}
-    race = RaceEnv(spec.map, n_cars=spec.n_cars, track=spec.track,
-                   render_mode="rgb_array" if render else None, **settings)  # fmt: skip
+    race = RaceEnv(
+        spec.map,
+        n_cars=spec.n_cars,
+        track=spec.track,
+        render_mode="rgb_array" if render else None,
+        **settings,
+    )
     if race.track is None:
         raise ValueError(
             f"{spec.map}: a race needs a track: a bundled loop map (basement_loop, office) or a "
             "centerline CSV"
         )
-    drivers = [make_driver(d, race, i, v)
-               for i, (d, v) in enumerate(zip(spec.drivers, spec.speeds, strict=True))]  # fmt: skip
+    drivers = [
+        make_driver(d, race, i, v)
+        for i, (d, v) in enumerate(zip(spec.drivers, spec.speeds, strict=True))
+    ]
     if not spec.localize:
         return RaceSetup(race, race, drivers)
     from mcl.localization import LocalizationConfig
@@ -212,13 +221,14 @@ def run_race(
     on_step: Callable[[Any, dict, dict], None] | None = None,
     progress: bool = False,
 ) -> RaceResult:
-    """Race (module doc), on ``setup`` (default: :func:`setup_race`, rendering when there is an
-    ``on_frame``). ``on_frame(rgb frame, state)`` gets the race's ``render()`` after the reset
-    and every ``frame_every`` steps; ``on_step(env, obs, infos)`` is called after the reset and
-    every step.
+    """Race (module doc), on ``setup`` (default:
+    [`setup_race`][mcl.experiments.race_run.setup_race], rendering when there is an ``on_frame``).
+    ``on_frame(rgb frame, state)`` gets the race's ``render()`` after the reset and every
+    ``frame_every`` steps; ``on_step(env, obs, infos)`` is called after the reset and every step.
 
     Raises:
-        ValueError: as :func:`setup_race` and :func:`start_poses`.
+        ValueError: as [`setup_race`][mcl.experiments.race_run.setup_race] and
+            [`start_poses`][mcl.experiments.race_run.start_poses].
     """
     if setup is None:
         setup = setup_race(spec, render=on_frame is not None)
@@ -271,15 +281,22 @@ def run_race(
     for i, a in enumerate(agents):
         info, counts = infos[a], tallies[a].counts()
         err = np.asarray(errors[a])
-        cars.append(CarResult(
-            car=i, driver=spec.drivers[i].name, speed=spec.speeds[i], grid_slot=order.index(i) + 1,
-            position=int(info["rank"]), laps=int(info["lap"]),
-            lap_times=tuple(float(t) for t in info["lap_times"]),
-            progress=float(info["progress"]), wall_contacts=counts["wall_contacts"],
-            car_contacts=counts["car_contacts"],
-            mean_error=float(err.mean()) if err.size else math.nan,
-            max_error=float(err.max()) if err.size else math.nan,
-        ))  # fmt: skip
+        cars.append(
+            CarResult(
+                car=i,
+                driver=spec.drivers[i].name,
+                speed=spec.speeds[i],
+                grid_slot=order.index(i) + 1,
+                position=int(info["rank"]),
+                laps=int(info["lap"]),
+                lap_times=tuple(float(t) for t in info["lap_times"]),
+                progress=float(info["progress"]),
+                wall_contacts=counts["wall_contacts"],
+                car_contacts=counts["car_contacts"],
+                mean_error=float(err.mean()) if err.size else math.nan,
+                max_error=float(err.max()) if err.size else math.nan,
+            )
+        )
     cars.sort(key=lambda c: c.position)
     return RaceResult(cars, done * race.dt, done, wall, float(race.track.length), spec)
 

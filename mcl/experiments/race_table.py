@@ -21,9 +21,20 @@ from mcl.experiments.race_run import RaceResult
 __all__ = ["CSV_COLUMNS", "markdown_table", "write_results"]
 
 CSV_COLUMNS: tuple[str, ...] = (
-    "position", "car", "driver", "speed", "grid", "laps", "best_lap", "lap_times", "distance",
-    "wall_contacts", "car_contacts", "mean_error", "max_error",
-)  # fmt: skip
+    "position",
+    "car",
+    "driver",
+    "speed",
+    "grid",
+    "laps",
+    "best_lap",
+    "lap_times",
+    "distance",
+    "wall_contacts",
+    "car_contacts",
+    "mean_error",
+    "max_error",
+)
 """Columns of results.csv."""
 
 
@@ -40,18 +51,45 @@ def markdown_table(result: RaceResult) -> str:
         f"{result.seconds:.1f} s raced"
         + (f" (to {spec.laps} laps)" if spec.laps is not None else "")
         + f", seed {spec.seed}"
-        + (f", MCL per car ({spec.particles} particles, driving on the estimate)" if localized else "")
+        + (
+            f", MCL per car ({spec.particles} particles, driving on the estimate)"
+            if localized
+            else ""
+        )
     )
-    columns = ["pos", "car", "driver", "m/s", "grid", "laps", "best lap (s)", "distance (m)",
-               "wall contacts", "car contacts"]  # fmt: skip
+    columns = [
+        "pos",
+        "car",
+        "driver",
+        "m/s",
+        "grid",
+        "laps",
+        "best lap (s)",
+        "distance (m)",
+        "wall contacts",
+        "car contacts",
+    ]
     if localized:
         columns.append("MCL error mean / max (m)")
-    lines = [head, "", "| " + " | ".join(columns) + " |",
-             "|" + "|".join("---:" if c not in ("car", "driver") else "---" for c in columns) + "|"]  # fmt: skip
+    lines = [
+        head,
+        "",
+        "| " + " | ".join(columns) + " |",
+        "|" + "|".join("---:" if c not in ("car", "driver") else "---" for c in columns) + "|",
+    ]
     for c in result.cars:
-        row = [str(c.position), f"car_{c.car}", c.driver, f"{c.speed:.1f}", str(c.grid_slot),
-               str(c.laps), _number(c.best_lap, 2) or "-", f"{c.progress:.1f}",
-               str(c.wall_contacts), str(c.car_contacts)]  # fmt: skip
+        row = [
+            str(c.position),
+            f"car_{c.car}",
+            c.driver,
+            f"{c.speed:.1f}",
+            str(c.grid_slot),
+            str(c.laps),
+            _number(c.best_lap, 2) or "-",
+            f"{c.progress:.1f}",
+            str(c.wall_contacts),
+            str(c.car_contacts),
+        ]
         if localized:
             row.append(f"{c.mean_error:.3f} / {c.max_error:.3f}")
         lines.append("| " + " | ".join(row) + " |")
@@ -66,11 +104,22 @@ def write_results(result: RaceResult, out: str | os.PathLike[str]) -> list[Path]
         writer = csv.writer(fh)
         writer.writerow(CSV_COLUMNS)
         for c in result.cars:
-            writer.writerow([
-                c.position, f"car_{c.car}", c.driver, f"{c.speed:g}", c.grid_slot, c.laps,
-                _number(c.best_lap, 3), ";".join(f"{t:.3f}" for t in c.lap_times),
-                f"{c.progress:.2f}", c.wall_contacts, c.car_contacts,
-                _number(c.mean_error, 4), _number(c.max_error, 4),
-            ])  # fmt: skip
+            writer.writerow(
+                [
+                    c.position,
+                    f"car_{c.car}",
+                    c.driver,
+                    f"{c.speed:g}",
+                    c.grid_slot,
+                    c.laps,
+                    _number(c.best_lap, 3),
+                    ";".join(f"{t:.3f}" for t in c.lap_times),
+                    f"{c.progress:.2f}",
+                    c.wall_contacts,
+                    c.car_contacts,
+                    _number(c.mean_error, 4),
+                    _number(c.max_error, 4),
+                ]
+            )
     md_path.write_text(markdown_table(result) + "\n", encoding="utf-8")
     return [csv_path, md_path]

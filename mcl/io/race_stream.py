@@ -1,13 +1,13 @@
 """Stream a race to Foxglove as it runs (``racecar-sim race --live``): the map once, and after
 every step every car's true pose, and in a localized race every car's estimate and a subsample of
 its particles, each as one ``geometry_msgs/msg/PoseArray`` in the ``map`` frame (ROS 2 CDR, the
-recording's encoding, :mod:`mcl.io.bag_writer`), through the project's Foxglove server
-(:class:`mcl.io.live.LiveServer`).
+recording's encoding, [`mcl.io.bag_writer`][mcl.io.bag_writer]), through the project's Foxglove
+server ([`mcl.io.live.LiveServer`][mcl.io.live.LiveServer]).
 
 Topics: ``/map`` (``nav_msgs/msg/OccupancyGrid``, latched), ``/race/cars`` (the true rear-axle
 poses, car 0 first), ``/race/estimates`` (the filters' estimates, car 0 first) and
 ``/race/particles`` (at most ``max_particles`` of each car's particles). Times are the race's
-seconds after :data:`~mcl.io.bag_writer.EPOCH_NS`, as a recorded drive's.
+seconds after [`EPOCH_NS`][mcl.io.bag_writer.EPOCH_NS], as a recorded drive's.
 """
 
 from __future__ import annotations
@@ -32,10 +32,13 @@ RACE_TOPICS: dict[str, str] = {
 
 
 def start_race_live(address: str | int) -> LiveServer:
-    """A Foxglove WebSocket server for :data:`RACE_TOPICS` at ``"[HOST:]PORT"``."""
+    """A Foxglove WebSocket server for [`RACE_TOPICS`][mcl.io.race_stream.RACE_TOPICS] at
+    ``"[HOST:]PORT"``."""
     from rosbags.typesys import Stores, get_typestore
 
-    return LiveServer(address, RACE_TOPICS, get_typestore(Stores.ROS2_HUMBLE), name="racecar-sim race")
+    return LiveServer(
+        address, RACE_TOPICS, get_typestore(Stores.ROS2_HUMBLE), name="racecar-sim race"
+    )
 
 
 class RaceStream:
@@ -43,8 +46,8 @@ class RaceStream:
     [run_race][mcl.experiments.race_run.run_race] that streams to ``live`` (module doc).
 
     Args:
-        race: the :class:`racecar_sim.RaceEnv` (its map and lidar).
-        live: the server (:func:`start_race_live`).
+        race: the [`racecar_sim.RaceEnv`][racecar_sim.race.env.RaceEnv] (its map and lidar).
+        live: the server ([`start_race_live`][mcl.io.race_stream.start_race_live]).
         max_particles: particles per car on ``/race/particles``.
     """
 
@@ -52,8 +55,14 @@ class RaceStream:
         lidar = race.cars[0].lidar
         self.live = live
         self.max_particles = int(max_particles)
-        recorder = BagRecorder(None, race.map, lidar.angles, float(lidar.params.max_range),
-                               float(lidar.params.mount_offset), live=live)  # fmt: skip
+        recorder = BagRecorder(
+            None,
+            race.map,
+            lidar.angles,
+            float(lidar.params.max_range),
+            float(lidar.params.mount_offset),
+            live=live,
+        )
         recorder.write_static(0.0)  # the map, once (latched for later clients)
 
     def __call__(self, env: Any, obs: dict[str, Any], infos: dict[str, dict[str, Any]]) -> None:

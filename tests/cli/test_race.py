@@ -105,7 +105,11 @@ def test_laps_end_the_race_when_the_first_car_completes_them(tmp_path, capsys) -
     [
         (["--drivers", "walls"], "--drivers", "unknown driver 'walls'"),
         (["--drivers", "wall,pursuit"], "--drivers", "2 drivers for 4 cars"),
-        (["--drivers", "policy:nowhere/model.zip"], "--drivers", "nowhere/model.zip does not exist"),
+        (
+            ["--drivers", "policy:nowhere/model.zip"],
+            "--drivers",
+            "nowhere/model.zip does not exist",
+        ),
         (["--drivers", "policy:"], "--drivers", "needs its file"),
         (["--cars", "500"], "--cars", "at most 100"),
         (["--speeds", "2,3"], "--speeds", "2 speeds for 4 cars"),

@@ -44,12 +44,20 @@ def test_the_drive_video_frame_has_its_legend() -> None:
     from mcl.cli.drive import DRIVE_LEGEND, _caption
 
     frame = np.full((400, 600, 3), 255, dtype=np.uint8)
-    info = {"time": 1.0, "localization": {"position_error": 0.01, "heading_error": 0.0, "n_eff": 500}}
+    info = {
+        "time": 1.0,
+        "localization": {"position_error": 0.01, "heading_error": 0.0, "n_eff": 500},
+    }
     _caption(frame, info)
     corner = frame[:150, 350:]
     for text, colour, _ in DRIVE_LEGEND:
         assert _has(corner, colour), text
-    assert {t for t, _, _ in DRIVE_LEGEND} == {"car (true pose)", "lidar hits", "particles", "MCL estimate"}
+    assert {t for t, _, _ in DRIVE_LEGEND} == {
+        "car (true pose)",
+        "lidar hits",
+        "particles",
+        "MCL estimate",
+    }
 
 
 def test_the_replay_video_frames_have_their_legend(monkeypatch, room, tmp_path) -> None:
