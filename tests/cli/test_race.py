@@ -153,3 +153,14 @@ def test_a_policy_file_without_its_config_is_a_mistake(tmp_path, capsys) -> None
     err = capsys.readouterr().err
     assert exc.value.code == 2 and len(err.strip().splitlines()) == 1
     assert "--drivers" in err and "config.json is missing" in err
+
+
+def test_a_localized_race_reports_each_filters_error(tmp_path, capsys) -> None:
+    out = tmp_path / "mcl"
+    argv = ["race", "--cars", "2", "--localize", "--particles", "200", "--duration", "1",
+            "--video-fps", "0", "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    rows = read_results(out)
+    errors = [(float(r["mean_error"]), float(r["max_error"])) for r in rows]
+    assert all(0 < mean <= peak < 0.3 for mean, peak in errors)  # tracking, each its own filter
+    assert "MCL error mean / max (m)" in capsys.readouterr().out
