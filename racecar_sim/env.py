@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import warnings
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -13,6 +14,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 
+from racecar_sim.compile_log import install as log_first_compile
 from racecar_sim.config import (
     CarParams,
     EnvConfig,
@@ -29,6 +31,8 @@ from racecar_sim.sensors import Lidar, Odometry
 from racecar_sim.start_poses import random_start, start_cells
 from racecar_sim.validation import check_action, check_options, check_poses, check_seed, short
 from racecar_sim.vesc import CommandDelay, lead_steps, wheel_twist
+
+log_first_compile()  # the first compile of a kernel of ours is logged (racecar_sim.compile_log)
 
 __all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
 
@@ -304,8 +308,10 @@ class RacecarEnv(gym.Env):
         Returns None (with a warning) when the env was made without ``render_mode="rgb_array"``.
         """
         if self.render_mode is None:
-            gym.logger.warn(
-                "render() called without a render_mode; make the env with render_mode='rgb_array'"
+            warnings.warn(  # a plain warning: gym.logger.warn's colour codes end up in logs
+                "render() called without a render_mode; make the env with render_mode='rgb_array'",
+                UserWarning,
+                stacklevel=2,
             )
             return None
         renderer = self.renderer

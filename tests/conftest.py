@@ -10,6 +10,7 @@ import pytest
 from hypothesis import settings
 
 from racecar_sim.maps import OccupancyMap, bundled, load_map
+from tests.skips import shared_missing
 
 # No test may depend on how long a first numba call takes: a kernel that compiles, or loads from the
 # on-disk cache (about a third of a second on a fresh machine), is not a flaky failure. Every property
@@ -26,7 +27,7 @@ def shared_map_path(name: str = "stata_basement.yaml") -> Path:
     """Path of a real map in ../shared/maps, or skip the test with the reason."""
     path = SHARED_MAPS / name
     if not path.is_file():
-        pytest.skip(f"real map {path} not found: ../shared/maps is absent in this checkout")
+        pytest.skip(shared_missing(path))
     return path
 
 

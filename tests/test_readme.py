@@ -51,3 +51,5 @@ def test_example_runs(
     exec(compile(code, f"{page.name} python block {index}", "exec"), namespace)
     if page.name == "README.md":
         assert "env" in namespace  # each README example builds an env and drives it
+        left = sorted(p.name for p in tmp_path.iterdir())
+        assert left in ([], ["out"]), f"the example leaves {left} in the checkout (write under out/)"

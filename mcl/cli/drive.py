@@ -6,7 +6,7 @@ and writes into ``--out``:
 
     error_log.csv   one row per step: true pose, estimate, position / heading error, n_eff, time
     error.png       position and heading error against time
-    drive.mp4       render() frames (map, scan, car, particles, estimate) at --video-fps
+    drive.mp4       render() frames (map, scan, car, particles, estimate, with a legend) at --video-fps
                     (drive_frames/*.png instead when OpenCV cannot write mp4)
 
 With ``--bag DIR`` the drive is also recorded as a ROS 2 bag with MCAP storage (scans, odometry,
@@ -49,6 +49,7 @@ from mcl.cli.compile_notice import compile_notice, compile_report
 from mcl.cli.filter_map_option import check_filter_map
 from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
 from mcl.error_log import read_error_log
+from mcl.experiments.frame_text import draw_legend
 from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.plots import plot_error_vs_time
 from mcl.experiments.runs import DRIVERS, RunSpec, run_one
@@ -58,16 +59,27 @@ from mcl.io import DriveRecorder
 from mcl.io.live import LiveServer
 from mcl.motion_model import MotionModelParams
 from racecar_sim.maps import DEFAULT_MAP
+from racecar_sim.render import CAR_COLOUR, ESTIMATE_COLOUR, PARTICLE_COLOUR, SCAN_COLOUR
+
+DRIVE_LEGEND = (
+    ("car (true pose)", CAR_COLOUR, "box"),
+    ("lidar hits", SCAN_COLOUR, "dots"),
+    ("particles", PARTICLE_COLOUR, "dots"),
+    ("MCL estimate", ESTIMATE_COLOUR, "arrow"),
+)
+"""What a drive's frame draws (LocalizationWrapper.render), in its colours."""
 
 
 def _caption(frame: np.ndarray, info: dict[str, Any]) -> np.ndarray:
-    """Write the time and the current errors in the frame's top-left corner (in place)."""
+    """Write the time and the current errors in the frame's top-left corner and the legend in its
+    top-right corner (in place)."""
     loc = info["localization"]
     text = (
         f"t {info['time']:5.1f} s   error {loc['position_error']:.3f} m  "
         f"{math.degrees(loc['heading_error']):+.1f} deg   n_eff {loc['n_eff']:.0f}"
     )
     cv2.putText(frame, text, (8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+    draw_legend(frame, DRIVE_LEGEND, "top-right")
     return frame
 
 

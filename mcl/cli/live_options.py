@@ -1,4 +1,4 @@
-"""The ``--live [HOST:]PORT`` and ``--live-speed`` options of ``drive`` and ``replay``: checked
+"""The ``--live [HOST:]PORT`` and ``--live-speed`` options of ``drive``, ``replay`` and ``race``: checked
 before anything runs (one line naming the flag, exit 2), the Foxglove server started, the stream
 paced against the wall clock."""
 
@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 
 from mcl.cli.common import Parser, live_speed
 from mcl.io.live import LiveServer, parse_live_address
@@ -14,7 +15,7 @@ __all__ = ["Pacer", "add_live_arguments", "check_live", "start_live_view"]
 
 
 def add_live_arguments(parser: Parser, what: str) -> None:
-    """Add ``--live`` and ``--live-speed`` to ``parser`` (``what``: "drive" or "replay")."""
+    """Add ``--live`` and ``--live-speed`` to ``parser`` (``what``: "drive", "replay", "race")."""
     parser.add_argument(
         "--live",
         default=None,
@@ -48,15 +49,22 @@ def check_live(parser: Parser, text: str | None, speed: float) -> tuple[str, int
     return address
 
 
-def start_live_view(parser: Parser, address: tuple[str, int] | None) -> LiveServer | None:
-    """Start the server at ``address`` (from :func:`check_live`) and say where to connect."""
+def start_live_view(
+    parser: Parser,
+    address: tuple[str, int] | None,
+    start: Callable[[str], LiveServer] | None = None,
+) -> LiveServer | None:
+    """Start the server at ``address`` (from :func:`check_live`) and say where to connect;
+    ``start(address text)`` makes the server (default: the recording's topics,
+    :func:`mcl.io.bag_writer.start_live`)."""
     if address is None:
         return None
-    from mcl.io.bag_writer import start_live
+    if start is None:
+        from mcl.io.bag_writer import start_live as start
 
     host, port = address
     try:
-        server = start_live(f"[{host}]:{port}" if ":" in host else f"{host}:{port}")
+        server = start(f"[{host}]:{port}" if ":" in host else f"{host}:{port}")
     except RuntimeError as exc:
         parser.fail("--live", str(exc))
     print(f"live view: in Foxglove, Open connection, {server.url}", file=sys.stderr, flush=True)

@@ -2,7 +2,7 @@
 
 Subcommands: ``drive`` (a headless localized drive), ``experiment`` (noise sweep, global
 localization, kidnapping), ``ablation`` (the recovery ablation), ``opponents`` (MCL among opponents), ``bench`` (benchmarks),
-``replay`` (a ROS bag through the filter), ``make-maps`` (draw the bundled maps), ``train-agent`` (PPO on the localized pose),
+``race`` (N cars on a track, each with its driver), ``replay`` (a ROS bag through the filter), ``make-maps`` (draw the bundled maps), ``train-agent`` (PPO on the localized pose),
 ``calibrate-noise`` (a noise profile from real bags).
 """
 
@@ -20,6 +20,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     ),
     "experiment": ("mcl.cli.experiment", "the noise sweep, or global localization / kidnapping"),
     "ablation": ("mcl.cli.recovery_ablation", "the recovery experiment with one part switched off"),
+    "race": ("mcl.cli.race", "N cars race on a track: drivers, speeds, laps, optional MCL per car"),
     "opponents": ("mcl.cli.opponents", "MCL error alone and among opponents, plain and beam skipping"),
     "replay": ("mcl.cli.replay", "replay a ROS 1 / ROS 2 bag through the filter on a map"),
     "bench": ("mcl.cli.bench", "benchmarks (racecar-sim bench lists them)"),
@@ -42,6 +43,7 @@ def _usage() -> str:
         f"subcommands:\n{rows}\n\n"
         "examples:\n"
         "  racecar-sim drive --map office --duration 30 --out out/office\n"
+        "  racecar-sim race --map basement_loop --out out/race\n"
         "  racecar-sim experiment --scenario global --seeds 20 --out runs/global\n"
         "  racecar-sim bench sim --quick\n"
     )

@@ -170,6 +170,9 @@ def main(argv: list[str] | None = None) -> int:
             paths = write_outputs(result, occupancy_map, out, args.scan_every, args.video_fps)
             print(result.summary())
             print(f"wrote {', '.join(p.name for p in paths)}\noutput folder: {out.resolve()}")
+            lost = result.not_found_warning()
+            if lost is not None:
+                print(f"warning: {lost}", file=sys.stderr)
     finally:
         if server is not None:
             server.close()

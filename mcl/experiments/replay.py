@@ -42,6 +42,9 @@ from racecar_sim.raycast import RayCaster
 
 __all__ = [
     "COLUMNS",
+    "FIT_WINDOW_S",
+    "FOUND_SD",
+    "GOOD_FIT",
     "NO_RETURN",
     "ReplayConfig",
     "ReplayResult",
@@ -63,6 +66,17 @@ COLUMNS: tuple[str, ...] = (
 """Columns of :attr:`ReplayResult.rows` and of trajectory.csv."""
 
 NO_RETURN: tuple[str, ...] = ("max", "drop")
+
+GOOD_FIT = 0.6
+"""A replay has found the car once ``scan_fit`` averages at least this over :data:`FIT_WINDOW_S`
+while the cloud is tight (position sd < :data:`FOUND_SD` m). Tracking on the right map fits
+0.80-0.92 (the Stata bags, 2026-12-02; 0.52-0.56 while bag 2 waits among unmapped furniture, for a
+second or two); the wrong map (bag 1 on ``office``) fits at most 0.39 over any second, with the
+cloud tight on a wrong pose."""
+FIT_WINDOW_S = 1.0
+"""Seconds of scans :data:`GOOD_FIT` is averaged over."""
+FOUND_SD = 0.5
+"""Metres of position sd below which the cloud counts as tight (one pose, not a search)."""
 
 
 def unknown_start_localization() -> LocalizationConfig:
@@ -131,7 +145,10 @@ class ReplayResult:
     Attributes:
         rows: (S, len(COLUMNS)) one row per scan (see :data:`COLUMNS`).
         particles: per scan, a subsample (at most 300) of the particles (for the video).
-        wall_time: seconds spent in the filter and the fit (excludes reading the bag).
+        wall_time: wall-clock seconds of the whole replay: the filter's setup, then every scan's
+            update and ``scan_fit`` (not reading the bag, not writing the outputs).
+        setup_time: the part of ``wall_time`` spent building the filter: the map's lookup table
+            (once per process and map) and the start's particles (236 k on the Stata floor).
         duration: seconds of recording. position_error, heading_error: (S,) against
             ``/ground_truth`` (None without it).
         data: the bag that was replayed.
@@ -144,6 +161,7 @@ class ReplayResult:
     data: BagData
     position_error: np.ndarray | None = None
     heading_error: np.ndarray | None = None
+    setup_time: float = 0.0
 
     def column(self, name: str) -> np.ndarray:
         """One column of :attr:`rows` by name."""
@@ -154,18 +172,72 @@ class ReplayResult:
         """Seconds of recording per second of wall time (> 1: faster than real time)."""
         return self.duration / self.wall_time if self.wall_time > 0 else math.inf
 
+    def _windows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per scan ``i``: the end (exclusive) of the :data:`FIT_WINDOW_S` of scans starting at it,
+        whether that window is whole (not cut by the bag's end), and its mean ``scan_fit``."""
+        t = self.column("time")
+        fit = np.nan_to_num(self.column("scan_fit"), nan=0.0)
+        end = np.searchsorted(t, t + FIT_WINDOW_S, side="right")  # window i: scans [i, end)
+        whole = t[end - 1] - t >= 0.9 * FIT_WINDOW_S
+        fit_sum = np.concatenate([[0.0], np.cumsum(fit)])
+        return end, whole, (fit_sum[end] - fit_sum[:-1]) / (end - np.arange(len(t)))
+
+    def found_at(self) -> float | None:
+        """Seconds since the bag's start when the filter had found the car: the first scan fitting
+        at least :data:`GOOD_FIT` in the first :data:`FIT_WINDOW_S` of scans in which ``scan_fit``
+        averaged at least that with the cloud tight throughout (position sd < :data:`FOUND_SD`
+        m); None when that never happened (a wrong map, frame or
+        start: the estimate then explains the scans no better than chance)."""
+        if len(self.rows) == 0:
+            return None
+        end, whole, mean_fit = self._windows()
+        loose = np.concatenate([[0], np.cumsum(self.column("position_sd") >= FOUND_SD)])
+        ok = whole & (loose[end] == loose[:-1]) & (mean_fit >= GOOD_FIT)
+        if not ok.any():
+            return None
+        first = int(np.argmax(ok))
+        fits = np.nan_to_num(self.column("scan_fit")[first : end[first]], nan=0.0) >= GOOD_FIT
+        return float(self.column("time")[first + int(np.argmax(fits))])
+
+    def best_fit(self) -> float:
+        """The highest ``scan_fit`` averaged over any whole :data:`FIT_WINDOW_S` of scans (0 when
+        the bag is shorter than that)."""
+        if len(self.rows) == 0:
+            return 0.0
+        _, whole, mean_fit = self._windows()
+        return float(mean_fit[whole].max()) if whole.any() else 0.0
+
+    def not_found_warning(self) -> str | None:
+        """One line saying that the filter never found the car (None when it did)."""
+        if self.found_at() is not None:
+            return None
+        return (
+            f"the filter never fitted the scans to the map (scan_fit at most "
+            f"{self.best_fit():.2f} over any {FIT_WINDOW_S:g} s, {GOOD_FIT:g} once found): a wrong "
+            "map, frame or start (--map, --init)? trajectory.png shows the estimate as not found"
+        )
+
     def summary(self) -> str:
-        """A few lines: duration, scans, real-time factor, scan_fit, errors when known."""
+        """A few lines: duration, scans, real-time factor, scan_fit, when the car was found,
+        errors when known."""
         fit = self.column("scan_fit")
         last = self.rows[-1]
         lines = [
             f"replayed {self.data.path.name}: {self.duration:.1f} s, {len(self.rows)} scans in "
-            f"{self.wall_time:.1f} s of wall time (real-time factor {self.real_time_factor:.2f})",
+            f"{self.wall_time:.1f} s of wall time (real-time factor {self.real_time_factor:.2f}, "
+            f"{self.setup_time:.1f} s of it the filter's setup: the map's lookup table and the "
+            "start)",
             f"scan_fit: mean {np.nanmean(fit):.3f}, last second "
             f"{np.nanmean(fit[self.column('time') >= self.duration - 1.0]):.3f}; final pose "
             f"({last[1]:.2f}, {last[2]:.2f}, {last[3]:.2f}), {int(last[4])} particles, "
             f"position sd {last[5]:.3f} m",
         ]
+        found_at = self.found_at()
+        if found_at is not None:
+            lines.append(
+                f"found the car at {found_at:.2f} s (scan_fit >= {GOOD_FIT:g} over "
+                f"{FIT_WINDOW_S:g} s, position sd < {FOUND_SD:g} m)"
+            )
         if self.position_error is not None and self.heading_error is not None:
             e = self.position_error
             lines.append(
@@ -247,6 +319,7 @@ def replay(
     caster = RayCaster(occupancy_map, max(float(data.range_max), 1.0), method="exact")
     start = time.perf_counter()
     pf = build_filter(occupancy_map, data, config)
+    setup = time.perf_counter() - start
     no_return_range = pf.sensor_model.max_range * 2.0
     n = data.n_scans
     rows = np.full((n, len(COLUMNS)), np.nan)
@@ -296,8 +369,9 @@ def replay(
             progress(i + 1, n)
     wall = time.perf_counter() - start
     result = ReplayResult(
-        rows=rows, particles=particles, wall_time=wall, duration=data.duration, data=data
-    )
+        rows=rows, particles=particles, wall_time=wall, duration=data.duration, data=data,
+        setup_time=setup,
+    )  # fmt: skip
     errors = _truth_errors(data, rows)
     if errors is not None:
         result.position_error, result.heading_error = errors

@@ -6,10 +6,11 @@
   ``position_error,heading_error`` when the bag has ``/ground_truth``.
 - ``trajectory.png``: the map around the drive (walls dark, free space light), the estimated path
   (the search apart), every k-th scan's end points drawn from the estimate once the filter has
-  found the car (and the true path when known).
+  found the car (and the true path when known, dashed over the estimate); "not found" in the
+  title when the estimate never fitted the scans to the map.
 - ``scan_fit.png``: scan_fit and the particle count against time.
-- ``replay.mp4``: the map, the particles, the scan from the estimate, at ``fps`` frames per second
-  of recording (PNG frames when OpenCV cannot write mp4).
+- ``replay.mp4``: the map, the particles, the scan from the estimate, and a legend, at ``fps``
+  frames per second of recording (PNG frames when OpenCV cannot write mp4).
 """
 
 from __future__ import annotations
@@ -26,8 +27,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from mcl.experiments.frame_text import draw_legend
 from mcl.experiments.plots import save_figure
-from mcl.experiments.replay import COLUMNS, ReplayResult
+from mcl.experiments.replay import COLUMNS, FIT_WINDOW_S, FOUND_SD, GOOD_FIT, ReplayResult
 from mcl.experiments.video import FrameWriter
 from racecar_sim.file_guard import claim_folder, writable
 from racecar_sim.maps import OccupancyMap
@@ -108,42 +110,66 @@ def map_image(
 def plot_trajectory(
     result: ReplayResult, occupancy_map: OccupancyMap, path: str | os.PathLike[str], every: int = 40
 ) -> Path:
-    """trajectory.png: the map (walls dark, free space light), the path, and every ``every``-th
-    scan's end points drawn from the estimate once the filter has found the car (position sd
-    < 0.5 m); scans from the search, drawn from a wrong pose, are left out."""
+    """trajectory.png: the map (walls dark, free space light), the ground truth when known (drawn
+    over the estimate, dashed, so that both show where they agree), the path, and every
+    ``every``-th scan's end points drawn from the estimate once the filter has found the car
+    (position sd < 0.5 m); scans from the search, drawn from a wrong pose, are left out. When the
+    filter never found the car ([found_at][mcl.experiments.replay.ReplayResult.found_at] is None:
+    a wrong map, frame or start) the title says "not found" and no scan is drawn."""
     view = _view(result)
     fig, ax = plt.subplots(figsize=(8, 8))
     img, extent = map_image(occupancy_map, view)
     ax.imshow(img, extent=extent, interpolation="nearest", zorder=0)
-    found = result.column("position_sd") < 0.5
+    found_at = result.found_at()
+    found = result.column("position_sd") < FOUND_SD
+    if found_at is None:
+        found[:] = False
     shown = [i for i in range(0, len(result.rows), every) if found[i]]
     for n, i in enumerate(shown):
         ep = _end_points(result, i)
         label = f"scan end points from the estimate ({len(shown)} scans)" if n == 0 else None
         ax.plot(ep[:, 0], ep[:, 1], ".", ms=1.5, color="tab:blue", alpha=0.5, label=label)
     d = result.data
-    if d.truth is not None:
-        ax.plot(d.truth[:, 0], d.truth[:, 1], "-", color="tab:green", lw=2, label="ground truth")
     x, y = result.column("x"), result.column("y")
     if not found.all():
+        searching = (
+            "estimate while searching (sd >= 0.5 m)"
+            if found_at is not None
+            else f"estimate, never fitting the map (scan_fit <= {result.best_fit():.2f} over 1 s)"
+        )
         ax.plot(
             np.where(found, np.nan, x), np.where(found, np.nan, y), "--", color="tab:purple",
-            lw=0.9, label="estimate while searching (sd >= 0.5 m)",
+            lw=0.9, label=searching, zorder=2,
         )  # fmt: skip
-    ax.plot(
-        np.where(found, x, np.nan),
-        np.where(found, y, np.nan),
-        "-",
-        color="tab:orange",
-        lw=1.8,
-        label="estimate (base_link, position sd < 0.5 m)",
-    )
+    if found.any():
+        ax.plot(
+            np.where(found, x, np.nan),
+            np.where(found, y, np.nan),
+            "-",
+            color="tab:orange",
+            lw=2.6,
+            label="estimate (base_link, position sd < 0.5 m)",
+            zorder=2,
+        )
+    if d.truth is not None:  # over the estimate, thinner and dashed: both show
+        ax.plot(d.truth[:, 0], d.truth[:, 1], "--", color="black", lw=1.2, label="ground truth",
+                zorder=3)  # fmt: skip
     ax.set_xlim(view[0], view[1])
     ax.set_ylim(view[2], view[3])
     ax.set_aspect("equal")
     ax.set_xlabel("x (m, map frame)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"{d.path.name}: the estimate and every {every}th scan once found")
+    if found_at is None:
+        ax.set_title(
+            f"{d.path.name}\nNOT FOUND: scan_fit never reached {GOOD_FIT:g} over "
+            f"{FIT_WINDOW_S:g} s (wrong map, frame or start?)",
+            color="tab:red",
+        )
+    else:
+        ax.set_title(
+            f"{d.path.name}\nfound at {found_at:.2f} s; the estimate and every {every}th scan "
+            "once found"
+        )
     ax.legend(loc="best", fontsize=8, markerscale=6)
     return save_figure(fig, path)
 
@@ -162,6 +188,14 @@ def plot_scan_fit(result: ReplayResult, path: str | os.PathLike[str]) -> Path:
     ax2.grid(alpha=0.3)
     ax1.set_title(result.data.path.name)
     return save_figure(fig, path)
+
+
+REPLAY_LEGEND_BGR = (
+    ("particles", (0, 160, 0), "dots"),
+    ("scan drawn from the estimate", (0, 0, 220), "dots"),
+    ("estimate (base_link)", (0, 140, 255), "arrow"),
+)
+"""The video's legend: what its frames draw, in their colours (the frames are drawn in BGR)."""
 
 
 def write_video(
@@ -206,6 +240,7 @@ def write_video(
                 cv2.putText(
                     frame, text, (8, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA
                 )
+            draw_legend(frame, REPLAY_LEGEND_BGR, "bottom-left")
             writer.write(frame[:, :, ::-1].copy())
     return writer
 

@@ -5,14 +5,16 @@ and every ``RacecarSim-v0`` setting applies to every car. What a race adds (see
 :class:`~racecar_sim.race.world.RaceWorld`): each lidar sees the other cars' boxes exactly as it
 sees walls, cars collide with each other as pymunk bodies, and on a track the info carries
 progress, laps, lap times and race order (:mod:`racecar_sim.race.laps`). Needs the ``race`` extra
-(``pip install 'racecar-sim[race]'``: pettingzoo).
+(pettingzoo; in the checkout ``.venv/bin/pip install -e '.[race]'``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import functools
 import os
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -78,7 +80,10 @@ class RaceEnv(ParallelEnv):
     ## Reset
     ``reset(seed=s)`` seeds car ``i`` with ``s + i`` (or a list of seeds);
     ``options={"poses": array (N, 3)}`` places the cars (rear-axle world poses; ``ValueError``
-    naming the car that would overlap a wall or another car). Without poses the cars stand on the
+    naming the car that would overlap a wall or another car). Other options are ignored, as
+    PettingZoo's API allows (its API test passes ``{"options": 1}``), except a near miss of
+    ``"poses"`` (``"pose"``, ``"Poses"``): a ``ValueError``, since the race would otherwise start
+    from the grid. Without poses the cars stand on the
     track's staggered start grid (:func:`~racecar_sim.race.grid.start_grid`; it holds track length
     / (car length + 0.3 m) cars, more is a ``ValueError``), or at random free places clear of each
     other when there is no track. The same seed gives the same race.
@@ -201,9 +206,11 @@ class RaceEnv(ParallelEnv):
         self._needs_reset = True  # until this reset goes through
         seeds = car_seeds(seed, n)
         options = check_options("RaceEnv.reset", options)
-        unknown = sorted(set(options) - {"poses"})
-        if unknown:
-            gym.logger.warn(f"RaceEnv.reset ignores unknown option(s) {unknown}; known: ['poses']")
+        for key in options:  # others are ignored, as PettingZoo's API has it; a typo is not
+            if key != "poses" and difflib.get_close_matches(key.strip().lower(), ["poses"]):
+                raise ValueError(
+                    f"RaceEnv.reset: unknown option {short(key)} (did you mean 'poses'?)"
+                )
         poses = options.get("poses")
         # The last race's ghosts leave the cars' spaces first: the grid's room check queries car
         # 0's space, where another car's ghost on a slot would take the slot's room.
@@ -321,8 +328,10 @@ class RaceEnv(ParallelEnv):
         """RGB uint8 (H, W, 3): the map, every car's last scan hits and its box in its own colour
         (:data:`CAR_COLOURS`), the track's centerline when there is one."""
         if self.render_mode is None:
-            gym.logger.warn(
-                "render() called without a render_mode; make the env with render_mode='rgb_array'"
+            warnings.warn(  # a plain warning: gym.logger.warn's colour codes end up in logs
+                "render() called without a render_mode; make the env with render_mode='rgb_array'",
+                UserWarning,
+                stacklevel=2,
             )
             return None
         if self._renderer is None:

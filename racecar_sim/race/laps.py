@@ -75,8 +75,8 @@ class LapCounter:
                 frac = (
                     (k * length - old_u[j]) / (new_u[j] - old_u[j]) if new_u[j] != old_u[j] else 1.0
                 )
-                t_cross = time - dt + dt * min(max(frac, 0.0), 1.0)
-                self.lap_times[i].append(t_cross - self._last_cross[i])
+                t_cross = float(time - dt + dt * min(max(frac, 0.0), 1.0))
+                self.lap_times[i].append(t_cross - float(self._last_cross[i]))  # plain floats
                 self._last_cross[i] = t_cross
                 self.laps[i] = k
 

@@ -6,7 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytest.importorskip("stable_baselines3", reason="stable-baselines3 is not installed (extra [rl])")
+from tests.skips import RL_MISSING
+
+pytest.importorskip("stable_baselines3", reason=RL_MISSING)
 
 from stable_baselines3.common.vec_env import DummyVecEnv
 

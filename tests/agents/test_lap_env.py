@@ -5,7 +5,6 @@ geometry; and the PPO example end to end when stable-baselines3 is installed."""
 from __future__ import annotations
 
 import csv
-import importlib.util
 import math
 
 import gymnasium as gym
@@ -18,6 +17,7 @@ import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
 from mcl import LocalizationWrapper
 from mcl.agents.lap_env import LapTask, LapTaskConfig, make_lap_env, make_vector_env
 from mcl.agents.track import Track, track_for_map
+from tests.skips import NO_SB3, RL_MISSING
 
 FAST = {"n_beams": 181}
 FILTER = {"filter": {"n_particles": 100}}
@@ -198,8 +198,8 @@ def test_default_loop_goes_round_the_island_ahead_of_the_start() -> None:
 # ---------------------------------------------------------------------- end to end
 @pytest.mark.slow
 def test_train_agent_end_to_end_with_tiny_timesteps(tmp_path) -> None:
-    if importlib.util.find_spec("stable_baselines3") is None:
-        pytest.skip("stable-baselines3 is not installed (pip install torch -e '.[rl]')")
+    if NO_SB3:
+        pytest.skip(RL_MISSING)
     from mcl.cli.train_agent import main
 
     code = main(

@@ -6,7 +6,6 @@ installed."""
 from __future__ import annotations
 
 import csv
-import importlib.util
 
 import numpy as np
 import pytest
@@ -20,12 +19,10 @@ from mcl.agents.task_env import make_task_env
 from racecar_sim.drivers import PurePursuit
 from racecar_sim.race.grid import start_grid
 from racecar_sim.race.single import RacecarRaceEnv
+from tests.skips import NO_SB3, RL_MISSING
 
 FAST = (("n_beams", 181),)
-NEEDS_SB3 = pytest.mark.skipif(
-    importlib.util.find_spec("stable_baselines3") is None,
-    reason="stable-baselines3 is not installed (pip install torch==2.13.0 -e '.[rl]')",
-)
+NEEDS_SB3 = pytest.mark.skipif(NO_SB3, reason=RL_MISSING)
 
 
 def _parked(obs, pose) -> np.ndarray:

@@ -15,8 +15,9 @@ import pytest
 
 import racecar_sim  # noqa: F401
 from mcl.calibration.scan_stats import residual_fractions
+from tests.skips import SHARED, shared_missing
 
-BAGS = Path(__file__).resolve().parents[2] / ".." / "shared" / "bags"
+BAGS = SHARED / "bags"
 NAMES = ("localization_bag1_2022-03-29-19-23-29.bag", "localization_bag2_2022-03-29-19-24-34.bag")
 START = {NAMES[0]: (120, (-19.34, 5.74, 1.136)), NAMES[1]: (120, (-20.49, -0.70, 1.763))}
 MAX = 30.0
@@ -25,7 +26,7 @@ MAX = 30.0
 def _bag(name: str) -> Path:
     path = BAGS / name
     if not path.is_file():
-        pytest.skip(f"real recording {path} not found: ../shared/bags is absent in this checkout")
+        pytest.skip(shared_missing(path))
     pytest.importorskip("rosbags", reason="reading bags needs the rosbags package")
     return path
 

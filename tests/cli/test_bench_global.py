@@ -10,6 +10,7 @@ import pytest
 
 from mcl.bench import global_start, peer_rangelibc, peers, shared_dir, stata_map
 from racecar_sim.maps import bundled, load_map
+from tests.skips import shared_missing
 
 
 def test_the_global_cloud_is_the_replay_filters_start(default_map) -> None:
@@ -33,7 +34,8 @@ def test_the_first_update_is_timed_sorted_unsorted_and_gives_the_same_particles(
 
 @pytest.mark.skipif(
     not stata_map().is_file() or not list((shared_dir() / "bags").glob("*bag1*.bag")),
-    reason="needs ../shared's Stata map and bag 1",
+    reason=shared_missing(stata_map()) if not stata_map().is_file()
+    else shared_missing(shared_dir() / "bags" / "localization_bag1_2022-03-29-19-23-29.bag"),
 )
 def test_a_bag_replays_to_the_same_trajectory_with_and_without_the_sort(capsys) -> None:
     bag = sorted((shared_dir() / "bags").glob("*bag1*.bag"))[0]

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import re
 import shlex
 import subprocess
@@ -14,7 +13,6 @@ from pathlib import Path
 
 import pytest
 
-import mcl.cli.compile_notice as compile_notice
 import mcl.cli.drive
 from mcl.cli import drive, experiment, fast_laps, recovery_ablation
 from mcl.cli.bench import BENCHMARKS
@@ -160,29 +158,6 @@ def test_a_drive_that_fails_half_way_keeps_its_log(tmp_path, monkeypatch, capsys
         drive.main(["--out", str(out), "--duration", "1", "--particles", "50", "--video-fps", "0"])
     log = read_error_log(out / "error_log.csv")
     assert len(log) == 10  # the rows written before the failure
-
-
-def test_compile_notice_only_when_the_cache_is_cold(monkeypatch, capsys) -> None:
-    monkeypatch.setattr(compile_notice, "kernels_cached", lambda: False)
-    assert compile_notice.compile_notice() is True
-    err = capsys.readouterr().err
-    assert "compiling numba kernels" in err and "first run only" in err
-    monkeypatch.setattr(compile_notice, "kernels_cached", lambda: True)
-    assert compile_notice.compile_notice() is False
-    assert capsys.readouterr().err == ""
-
-
-def test_kernel_modules_are_found_and_a_fresh_cache_is_cold(tmp_path) -> None:
-    names = compile_notice.kernel_modules()
-    assert "mcl.sensor_model" in names and "racecar_sim.raycast.lut" in names
-    assert "mcl.cli.common" not in names
-    code = "from mcl.cli.compile_notice import kernels_cached; print(kernels_cached())"
-    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}  # an empty cache
-    done = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
-    )
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.strip() == "False"
 
 
 # ---------------------------------------------------------------------- real processes

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -13,6 +11,7 @@ from mcl import LocalizationWrapper
 from mcl.experiments.runs import RunSpec, run_one
 from racecar_sim.drivers import WallFollower
 from racecar_sim.maps import MapError, OccupancyMap, bundled, load_map
+from tests.skips import need_shared
 
 
 def _coarse_cropped(world: OccupancyMap, crop_cols: int = 10) -> OccupancyMap:
@@ -61,11 +60,7 @@ def test_run_spec_filter_map_reaches_the_filter(tmp_path):
 
 def test_world_differs_from_the_filter_map_stata(tmp_path):
     """The issue's case: drive in basement_fixed_aligned, localize on stata_basement."""
-    shared = Path(__file__).resolve().parents[2] / ".." / "shared" / "maps"
-    world = shared / "basement_fixed_aligned.yaml"
-    stata = shared / "stata_basement.yaml"
-    if not (world.is_file() and stata.is_file()):
-        pytest.skip(f"real maps not found in {shared}: ../shared is absent in this checkout")
+    world, stata = need_shared("maps/basement_fixed_aligned.yaml", "maps/stata_basement.yaml")
     spec = RunSpec(map=str(world), filter_map=str(stata), duration=2.0, n_particles=500, seed=1)
     result = run_one(spec, tmp_path / "log.csv")
     assert result.stats.mean_error < 0.3

@@ -64,14 +64,14 @@ def test_bad_init_pose_is_refused() -> None:
 # ---------------------------------------------------------------------- RacecarRace-v0, car 0
 def test_localization_wrapper_localizes_car_0_of_racecar_race() -> None:
     import gymnasium as gym
-    from gymnasium.utils.env_checker import check_env
 
     from mcl.wrapper import LocalizationWrapper
+    from tests.gym_checks import check_env_as_designed
 
     env = LocalizationWrapper(
         gym.make("RacecarRace-v0", map="basement_loop", opponents=2), CONFIG, clock=lambda: 0.0
     )
-    check_env(env, skip_render_check=True)
+    check_env_as_designed(env, skip_render_check=True)
     obs, info = env.reset(seed=3)
     assert "pose_estimate" in obs
     for _ in range(30):

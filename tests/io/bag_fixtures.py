@@ -15,6 +15,7 @@ from mcl.io import BagRecorder
 from mcl.motion_model import compose, twist_to_odometry
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
+from tests.skips import shared_missing
 
 REPO = Path(__file__).resolve().parents[2]
 SHARED_BAGS = REPO.parent / "shared" / "bags"
@@ -29,7 +30,7 @@ TWIST = np.array([1.0, 0.0, 0.15])
 def shared_bag(path: Path) -> Path:
     """A bag in ../shared/bags, or skip with the reason."""
     if not path.exists():
-        pytest.skip(f"real bag {path} not found: ../shared/bags is absent in this checkout")
+        pytest.skip(shared_missing(path))
     return path
 
 

@@ -184,3 +184,85 @@ def test_the_replay_pictures_draw_the_map_as_a_map() -> None:
     np.testing.assert_array_equal(img[free, 0], 0.97)
     shade = img[~free, 0]
     assert set(np.unique(shade)) == {0.18, 0.72}  # walls beside free space, and the rest
+
+
+def test_a_replay_on_the_wrong_map_warns_and_its_picture_says_not_found(
+    recorded, tmp_path, capsys, monkeypatch
+):
+    """The room's drive replayed on ``office``: the filter settles on some pose (a tight cloud)
+    but the scans never fit the map; the command still writes its files and exits 0, with one
+    line starting ``warning:``, and trajectory.png's title says "not found"."""
+    import mcl.experiments.replay_output as replay_output
+
+    titles: list[str] = []
+    real_save = replay_output.save_figure
+
+    def save_and_read_title(fig, path):
+        titles.append(fig.axes[0].get_title())
+        return real_save(fig, path)
+
+    monkeypatch.setattr(replay_output, "save_figure", save_and_read_title)
+    out = tmp_path / "wrong"
+    argv = ["replay", str(recorded[0]), "--map", "office", "--out", str(out)]
+    assert main([*argv, "--init", "5,2,0", "--video-fps", "0"]) == 0
+    captured = capsys.readouterr()
+    warnings = [line for line in captured.err.splitlines() if line.startswith("warning:")]
+    assert len(warnings) == 1 and "never fitted the scans to the map" in warnings[0]
+    assert "--map" in warnings[0] and "found the car" not in captured.out
+    assert (out / "trajectory.png").is_file() and (out / "trajectory.csv").is_file()
+    assert "NOT FOUND" in titles[0] and "found at" not in titles[0]
+
+
+def test_a_replay_on_the_right_map_is_found_without_a_warning(
+    recorded, room, tmp_path, capsys, monkeypatch
+):
+    """Found at once, no warning, and trajectory.png draws the ground truth over the estimate
+    (dashed, so that both show where they agree)."""
+    import mcl.experiments.replay_output as replay_output
+
+    lines: dict[str, object] = {}
+    real_save = replay_output.save_figure
+
+    def save_and_read_lines(fig, path):
+        if not lines:
+            lines.update({line.get_label(): line for line in fig.axes[0].get_lines()})
+            lines["title"] = fig.axes[0].get_title()
+        return real_save(fig, path)
+
+    monkeypatch.setattr(replay_output, "save_figure", save_and_read_lines)
+    out = tmp_path / "right"
+    argv = ["replay", str(recorded[0]), "--map", room_yaml(room, tmp_path), "--out", str(out)]
+    assert main([*argv, "--init", "5,2,0", "--video-fps", "0"]) == 0
+    captured = capsys.readouterr()
+    assert "warning" not in captured.err and "found the car at 0.0" in captured.out
+    truth, estimate = lines["ground truth"], lines["estimate (base_link, position sd < 0.5 m)"]
+    assert truth.get_zorder() > estimate.get_zorder() and truth.get_linestyle() == "--"
+    assert truth.get_linewidth() < estimate.get_linewidth() and "found at" in lines["title"]
+
+
+def _result_of(fit: np.ndarray, sd: np.ndarray, hz: float = 40.0):
+    """A ReplayResult whose rows hold only time, scan_fit and position_sd (the rest zero)."""
+    from mcl.experiments.replay import ReplayResult
+
+    rows = np.zeros((len(fit), len(COLUMNS)))
+    rows[:, COLUMNS.index("time")] = np.arange(len(fit)) / hz
+    rows[:, COLUMNS.index("scan_fit")] = fit
+    rows[:, COLUMNS.index("position_sd")] = sd
+    return ReplayResult(rows, [], 1.0, len(fit) / hz, data=None)  # type: ignore[arg-type]
+
+
+def test_found_at_needs_a_second_of_good_fit_with_a_tight_cloud():
+    from mcl.experiments.replay import GOOD_FIT
+
+    n = 200  # 5 s at 40 Hz
+    fit, sd = np.full(n, 0.3), np.full(n, 0.05)
+    assert _result_of(fit, sd).found_at() is None  # tight on a pose that explains nothing
+    fit[80:] = 0.85  # fits from 2.0 s on
+    assert _result_of(fit, sd).found_at() == pytest.approx(2.0)
+    loose = sd.copy()
+    loose[90::20] = 1.0  # the cloud spreads again every half second: never a whole tight second
+    assert _result_of(fit, loose).found_at() is None
+    short = np.full(n, 0.3)
+    short[100:116] = 0.95  # 0.4 s of good fit in a second of poor: averages below GOOD_FIT
+    assert _result_of(short, sd).found_at() is None
+    assert _result_of(short, sd).best_fit() < GOOD_FIT

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -27,7 +28,27 @@ def quiet_race(n: int = 2, **kw) -> RaceEnv:
 
 def test_pettingzoo_parallel_api_test_passes():
     env = RaceEnv(HALL, n_cars=3, n_beams=61, max_episode_steps=150)
-    parallel_api_test(env, num_cycles=200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # PettingZoo's probe option {"options": 1} warns nothing
+        parallel_api_test(env, num_cycles=200)
+
+
+def test_render_without_a_render_mode_warns_in_plain_text():
+    for env in (RaceEnv(HALL, n_cars=1, n_beams=61), RacecarEnv(HALL, n_beams=61)):
+        env.reset(seed=0)
+        with pytest.warns(UserWarning, match="without a render_mode") as caught:
+            assert env.render() is None
+        assert "\x1b" not in str(caught[0].message)  # no terminal colour codes in logs
+
+
+def test_options_it_does_not_know_are_ignored_but_a_misspelt_poses_is_refused():
+    env = RaceEnv(HALL, n_cars=2, n_beams=61)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        env.reset(seed=0, options={"options": 1, "init": "global"})  # e.g. a wrapper's, PettingZoo's
+    for typo in ("pose", "Poses", "posses"):
+        with pytest.raises(ValueError, match=r"unknown option .*did you mean 'poses'"):
+            env.reset(seed=0, options={typo: env.poses})
 
 
 def test_parallel_api_test_on_a_track_with_crashes():

@@ -5,14 +5,14 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
 
 import racecar_sim  # noqa: F401 - registers the envs
+from tests.gym_checks import check_env_as_designed
 
 
 def test_check_env_passes():
     env = gym.make("RacecarRace-v0", map="basement_loop", opponents=2, n_beams=61)
-    check_env(env.unwrapped, skip_render_check=True)
+    check_env_as_designed(env.unwrapped, skip_render_check=True)
 
 
 def test_opponents_race_on_their_own_drivers():

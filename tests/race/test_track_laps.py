@@ -82,6 +82,8 @@ def test_laps_and_lap_times_on_a_circle():
     lap_s = 2 * math.pi / 0.2
     np.testing.assert_allclose(laps.lap_times[0], [lap_s + 0.05 / 0.2, lap_s], rtol=1e-3)
     info = laps.info(laps.ranks(), 0)
+    assert all(type(t) is float for t in info["lap_times"])  # printed as 31.66, not np.float64(...)
+    assert "np." not in repr(info)
     assert info["progress"] == pytest.approx(
         track.length * (angles[-1] - start) / (2 * math.pi), rel=1e-3
     )

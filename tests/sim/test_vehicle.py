@@ -8,7 +8,6 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -19,6 +18,7 @@ from racecar_sim.maps import OccupancyMap
 from racecar_sim.physics import RacecarPhysics
 from racecar_sim.vector_env import RacecarVectorEnv
 from racecar_sim.vehicle.manoeuvres import drive, skidpad
+from tests.gym_checks import check_env_as_designed
 
 G = 9.81
 CAR = CarParams()
@@ -130,7 +130,7 @@ def test_car_model_is_a_setting_everywhere(tmp_path) -> None:
     path.write_text("car_model: single_track\nmap: corridor\n")
     env = gym.make("RacecarSim-v0", config=load_config(path))
     assert env.unwrapped.physics.car_model == "single_track"
-    check_env(env.unwrapped, skip_render_check=True)
+    check_env_as_designed(env.unwrapped, skip_render_check=True)
     assert RacecarEnv("corridor").physics.car_model == "kinematic"
     vec = RacecarVectorEnv(3, map="corridor", car_model="single_track")
     assert {e.physics.car_model for e in vec.envs} == {"single_track"}

@@ -1,0 +1,8 @@
+"""Thin wrapper: `racecar-sim race` (see :mod:`mcl.cli.race`)."""
+
+import sys
+
+from mcl.cli.race import main
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
