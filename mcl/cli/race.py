@@ -14,10 +14,11 @@ With ``--live [HOST:]PORT`` the race streams to Foxglove as it runs (the map, ev
 and, localized, its estimate and particles; mcl.io.race_stream), paced at ``--live-speed``
 times real time.
 
-The default race is 4 cars on the default map (basement_loop) for 60 s, pure pursuit on the
-centerline at 2.0, 2.4, 2.8 and 3.2 m/s, the fastest on pole: drivers that do not know each other
-(the wall follower slows for a car in its path, pure pursuit does not) race without contact from
-that grid; --grid slowest-first makes the faster cars come up behind the slower ones.
+The default race is 4 cars on the default map (basement_loop) for 60 s, racing drivers at 2.0,
+2.4, 2.8 and 3.2 m/s that know the other cars (they follow, pass where the track is wide enough
+and give way), the slowest on pole: the faster cars come up behind the slower ones and pass them.
+Drivers blind to the others (pursuit, wall, a policy) start from the fastest on pole instead,
+unless --grid says otherwise: from behind, pure pursuit runs into the car ahead.
 """
 
 from __future__ import annotations
@@ -48,7 +49,8 @@ from racecar_sim.maps import DEFAULT_MAP
 
 EXAMPLES = """\
 examples:
-  racecar-sim race --map basement_loop --out out/race      4 cars, 60 s, the table and race.mp4
+  racecar-sim race --map basement_loop --out out/race      4 racing cars, 60 s, table, race.mp4
+  racecar-sim race --map office --cars 6 --laps 3 --out out/office_race
   racecar-sim race --cars 3 --drivers wall,pursuit,pursuit --speeds 2.2,2.6,3.0 --laps 2
   racecar-sim race --localize --particles 500 --duration 30 --out out/race_mcl
   racecar-sim race --cars 2 --drivers pursuit,policy:runs/agent/truth/model.zip
@@ -79,7 +81,7 @@ def build_parser() -> Parser:
     add("--cars", type=positive_int, default=DEFAULT_CARS, metavar="N", help="cars in the race")
     add(
         "--drivers",
-        default="pursuit",
+        default="racing",
         metavar="LIST",
         help="one driver, or one per car, comma-separated: "
         + "; ".join(f"{k}: {v}" for k, v in DRIVER_NAMES.items()),
@@ -89,14 +91,17 @@ def build_parser() -> Parser:
         type=number_list,
         default=None,
         metavar="LIST",
-        help="m/s, one for every car or one per car (the wall follower's on a straight, pure "
-        "pursuit's, the most a policy gets; default: 2.0, 2.4, 2.8, ... per car)",
+        help="m/s, one for every car or one per car (the racing driver's top speed, the wall "
+        "follower's on a straight, pure pursuit's, the most a policy gets; default: 2.0, 2.4, "
+        "2.8, ... per car)",
     )
     add(
         "--grid",
         choices=GRID_ORDERS,
-        default="fastest-first",
-        help="the start grid's order: the fastest car on pole, the slowest, or car 0 first",
+        default=None,
+        help="the start grid's order: the slowest car on pole, the fastest, or car 0 first "
+        "(default: slowest-first with racing drivers, fastest-first when a car's driver is "
+        "blind to the others)",
     )
     add(
         "--duration",
@@ -115,7 +120,8 @@ def build_parser() -> Parser:
     add(
         "--localize",
         action="store_true",
-        help="a particle filter per car (beam skipping on); the cars drive on their estimates",
+        help="a particle filter per car (beam skipping on); the cars steer on their estimates "
+        "(racing drivers still see every car where it is, as an opponent does)",
     )
     add(
         "--particles",
@@ -153,6 +159,12 @@ def _drivers(parser: Parser, text: str, n_cars: int) -> tuple[DriverSpec, ...]:
         if spec.path is not None and not spec.path.is_file():
             parser.fail("--drivers", f"policy file {spec.path} does not exist")
     return specs
+
+
+def default_grid(drivers: tuple[DriverSpec, ...]) -> str:
+    """``slowest-first`` when every car has the racing driver (the faster cars pass), else
+    ``fastest-first`` (a driver blind to the others would run into a slower car ahead)."""
+    return "slowest-first" if all(d.kind == "racing" for d in drivers) else "fastest-first"
 
 
 def _speeds(parser: Parser, given: tuple[float, ...] | None, n_cars: int) -> tuple[float, ...]:
@@ -211,14 +223,15 @@ def main(argv: list[str] | None = None) -> int:
         parser.fail("--track", f"{args.track} does not exist")
     out: Path = check_out(parser, args.out)
     n = args.cars
+    drivers = _drivers(parser, args.drivers, n)
     spec = RaceSpec(
         map=str(args.map),
-        drivers=_drivers(parser, args.drivers, n),
+        drivers=drivers,
         speeds=_speeds(parser, args.speeds, n),
         duration=args.duration,
         laps=args.laps,
         track=args.track,
-        grid=args.grid,
+        grid=args.grid or default_grid(drivers),
         localize=args.localize,
         particles=args.particles,
         seed=args.seed,

@@ -2,6 +2,12 @@
 
 Names (``racecar-sim race --drivers``):
 
+- ``racing``: the racing driver that knows the other cars
+  ([RacingDriver][racecar_sim.race.racing_driver.RacingDriver]: it follows a slower car at a safe
+  gap, passes where the track is wide enough and gives way to a faster car behind). It reads where
+  every car is from the race's [Traffic][racecar_sim.race.traffic.Traffic] picture (the cars' true
+  poses, as an opponent sees them, put on the track once per step by the race) and steers on the
+  pose it is given (the truth, or the car's MCL estimate);
 - ``wall``: the lidar wall follower on the car's own scan
   (``WallFollower.for_env(race.cars[i], speed=v)``); it sees the other cars as lidar hits, so it
   slows for a car in its path, but it does not plan round one;
@@ -12,8 +18,7 @@ Names (``racecar-sim race --drivers``):
 
 Every driver is called as ``driver(obs, pose) -> [steer rad, speed m/s]`` and may have a
 ``reset()``; [`make_driver`][mcl.experiments.race_drivers.make_driver] is the only place that builds
-them, so a new kind of driver (e.g. one that knows where the other cars are) joins every race
-through it.
+them, so a new kind of driver joins every race through it.
 """
 
 from __future__ import annotations
@@ -21,22 +26,27 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from racecar_sim.drivers import Driver, PurePursuit, WallFollower
+
+if TYPE_CHECKING:
+    from racecar_sim.race.traffic import Traffic
 
 __all__ = [
     "DRIVER_NAMES",
     "DriverError",
     "DriverSpec",
     "drive_pose",
+    "knows_the_others",
     "make_driver",
     "parse_drivers",
 ]
 
 DRIVER_NAMES: Mapping[str, str] = {
+    "racing": "knows the other cars: follows, passes where the track is wide enough, gives way",
     "wall": "the lidar wall follower (sees the other cars as lidar hits)",
     "pursuit": "pure pursuit on the track's centerline (blind to the other cars)",
     "policy:FILE": "a policy trained by racecar-sim train-agent (its model.zip; extra [rl])",
@@ -51,8 +61,8 @@ class DriverError(ValueError):
 
 @dataclass(frozen=True)
 class DriverSpec:
-    """One car's driver: ``kind`` is ``"wall"``, ``"pursuit"`` or ``"policy"`` (then ``path`` is
-    its model file)."""
+    """One car's driver: ``kind`` is ``"racing"``, ``"wall"``, ``"pursuit"`` or ``"policy"`` (then
+    ``path`` is its model file)."""
 
     kind: str
     path: Path | None = None
@@ -79,7 +89,7 @@ def parse_drivers(text: str, n_cars: int) -> tuple[DriverSpec, ...]:
             if not rest.strip():
                 raise ValueError("policy: needs its file, e.g. policy:runs/agent/truth/model.zip")
             specs.append(DriverSpec("policy", Path(rest.strip())))
-        elif item in ("wall", "pursuit"):
+        elif item in ("racing", "wall", "pursuit"):
             specs.append(DriverSpec(item))
         else:
             raise ValueError(f"unknown driver {item!r}; drivers: {', '.join(DRIVER_NAMES)}")
@@ -90,14 +100,30 @@ def parse_drivers(text: str, n_cars: int) -> tuple[DriverSpec, ...]:
     return tuple(specs)
 
 
-def make_driver(spec: DriverSpec, race: Any, car: int, speed: float) -> Driver:
+def knows_the_others(specs: tuple[DriverSpec, ...]) -> bool:
+    """Whether any of ``specs`` reads the race's traffic picture (a ``racing`` driver)."""
+    return any(spec.kind == "racing" for spec in specs)
+
+
+def make_driver(
+    spec: DriverSpec, race: Any, car: int, speed: float, traffic: Traffic | None = None
+) -> Driver:
     """The driver of car ``car`` of ``race`` (a
-    [`racecar_sim.RaceEnv`][racecar_sim.race.env.RaceEnv] with a track) at ``speed`` m/s.
+    [`racecar_sim.RaceEnv`][racecar_sim.race.env.RaceEnv] with a track) at ``speed`` m/s;
+    a ``racing`` driver reads ``traffic``, which the race resets after its reset and updates
+    after every step.
 
     Raises:
         DriverError: a policy file that is missing or not a lap policy, or a policy without
             stable-baselines3 (extra ``[rl]``).
+        ValueError: a ``racing`` driver without ``traffic``.
     """
+    if spec.kind == "racing":
+        if traffic is None:
+            raise ValueError("a racing driver needs the race's Traffic")
+        from racecar_sim.race.racing_driver import RacingDriver
+
+        return RacingDriver(traffic, car, speed=speed)
     if spec.kind == "wall":
         return WallFollower.for_env(race.cars[car], speed=speed)
     if spec.kind == "pursuit":

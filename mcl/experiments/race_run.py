@@ -8,15 +8,22 @@ optional particle filter per car: what ``racecar-sim race`` runs.
 then drives on its own MCL estimate, started around its true start pose), puts the cars on the
 track's start grid in the order ``grid`` asks for, builds each car's driver with
 [make_driver][mcl.experiments.race_drivers.make_driver] and steps the race for ``duration`` seconds,
-or until the first car completes ``laps`` laps. The result has, per car: its finishing position
-(race order by distance covered along the centerline,
-``racecar_sim.race.laps``), laps, lap times, wall and car contacts (separate
-contacts, ``RaceTally``) and, localized, the mean and largest
-position error of its filter.
+or until the first car completes ``laps`` laps. With ``racing`` drivers the race keeps a
+[Traffic][racecar_sim.race.traffic.Traffic] picture of every car on the track (from the true
+poses, ``RaceEnv.poses``), reset after the race's reset and updated after every step, as
+``RacecarRace-v0`` does; the racing drivers read it. The result has, per car: its finishing
+position (race order by distance covered along the centerline, ``racecar_sim.race.laps``), laps,
+lap times, overtakes and times overtaken (rank gains and losses in race order), wall and car
+contacts (separate contacts; all four counted by
+[RaceTally][mcl.agents.race_tally.RaceTally]) and, localized, the mean and largest position
+error of its filter.
 
-Grid orders: ``fastest-first`` (the default: the fastest car on pole, so that cars that do not
-know each other do not run into a slower car ahead at the start), ``slowest-first`` (the faster
-cars have to pass: for drivers that can), ``listed`` (car 0 on pole, then car 1, ...).
+Grid orders: ``slowest-first`` (the default: the faster cars come up behind the slower ones and
+have to pass, for drivers that can: ``racing``), ``fastest-first`` (the fastest car on pole, so
+that cars that do not know each other do not run into a slower car ahead at the start),
+``listed`` (car 0 on pole, then car 1, ...). With a ``racing`` driver in the race the grid stands
+single file on the centerline, as ``RacecarRace-v0``'s (a staggered grid of cars at different
+speeds leaves in two lanes); otherwise staggered.
 """
 
 from __future__ import annotations
@@ -30,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from mcl.agents.race_tally import RaceTally
-from mcl.experiments.race_drivers import DriverSpec, drive_pose, make_driver
+from mcl.experiments.race_drivers import DriverSpec, drive_pose, knows_the_others, make_driver
 
 __all__ = [
     "GRID_ORDERS",
@@ -45,7 +52,7 @@ __all__ = [
     "start_poses",
 ]
 
-GRID_ORDERS: tuple[str, ...] = ("fastest-first", "slowest-first", "listed")
+GRID_ORDERS: tuple[str, ...] = ("slowest-first", "fastest-first", "listed")
 """How the cars stand on the start grid (module doc)."""
 
 
@@ -74,7 +81,7 @@ class RaceSpec:
     duration: float = 60.0
     laps: int | None = None
     track: str | None = None
-    grid: str = "fastest-first"
+    grid: str = "slowest-first"
     localize: bool = False
     particles: int = 1000
     seed: int = 0
@@ -104,6 +111,8 @@ class CarResult:
     laps: int = 0
     lap_times: tuple[float, ...] = ()
     progress: float = 0.0
+    overtakes: int = 0
+    overtaken: int = 0
     wall_contacts: int = 0
     car_contacts: int = 0
     mean_error: float = math.nan
@@ -153,11 +162,14 @@ def grid_order(speeds: tuple[float, ...], order: str) -> list[int]:
 @dataclass
 class RaceSetup:
     """A race ready to start: the env stepped (the race, or its LocalizedRaceEnv), the
-    [`racecar_sim.RaceEnv`][racecar_sim.race.env.RaceEnv] itself, and each car's driver."""
+    [`racecar_sim.RaceEnv`][racecar_sim.race.env.RaceEnv] itself, each car's driver and, with a
+    ``racing`` driver, the [Traffic][racecar_sim.race.traffic.Traffic] picture it reads (else
+    None)."""
 
     env: Any
     race: Any
     drivers: list[Any]
+    traffic: Any = None
 
 
 def setup_race(spec: RaceSpec, render: bool = False) -> RaceSetup:
@@ -183,29 +195,39 @@ def setup_race(spec: RaceSpec, render: bool = False) -> RaceSetup:
             f"{spec.map}: a race needs a track: a bundled loop map (basement_loop, office) or a "
             "centerline CSV"
         )
+    traffic = None
+    if knows_the_others(spec.drivers):
+        from racecar_sim.race.track import with_widths
+        from racecar_sim.race.traffic import Traffic
+
+        traffic = Traffic(with_widths(race.track, race.map), spec.n_cars, race.car_params)
     drivers = [
-        make_driver(d, race, i, v)
+        make_driver(d, race, i, v, traffic)
         for i, (d, v) in enumerate(zip(spec.drivers, spec.speeds, strict=True))
     ]
     if not spec.localize:
-        return RaceSetup(race, race, drivers)
+        return RaceSetup(race, race, drivers, traffic)
     from mcl.localization import LocalizationConfig
     from mcl.race_wrapper import LocalizedRaceEnv
     from mcl.sensor_model import SensorModelParams
 
     config = LocalizationConfig(sensor=SensorModelParams(beam_skip=True))
-    return RaceSetup(LocalizedRaceEnv(race, config.with_particles(spec.particles)), race, drivers)
+    env = LocalizedRaceEnv(race, config.with_particles(spec.particles))
+    return RaceSetup(env, race, drivers, traffic)
 
 
 def start_poses(race: Any, spec: RaceSpec) -> np.ndarray:
-    """(N, 3) rear-axle world poses of the cars on ``race``'s start grid in the spec's order.
+    """(N, 3) rear-axle world poses of the cars on ``race``'s start grid in the spec's order
+    (single file with a ``racing`` driver in the race, else staggered; module doc).
 
     Raises:
         ValueError: more cars than the track holds, or a slot without room for a car.
     """
     from racecar_sim.race.grid import start_grid
 
-    slots = start_grid(race.track, spec.n_cars, race.car_params, race.cars[0].physics.pose_is_free)
+    stagger = {"stagger": 0.0} if knows_the_others(spec.drivers) else {}
+    is_free = race.cars[0].physics.pose_is_free
+    slots = start_grid(race.track, spec.n_cars, race.car_params, is_free, **stagger)
     poses = np.empty_like(slots)
     for slot, car in enumerate(grid_order(spec.speeds, spec.grid)):
         poses[car] = slots[slot]
@@ -232,7 +254,7 @@ def run_race(
     """
     if setup is None:
         setup = setup_race(spec, render=on_frame is not None)
-    env, race, drivers = setup.env, setup.race, setup.drivers
+    env, race, drivers, traffic = setup.env, setup.race, setup.drivers, setup.traffic
     order = grid_order(spec.speeds, spec.grid)
     agents = list(race.possible_agents)
     for driver in drivers:
@@ -240,6 +262,8 @@ def run_race(
         if callable(reset):
             reset()
     obs, infos = env.reset(seed=spec.seed, options={"poses": start_poses(race, spec)})
+    if traffic is not None:
+        traffic.reset(race.poses)
     tallies = {a: RaceTally() for a in agents}
     for a in agents:
         tallies[a].begin(infos[a])
@@ -270,6 +294,8 @@ def run_race(
             for i, a in enumerate(agents)
         }
         obs, _, _, _, infos = env.step(actions)
+        if traffic is not None:
+            traffic.update(race.poses, race.world.time)
         done = step
         for a in agents:
             tallies[a].update(infos[a])
@@ -291,6 +317,8 @@ def run_race(
                 laps=int(info["lap"]),
                 lap_times=tuple(float(t) for t in info["lap_times"]),
                 progress=float(info["progress"]),
+                overtakes=counts["overtakes"],
+                overtaken=counts["overtaken"],
                 wall_contacts=counts["wall_contacts"],
                 car_contacts=counts["car_contacts"],
                 mean_error=float(err.mean()) if err.size else math.nan,

@@ -5,7 +5,10 @@ Columns: ``position`` (1 = leading at the end: race order by distance covered al
 centerline), ``car`` (``car_i``, its colour in the video), ``driver``, ``speed`` (m/s),
 ``grid`` (start slot, 1 = pole), ``laps`` (completed), ``best_lap`` (s; empty before a lap),
 ``lap_times`` (s, ``;``-separated in the CSV), ``distance`` (m along the centerline since the
-start), ``wall_contacts`` and ``car_contacts`` (separate contacts), ``mean_error`` and
+start), ``overtakes`` and ``overtaken`` (the car's gains and losses of rank in race order, counted
+step by step: passing a car ahead in race order is one overtake, lapping a car already behind is
+none; [RaceTally][mcl.agents.race_tally.RaceTally]), ``wall_contacts`` and ``car_contacts``
+(separate contacts), ``mean_error`` and
 ``max_error`` (m, the car's filter against its true pose; empty without ``--localize``).
 """
 
@@ -30,6 +33,8 @@ CSV_COLUMNS: tuple[str, ...] = (
     "best_lap",
     "lap_times",
     "distance",
+    "overtakes",
+    "overtaken",
     "wall_contacts",
     "car_contacts",
     "mean_error",
@@ -66,6 +71,8 @@ def markdown_table(result: RaceResult) -> str:
         "laps",
         "best lap (s)",
         "distance (m)",
+        "overtakes",
+        "overtaken",
         "wall contacts",
         "car contacts",
     ]
@@ -87,6 +94,8 @@ def markdown_table(result: RaceResult) -> str:
             str(c.laps),
             _number(c.best_lap, 2) or "-",
             f"{c.progress:.1f}",
+            str(c.overtakes),
+            str(c.overtaken),
             str(c.wall_contacts),
             str(c.car_contacts),
         ]
@@ -115,6 +124,8 @@ def write_results(result: RaceResult, out: str | os.PathLike[str]) -> list[Path]
                     _number(c.best_lap, 3),
                     ";".join(f"{t:.3f}" for t in c.lap_times),
                     f"{c.progress:.2f}",
+                    c.overtakes,
+                    c.overtaken,
                     c.wall_contacts,
                     c.car_contacts,
                     _number(c.mean_error, 4),

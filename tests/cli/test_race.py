@@ -1,5 +1,6 @@
 """``racecar-sim race``: a short race end to end (table, CSV, video), laps counted on a small ring
-track, positions in race order, and a user's mistakes as one line with exit code 2."""
+track, positions in race order, racing drivers that pass without contact (overtakes counted), and a
+user's mistakes as one line with exit code 2."""
 
 from __future__ import annotations
 
@@ -52,9 +53,11 @@ def test_the_default_race_runs_end_to_end_with_table_and_video(tmp_path, capsys)
     rows = read_results(out)
     assert [r["position"] for r in rows] == ["1", "2", "3", "4"]
     assert sorted(r["car"] for r in rows) == ["car_0", "car_1", "car_2", "car_3"]
-    assert len({r["speed"] for r in rows}) == 4  # each car its own speed
-    distance = [float(r["distance"]) for r in rows]
-    assert distance == sorted(distance, reverse=True) and distance[-1] > 2.0  # all drove
+    assert {r["driver"] for r in rows} == {"racing"}
+    by_grid = sorted(rows, key=lambda r: int(r["grid"]))
+    speeds = [float(r["speed"]) for r in by_grid]
+    assert len(set(speeds)) == 4 and speeds == sorted(speeds)  # each its own; slowest on pole
+    assert all(float(r["distance"]) > 2.0 for r in rows)  # all drove
     assert all(r["wall_contacts"] == r["car_contacts"] == "0" for r in rows)
     assert all(r["mean_error"] == "" for r in rows)  # no filter without --localize
     table = (out / "results.md").read_text()
@@ -72,12 +75,12 @@ def test_laps_are_counted_and_positions_follow_the_race_order(tmp_path, capsys) 
     yaml, centerline = ring(tmp_path)
     out = tmp_path / "ring_race"
     argv = ["race", "--map", str(yaml), "--track", str(centerline), "--cars", "2",
-            "--speeds", "2,3", "--duration", "8", "--video-fps", "0", "--out", str(out),
+            "--drivers", "pursuit", "--speeds", "2,3", "--duration", "8", "--video-fps", "0", "--out", str(out),
             "--quiet"]  # fmt: skip
     assert main(argv) == 0
     first, second = read_results(out)
     assert (first["car"], first["position"], second["position"]) == ("car_1", "1", "2")
-    assert first["grid"] == "1"  # the faster car on pole (fastest-first)
+    assert first["grid"] == "1"  # blind drivers: the faster car on pole (fastest-first)
     assert int(first["laps"]) == 2 and int(second["laps"]) == 1
     laps = [float(t) for t in first["lap_times"].split(";")]
     assert len(laps) == 2 and float(first["best_lap"]) == pytest.approx(min(laps), abs=1e-3)
@@ -98,6 +101,56 @@ def test_laps_end_the_race_when_the_first_car_completes_them(tmp_path, capsys) -
     assert max(int(r["laps"]) for r in rows) == 1
     assert "(to 1 laps)" in capsys.readouterr().out
     assert float(rows[0]["lap_times"]) < 6.0  # stopped at that lap, far short of 30 s
+
+
+@pytest.mark.parametrize(("seed", "speeds"), [(0, "2.0,2.4,2.8"), (5, "2.2,2.6,3.1")])
+def test_racing_drivers_pass_the_slower_cars_without_contact(tmp_path, seed, speeds) -> None:
+    """Racing drivers (the default) from the slowest-first grid on basement_loop: within 8 s the
+    faster cars have passed slower ones, no car touched another or a wall, and each car's
+    overtakes minus times overtaken is the places it gained from its grid slot."""
+    out = tmp_path / "racing"
+    argv = ["race", "--map", "basement_loop", "--cars", "3", "--speeds", speeds, "--seed",
+            str(seed), "--duration", "8", "--video-fps", "0", "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    rows = read_results(out)
+    assert all(r["car_contacts"] == r["wall_contacts"] == "0" for r in rows)
+    overtakes = [int(r["overtakes"]) for r in rows]
+    assert sum(overtakes) > 0 and sum(overtakes) == sum(int(r["overtaken"]) for r in rows)
+    for r in rows:
+        assert int(r["overtakes"]) - int(r["overtaken"]) == int(r["grid"]) - int(r["position"])
+    fastest = max(rows, key=lambda r: float(r["speed"]))
+    assert fastest["grid"] == "3" and int(fastest["overtakes"]) >= 1  # from last, it passed
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("map_name", ["basement_loop", "office"])
+def test_the_default_race_is_a_race_on_both_loop_maps(tmp_path, map_name) -> None:
+    """The default race (4 racing cars, 60 s, the slowest on pole): every faster car passes
+    every slower one once and is not passed back, so they finish in order of speed; no contact."""
+    out = tmp_path / map_name
+    argv = ["race", "--map", map_name, "--video-fps", "0", "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    rows = read_results(out)
+    speeds = [float(r["speed"]) for r in rows]
+    assert len(rows) == 4 and speeds == sorted(speeds, reverse=True)
+    assert [r["grid"] for r in rows] == ["4", "3", "2", "1"]  # the leader started last
+    assert [int(r["overtakes"]) for r in rows] == [3, 2, 1, 0]
+    assert [int(r["overtaken"]) for r in rows] == [0, 1, 2, 3]
+    assert all(r["car_contacts"] == r["wall_contacts"] == "0" for r in rows)
+
+
+@pytest.mark.slow
+def test_localized_racing_drivers_pass_on_their_estimates(tmp_path) -> None:
+    """With --localize the racing drivers steer on their filters' estimates: they still pass
+    without contact, and every filter tracks its car."""
+    out = tmp_path / "mcl_racing"
+    argv = ["race", "--cars", "3", "--localize", "--particles", "300", "--duration", "10",
+            "--video-fps", "0", "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(argv) == 0
+    rows = read_results(out)
+    assert sum(int(r["overtakes"]) for r in rows) > 0
+    assert all(r["car_contacts"] == r["wall_contacts"] == "0" for r in rows)
+    assert all(float(r["max_error"]) < 0.3 for r in rows)
 
 
 @pytest.mark.parametrize(
