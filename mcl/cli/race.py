@@ -4,7 +4,8 @@ optionally each with its own particle filter, driving on its estimate.
 Prints the results table and writes into ``--out``:
 
     results.csv   one row per car by finishing position: position, car, driver, speed, grid
-                  slot, laps, best lap, lap times, distance, wall and car contacts, MCL error
+                  slot, laps, best lap, lap times, distance, overtakes and times overtaken,
+                  wall and car contacts, MCL error
     results.md    the same as a Markdown table
     race.mp4      the race at --video-fps: every car in its colour with its number, (localized)
                   its estimate and particles, and a panel with the race clock, the laps, the
