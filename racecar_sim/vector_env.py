@@ -167,12 +167,10 @@ class RacecarVectorEnv(VectorEnv):
         self._cast_times: tuple[list[float], list[float]] = ([], [])
         self._casts = 0
         lidar = first.lidar
-        self._field = lidar._caster.field
-        self._geometry = lidar._geometry
-        self._cos_a, self._sin_a, self._noise = lidar._cos_a, lidar._sin_a, lidar._noise
+        self._field, self._geometry, self._cos_a, self._sin_a, self._noise = lidar.kernel_inputs
         odo = first.odometry
-        self._odo_prop, self._odo_add = odo._prop, odo._add
-        self._wheelbase = first._wheelbase
+        self._odo_prop, self._odo_add = odo.proportional, odo.additive
+        self._wheelbase = float(first.car_params.wheelbase)
         self._low = first.action_space.low.astype(np.float64)
         self._high = first.action_space.high.astype(np.float64)
         self._penalty = float(cfg.collision_penalty)
@@ -216,7 +214,7 @@ class RacecarVectorEnv(VectorEnv):
                 obs["odom"][i] = o["odom"]
                 self._add_info(infos, info, i)
             else:
-                obs["scan"][i] = env._scan
+                obs["scan"][i] = env.last_scan
                 obs["odom"][i] = self._last_odom[i]
         self._never_reset &= ~mask  # after every car's reset: a refused one leaves its car unset
         self._last_odom = obs["odom"].copy()
@@ -266,9 +264,10 @@ class RacecarVectorEnv(VectorEnv):
             env = envs[i]
             if i not in done_free:
                 poses[i] = env.physics.pose
-            scan_due = env._tick()  # the clock, as RacecarEnv._advance
-            times[i] = env.time
-            n_steps[i] = env._n_steps
+            clock = env.clock
+            scan_due = clock.tick()  # the car's clock, as in RacecarEnv.step
+            times[i] = clock.time
+            n_steps[i] = clock.steps
             if scan_due:
                 fresh[i] = True
                 due.append(i)
@@ -285,7 +284,7 @@ class RacecarVectorEnv(VectorEnv):
             wheels[i] = wheel_twist(p.wheel_speed, p.steer, wheelbase)
             env.np_random.standard_normal(out=z[i])  # the odometry's draws, after the scan's
             if not fresh[i]:
-                scans[i] = env._scan
+                scans[i] = env.last_scan
         odom = (wheels * (1.0 + self._odo_prop * z[:, :3]) + self._odo_add * z[:, 3:]).astype(
             np.float32
         )
@@ -363,7 +362,7 @@ class RacecarVectorEnv(VectorEnv):
         if status.any():  # pragma: no cover - physics poses are finite and on the map
             raise RuntimeError(f"lidar cast failed for cars {np.asarray(due)[status != 0]}")
         for j, i in enumerate(due):
-            self.envs[i]._store_scan(sub[j], out[j])
+            self.envs[i].keep_scan(sub[j], out[j])
         scans[due] = out
 
     def _choose_parallel(self) -> bool:

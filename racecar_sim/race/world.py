@@ -28,6 +28,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from racecar_sim.car.clock import CarClocks
 from racecar_sim.config import EnvConfig
 from racecar_sim.env import RacecarEnv
 from racecar_sim.free_batch import FreeStepBatch
@@ -37,7 +38,6 @@ from racecar_sim.race.contact import (
     bounding_radius,
     box_centres,
     near_pairs,
-    world_velocity,
 )
 from racecar_sim.race.lidar import car_boxes, race_scans_serial, race_scans_shared
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
@@ -49,7 +49,6 @@ __all__ = ["RaceWorld", "boxes_overlap"]
 
 _START_TRIES = 200  # random starts tried per car before giving up (no track)
 _CHUNK = 2  # cars per work item of a threaded cast
-_EPS_TIME = 1e-9  # seconds, as RacecarEnv's: the clock against the next scan's due time
 _ONE = np.uint64(1)
 
 
@@ -102,22 +101,21 @@ class RaceWorld:
         self.dt = first.dt
         self.car_params = first.car_params
         self.lidar_params = first.lidar_params
-        self._odo_prop, self._odo_add = first.odometry._prop, first.odometry._add
+        self._odo_prop, self._odo_add = first.odometry.proportional, first.odometry.additive
         self._physics = FreeStepBatch([c.physics for c in self.cars])
         self._phys = [c.physics for c in self.cars]
         self._pairs = np.triu_indices(n_cars, 1)
         self.contacts = CarContacts([c.physics for c in self.cars])
         lidar = first.lidar
-        self._field, self._geometry = lidar._caster.field, lidar._geometry
-        self._cos_a, self._sin_a, self._noise = lidar._cos_a, lidar._sin_a, lidar._noise
+        self._field, self._geometry, self._cos_a, self._sin_a, self._noise = lidar.kernel_inputs
         angles = lidar.angles
         self._angle0 = float(angles[0])
         self._step = float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
-        self._corners = first.physics._local_corners.copy()
+        self._corners = first.physics.local_corners
         self._centre = self._corners.mean(axis=0)  # car frame, the box's centre
         self.radius = bounding_radius(self._corners)
         """Metres from a car box's centre to its corners."""
-        self._speed_factor = float(first.physics._free_const[6])
+        self._speed_factor = first.physics.speed_bound
         self._workers = workers
         self._threaded = n_cars * self.lidar_params.n_beams >= PARALLEL_MIN_RAYS and workers > 1
         n, m = n_cars, self.lidar_params.n_beams
@@ -135,13 +133,12 @@ class RaceWorld:
         self.fresh = np.zeros(n, dtype=np.bool_)
         self.time = 0.0
         """Seconds since the reset: the clock of the car that has driven longest."""
-        self.car_time = np.zeros(n)
+        self.clocks = CarClocks(n, self.dt, first.lidar.period)
+        """Every car's clock and scan schedule ([`CarClocks`][racecar_sim.car.clock.CarClocks])."""
+        self.car_time = self.clocks.times
         """(N,) each car's clock, seconds (a car stops its clock when it leaves the race)."""
         self.scan_poses = np.zeros((n, 3))
         """(N, 3) the rear-axle world poses the last scans were taken at."""
-        self._n_steps = np.zeros(n, dtype=np.int64)
-        self._next_scan = np.zeros(n)  # seconds, when each car's next scan is due
-        self._period = first._period
         self._everyone = np.arange(n)
         self._z = np.zeros((n, 6))  # each car's odometry normals of the step, a row per car
         self._z_rows = list(self._z)
@@ -176,7 +173,7 @@ class RaceWorld:
         poses = np.zeros((self.n_cars, 3))
         for i, car in enumerate(self.cars):
             for _ in range(_START_TRIES):
-                pose = car._random_start()
+                pose = car.random_start()
                 box = car_boxes(pose[None], self._corners)[0]
                 if not any(boxes_overlap(box, b, gap) for b in self.boxes(poses[:i])):
                     poses[i] = pose
@@ -202,8 +199,7 @@ class RaceWorld:
         self._raw = [car.np_random.bit_generator.random_raw for car in self.cars]
         self._normal = [car.np_random.standard_normal for car in self.cars]
         self.time = 0.0
-        self.car_time[:] = 0.0
-        self._n_steps[:] = 0
+        self.clocks.reset()
         self.poses = np.array([car.physics.pose for car in self.cars])
         self.twists = np.array([car.physics.twist for car in self.cars])
         everyone = np.arange(self.n_cars)
@@ -226,7 +222,7 @@ class RaceWorld:
                 actions[i] = delay.push(float(actions[i, 0]), float(actions[i, 1]))
         poses = self.poses
         phys = self._phys
-        speed = np.array([p._speed for p in phys])
+        speed = np.array([p.speed for p in phys])
         travel = self.dt * np.maximum(np.abs(speed), np.abs(actions[:, 1])) * self._speed_factor
         travel[~active] = 0.0
         centres = box_centres(poses, self._centre)
@@ -235,7 +231,7 @@ class RaceWorld:
         if len(pairs):
             for i in np.unique(pairs).tolist():
                 if active[i]:
-                    vel[i] = world_velocity(phys[i])
+                    vel[i] = phys[i].world_velocity()
         self.contacts.clear()
         self.contacts.show(pairs, poses, vel)
         hits, free = self._physics.step(stepped, actions, self.dt)
@@ -250,11 +246,7 @@ class RaceWorld:
                 if i not in done_free:
                     new_poses[i] = phys[i].pose
         self.poses = new_poses
-        # Each car's clock, as the single env's (RacecarEnv._tick): steps x dt, a scan when due.
-        self._n_steps[stepped_arr] += 1
-        times = self._n_steps[stepped_arr] * self.dt
-        self.car_time[stepped_arr] = times
-        due = stepped_arr[times + _EPS_TIME >= self._next_scan[stepped_arr]]
+        due = self.clocks.tick(stepped_arr)
         self.time = float(self.car_time.max())
         self.twists[stepped_arr] = self._physics.twists[stepped_arr]
         self.fresh[:] = False
@@ -295,13 +287,11 @@ class RaceWorld:
             self.ranges[due] = ranges
             self.scans[due] = out
         self.scan_poses[due] = self.poses[due]
-        # The next scan one lidar period after the last one due (RacecarEnv._store_scan).
-        done = np.floor((self.car_time[due] + _EPS_TIME) / self._period) + 1.0
-        self._next_scan[due] = done * self._period
+        self.clocks.scanned(due)
 
     def _measure_odometry(self, cars: np.ndarray) -> None:
         """The odometry (and IMU) of ``cars`` after their scans, as the single env measures it
-        (:meth:`RacecarEnv._observation`), drawn from each car's generator in its order: with an
+        (:meth:`RacecarEnv.observation`), drawn from each car's generator in its order: with an
         IMU, an odometry bias or lead, the single env's own call per car; else the VESC's twist
         from the wheels and the noise on arrays (the same draws and double operations)."""
         if len(cars) == 0:
@@ -309,7 +299,7 @@ class RaceWorld:
         first = self.cars[0]
         if first.imu is not None or first.odom_bias is not None or first.command_delay.n:
             for i in cars.tolist():
-                obs = self.cars[i]._observation(self.twists[i])
+                obs = self.cars[i].observation(self.twists[i])
                 self.odom[i] = obs["odom"]
                 if "imu" in obs:
                     self.imu[i] = obs["imu"]
@@ -319,9 +309,9 @@ class RaceWorld:
         for i in cl:
             normal[i](out=rows[i])
         phys = self._phys
-        steer = np.array([phys[i]._steer for i in cl])
-        speed = np.array([phys[i]._speed for i in cl])  # the wheel speed
+        steer = np.array([phys[i].steer for i in cl])
+        speed = np.array([phys[i].wheel_speed for i in cl])
         out = np.empty((len(cl), 3), dtype=np.float32)
-        vesc_odometry(steer, speed, first._wheelbase, self._z[cars], self._odo_prop,
+        vesc_odometry(steer, speed, first.car_params.wheelbase, self._z[cars], self._odo_prop,
                       self._odo_add, out)  # fmt: skip
         self.odom[cars] = out
