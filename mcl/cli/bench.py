@@ -26,6 +26,7 @@ BENCHMARKS: dict[str, str] = {
     "live": "a localized drive with and without the Foxglove live view (steps/s)",
     "dynamics": "the single-track car vs f1tenth_gym (skidpad, open loop) and its speed cost",
     "race_matrix": "scripted races on the loop maps: contacts, passes, laps per car by speed",
+    "memory": "resident memory per car of the vector env, reset without poses (1, 32, 128 cars)",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 
