@@ -11,7 +11,7 @@ from collections.abc import Iterator, Sequence
 from types import ModuleType
 from typing import Any, NoReturn
 
-from mcl.cli.common import HelpFormatter, accept_negative_numbers
+from mcl.cli.common import HelpFormatter, NegativeValuesParser
 
 BENCHMARKS: dict[str, str] = {
     "raycast": "ray casting rates and errors per method",
@@ -31,7 +31,7 @@ BENCHMARKS: dict[str, str] = {
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 
 
-class _CommandParser(argparse.ArgumentParser):
+class _CommandParser(NegativeValuesParser):
     """A benchmark's parser as ``racecar-sim bench NAME``: help with defaults, one-line errors."""
 
     command = "racecar-sim bench"
@@ -40,7 +40,6 @@ class _CommandParser(argparse.ArgumentParser):
         kwargs["prog"] = self.command
         kwargs["formatter_class"] = HelpFormatter
         super().__init__(*args, **kwargs)
-        accept_negative_numbers(self)
 
     def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
         default = kwargs.get("default")
