@@ -259,7 +259,7 @@ class RacecarPhysics:
     @property
     def free_constants(self) -> np.ndarray:
         """The free steps' constants, float64 laid out as
-        :data:`~racecar_sim.free_steps.CONSTANT_FIELDS` (read-only: shared with the kernel)."""
+        `racecar_sim.free_steps.CONSTANT_FIELDS` (read-only: shared with the kernel)."""
         return self._free_const
 
     @property
@@ -298,15 +298,14 @@ class RacecarPhysics:
         centre = self.footprint((x, y, theta)).mean(axis=0)
         if not bool(self.map.is_free(centre)):
             return False
-        # The walls there, added for the query only (the car's own walls stay as they are).
-        extra = self._walls.add_missing(x, y, self._extent)
         self._query_body.position = (x, y)
         self._query_body.angle = theta
         self._query_shape.cache_bb()
-        try:
-            return not self.space.shape_query(self._query_shape)
-        finally:
-            self._walls.remove(extra)
+        # The car's space: the walls near the car, obstacles, other cars' boxes; then the walls
+        # there, in the map's shared query space (none are added to the car's own).
+        if self.space.shape_query(self._query_shape):
+            return False
+        return not self._walls.tiles.overlaps(self._query_shape, x, y, self._extent)
 
     @staticmethod
     def _check_pose(pose, name: str) -> tuple[float, float, float]:
@@ -475,9 +474,9 @@ class RacecarPhysics:
 
     # ------------------------------------------------------------------ free steps
     def share_state(self, state: np.ndarray, twist: np.ndarray) -> None:
-        """Keep the free-step state (:data:`~racecar_sim.free_steps.STATE_FIELDS`) and the twist
+        """Keep the free-step state (`racecar_sim.free_steps.STATE_FIELDS`) and the twist
         in the given float64 arrays from now on (their values copied in): rows of the arrays a
-        batch of cars steps in one kernel call (:class:`~racecar_sim.free_batch.FreeStepBatch`).
+        batch of cars steps in one kernel call (`racecar_sim.free_batch.FreeStepBatch`).
         This class only ever updates them in place."""
         state[:] = self._free
         twist[:] = self._twist
@@ -487,7 +486,7 @@ class RacecarPhysics:
     def may_step_freely(self) -> bool:
         """Whether the next step may be taken without pymunk (free steps on, no contact cached);
         if so, the free-step state is brought up to date for the kernel. Whether a wall is within
-        reach the kernel decides (:func:`~racecar_sim.free_steps.free_step`)."""
+        reach the kernel decides (`racecar_sim.free_steps.free_step`)."""
         if not (self.free_steps and self._quiet >= self._quiet_needed):
             return False
         if not self._free_valid:
