@@ -35,8 +35,8 @@ def _free_steps(distance, const, states, cars, targets, n_sub, h, dt, twists, ok
 class FreeStepBatch:
     """The free steps of the cars ``physics`` (one map, one car model), stepped together.
 
-    Each car keeps its free-step state and twist in rows of :attr:`states` and :attr:`twists`
-    (:meth:`RacecarPhysics.share_state`).
+    Each car keeps its free-step state and twist in rows of ``states`` and ``twists``
+    (``RacecarPhysics.share_state``).
     """
 
     def __init__(self, physics: list[RacecarPhysics]) -> None:

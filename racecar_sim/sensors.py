@@ -54,13 +54,13 @@ def check_pose(pose: np.ndarray, name: str = "pose") -> np.ndarray:
 
 class ScanKernelInputs(NamedTuple):
     """What the scan kernels that cast many cars' scans in one call
-    (:mod:`racecar_sim.raycast.scan`, :mod:`racecar_sim.race.lidar`) take for one lidar model:
-    the same arrays :meth:`Lidar.measure` casts with. Read-only: shared, not copied."""
+    (`racecar_sim.raycast.scan`, `racecar_sim.race.lidar`) take for one lidar model:
+    the same arrays [`Lidar.measure`][racecar_sim.sensors.Lidar.measure] casts with. Read-only: shared, not copied."""
 
     field: np.ndarray
-    """The exact caster's grid of the map (:attr:`racecar_sim.raycast.RayCaster.field`)."""
+    """The exact caster's grid of the map ([`RayCaster.field`][racecar_sim.raycast.caster.RayCaster.field])."""
     geometry: np.ndarray
-    """The map's frame and the mount offset (:func:`racecar_sim.raycast.scan.scan_geometry`)."""
+    """The map's frame and the mount offset (`racecar_sim.raycast.scan.scan_geometry`)."""
     cos_a: np.ndarray
     """(n_beams,) cosines of the beam angles in the car frame."""
     sin_a: np.ndarray

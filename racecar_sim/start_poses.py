@@ -52,12 +52,12 @@ _shared_lock = threading.Lock()
 def shared_start_cells(
     occupancy_map: OccupancyMap, car: CarParams, clearance: float
 ) -> np.ndarray:
-    """:func:`start_cells`, built once per map object, car size and clearance and shared (a
+    """`start_cells`, built once per map object, car size and clearance and shared (a
     read-only array) by every car that asks while the map lives: on the Stata basement the table
     is about 2.7 MB, which each car of a vector env or a race would otherwise hold.
 
     Raises:
-        MapError: as :func:`start_cells`.
+        MapError: as `start_cells`.
     """
     key = (id(occupancy_map), float(car.length), float(car.width), float(clearance))
     with _shared_lock:

@@ -58,7 +58,7 @@ def measure(map_path: str, n_cars: int, seed: int = 0) -> dict[str, float]:
 
 
 def _child(map_path: str, n_cars: int) -> dict[str, float]:
-    """:func:`measure` in a fresh Python process (nothing left from an earlier count)."""
+    """`measure` in a fresh Python process (nothing left from an earlier count)."""
     code = (
         "import json, sys; from mcl.bench.memory import measure; "
         "print(json.dumps(measure(sys.argv[1], int(sys.argv[2]))))"

@@ -93,7 +93,7 @@ class NegativeValuesParser(argparse.ArgumentParser):
 
     argparse takes a word starting with ``-`` for an option unless it is ``-3`` or ``-0.5`` alone,
     so a pose with a negative x after its flag was an unknown option (``expected one argument``).
-    Here a word matching :data:`NEGATIVE_NUMBERS` right after a flag that takes one value is joined
+    Here a word matching `NEGATIVE_NUMBERS` right after a flag that takes one value is joined
     to it with ``=`` before argparse sees the words; nothing else changes.
     """
 

@@ -3,9 +3,10 @@ and when its next scan is due.
 
 A car's time is ``steps * dt`` seconds since its reset (not a running sum, so no rounding drifts
 in). A scan is taken at reset and at the end of the first step whose end time reaches the next
-scan's due time, give or take :data:`EPS_TIME`; after a scan at time ``t`` the next one is due at
-the first multiple of the lidar period after ``t``. :class:`CarClock` keeps this for one car in
-plain floats (the single env, and each car of the vector env); :class:`CarClocks` for N cars on
+scan's due time, give or take [`EPS_TIME`][racecar_sim.car.clock.EPS_TIME]; after a scan at time ``t`` the next one is due at
+the first multiple of the lidar period after ``t``. [`CarClock`][racecar_sim.car.clock.CarClock] keeps this for one car in
+plain floats (the single env, and each car of the vector env);
+[`CarClocks`][racecar_sim.car.clock.CarClocks] for N cars on
 arrays (the race), with the same doubles (tested).
 """
 
@@ -58,7 +59,7 @@ class CarClock:
 
 class CarClocks:
     """N cars' clocks and scan schedules on arrays (see the module doc): the same numbers as N
-    :class:`CarClock`.
+    [`CarClock`][racecar_sim.car.clock.CarClock].
 
     Args:
         n: number of cars.
