@@ -39,7 +39,7 @@ from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil, scans_shared
 from racecar_sim.raycast.shared_work import run_shared
 from racecar_sim.validation import check_action, check_options, short
-from racecar_sim.vesc import wheel_twist
+from racecar_sim.vesc import vesc_odometry
 
 __all__ = ["PROBE_EVERY", "RacecarVectorEnv", "car_seeds"]
 
@@ -275,19 +275,21 @@ class RacecarVectorEnv(VectorEnv):
         self._cast(due, poses, scans)
 
         twist = self._physics.twists.copy()  # the cars' own twist arrays (resets: below)
-        z = np.zeros((n, 6))
-        wheels = np.zeros((n, 3))  # the VESC's twist per car, as RacecarEnv._measure_odometry
-        wheelbase = self._wheelbase
-        for i in stepped:
+        k = len(stepped)
+        z = np.zeros((k, 6))
+        steer, wheel_speed = np.zeros(k), np.zeros(k)
+        for j, i in enumerate(stepped):
             env = envs[i]
             p = env.physics
-            wheels[i] = wheel_twist(p.wheel_speed, p.steer, wheelbase)
-            env.np_random.standard_normal(out=z[i])  # the odometry's draws, after the scan's
+            steer[j], wheel_speed[j] = p.steer, p.wheel_speed
+            env.np_random.standard_normal(out=z[j])  # the odometry's draws, after the scan's
             if not fresh[i]:
                 scans[i] = env.last_scan
-        odom = (wheels * (1.0 + self._odo_prop * z[:, :3]) + self._odo_add * z[:, 3:]).astype(
-            np.float32
-        )
+        # The VESC's noisy twist of every stepped car, as the race's (the single env's doubles).
+        out = np.empty((k, 3), dtype=np.float32)
+        vesc_odometry(steer, wheel_speed, self._wheelbase, z, self._odo_prop, self._odo_add, out)
+        odom = np.zeros((n, 3), dtype=np.float32)
+        odom[stepped] = out
         progress = twist[:, 0] * self.dt
         penalty = np.where(collided, -self._penalty, 0.0)
         rewards = progress + penalty
