@@ -373,8 +373,8 @@ class RacecarEnv(gym.Env):
     def observation(self, twist: np.ndarray) -> dict[str, np.ndarray]:
         """The observation of the car now: the last scan, then the odometry and (if on) the IMU's
         yaw rate from the true car-frame ``twist`` (m/s, m/s, rad/s), their noise drawn from
-        ``np_random`` in this order (as [`step`][racecar_sim.env.RacecarEnv.step] returns it; for cars stepped by the vector
-        env or the race)."""
+        ``np_random`` in this order, as [`step`][racecar_sim.env.RacecarEnv.step] returns it
+        (for cars that the race steps)."""
         obs = {"scan": self._scan.copy(), "odom": self._measure_odometry()}
         imu = self.imu
         if imu is not None:

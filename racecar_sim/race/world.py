@@ -10,8 +10,8 @@ due scan is cast in one numba call that cuts the beams at the other cars' boxes
 its odometry's six normals, as the single env's does, so a world of one car gives what
 ``RacecarSim-v0`` gives for the same seed, start and actions.
 
-Per step, the work for all cars is done on arrays, not car by car: the cars' clocks (each the
-single env's ``steps x dt``, its scan due one lidar period after the last), their last scans and
+Per step, the work for all cars is done on arrays, not car by car: the cars' clocks (the car's
+clock, ``racecar_sim.car.clock.CarClocks``: the single env's rules on arrays), their last scans and
 the poses those were taken at, and their odometry (:func:`~racecar_sim.vesc.vesc_odometry`, the
 single env's arithmetic) live here; a car's own ``RacecarEnv`` keeps its physics, its lidar
 settings and its generator. What stays per car in Python is what is per car by nature: one raw
