@@ -30,16 +30,14 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from racecar_sim.car.fleet import CarFleet
 from racecar_sim.config import EnvConfig, merge_settings
 from racecar_sim.env import RacecarEnv
-from racecar_sim.free_batch import FreeStepBatch
 from racecar_sim.maps import OccupancyMap, resolve_map
-from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil, scans_shared
 from racecar_sim.raycast.shared_work import run_shared
 from racecar_sim.validation import check_action, check_options, short
-from racecar_sim.vesc import vesc_odometry
 
 __all__ = ["PROBE_EVERY", "RacecarVectorEnv", "car_seeds"]
 
@@ -168,9 +166,6 @@ class RacecarVectorEnv(VectorEnv):
         self._casts = 0
         lidar = first.lidar
         self._field, self._geometry, self._cos_a, self._sin_a, self._noise = lidar.kernel_inputs
-        odo = first.odometry
-        self._odo_prop, self._odo_add = odo.proportional, odo.additive
-        self._wheelbase = float(first.car_params.wheelbase)
         self._low = first.action_space.low.astype(np.float64)
         self._high = first.action_space.high.astype(np.float64)
         self._penalty = float(cfg.collision_penalty)
@@ -179,7 +174,8 @@ class RacecarVectorEnv(VectorEnv):
         self._never_reset = np.ones(num_envs, dtype=np.bool_)  # cars with no state yet
         self._last_odom = np.zeros((num_envs, 3), dtype=np.float32)
         self._workers = max(1, int(workers if workers is not None else (os.cpu_count() or 1)))
-        self._physics = FreeStepBatch([env.physics for env in self.envs])
+        self.fleet = CarFleet(self.envs)
+        """The cars' physics, scan seeds and odometry on arrays ([`CarFleet`][racecar_sim.car.fleet.CarFleet])."""
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -252,19 +248,12 @@ class RacecarVectorEnv(VectorEnv):
             else:
                 stepped.append(i)
         # Physics: the cars far from walls in one kernel call, the others through pymunk.
-        hits, free = self._physics.step(stepped, acts, self.dt)
         collided = np.zeros(n, dtype=np.bool_)
-        collided[stepped] = hits
-        if free:
-            poses[free] = self._physics.poses(free)
-        done_free = set(free)
+        collided[stepped] = self.fleet.step(stepped, acts, self.dt, poses)
         times = np.zeros(n)
         n_steps = np.zeros(n, dtype=np.int64)
         for i in stepped:
-            env = envs[i]
-            if i not in done_free:
-                poses[i] = env.physics.pose
-            clock = env.clock
+            clock = envs[i].clock
             scan_due = clock.tick()  # the car's clock, as in RacecarEnv.step
             times[i] = clock.time
             n_steps[i] = clock.steps
@@ -274,22 +263,12 @@ class RacecarVectorEnv(VectorEnv):
         scans = np.empty((n, self._n_beams), dtype=np.float32)
         self._cast(due, poses, scans)
 
-        twist = self._physics.twists.copy()  # the cars' own twist arrays (resets: below)
-        k = len(stepped)
-        z = np.zeros((k, 6))
-        steer, wheel_speed = np.zeros(k), np.zeros(k)
-        for j, i in enumerate(stepped):
-            env = envs[i]
-            p = env.physics
-            steer[j], wheel_speed[j] = p.steer, p.wheel_speed
-            env.np_random.standard_normal(out=z[j])  # the odometry's draws, after the scan's
+        twist = self.fleet.twists.copy()  # the cars' own twist arrays (resets: below)
+        for i in stepped:
             if not fresh[i]:
-                scans[i] = env.last_scan
-        # The VESC's noisy twist of every stepped car, as the race's (the single env's doubles).
-        out = np.empty((k, 3), dtype=np.float32)
-        vesc_odometry(steer, wheel_speed, self._wheelbase, z, self._odo_prop, self._odo_add, out)
+                scans[i] = envs[i].last_scan
         odom = np.zeros((n, 3), dtype=np.float32)
-        odom[stepped] = out
+        odom[stepped] = self.fleet.odometry(stepped)  # the odometry's draws, after the scan's
         progress = twist[:, 0] * self.dt
         penalty = np.where(collided, -self._penalty, 0.0)
         rewards = progress + penalty
@@ -341,7 +320,7 @@ class RacecarVectorEnv(VectorEnv):
         if not due:
             return
         k, m = len(due), self._n_beams
-        seeds = np.array([seed_from(self.envs[i].np_random) for i in due], dtype=np.int64)
+        seeds = self.fleet.scan_seeds(due)
         sub = poses[due]
         out = np.empty((k, m), dtype=np.float32)
         ranges = np.empty((k, m))

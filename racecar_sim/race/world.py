@@ -12,11 +12,11 @@ its odometry's six normals, as the single env's does, so a world of one car give
 
 Per step, the work for all cars is done on arrays, not car by car: the cars' clocks (the car's
 clock, ``racecar_sim.car.clock.CarClocks``: the single env's rules on arrays), their last scans and
-the poses those were taken at, and their odometry (:func:`~racecar_sim.vesc.vesc_odometry`, the
-single env's arithmetic) live here; a car's own ``RacecarEnv`` keeps its physics, its lidar
-settings and its generator. What stays per car in Python is what is per car by nature: one raw
-draw and one draw of six normals from each car's generator, and the pymunk step of a car near a
-wall or another car.
+the poses those were taken at live here; their physics step, scan seeds and odometry are the
+vector env's too (``racecar_sim.car.fleet.CarFleet``); a car's own ``RacecarEnv`` keeps its
+physics, its lidar settings and its generator. What stays per car in Python is what is per car by
+nature: one raw draw and one draw of six normals from each car's generator, and the pymunk step
+of a car near a wall or another car.
 
 Frames: world (the map's), car (x forward, y left, origin at the rear axle).
 """
@@ -29,9 +29,9 @@ import gymnasium as gym
 import numpy as np
 
 from racecar_sim.car.clock import CarClocks
+from racecar_sim.car.fleet import CarFleet
 from racecar_sim.config import EnvConfig
 from racecar_sim.env import RacecarEnv
-from racecar_sim.free_batch import FreeStepBatch
 from racecar_sim.race.contact import (
     WALL,
     CarContacts,
@@ -43,13 +43,11 @@ from racecar_sim.race.lidar import car_boxes, race_scans_serial, race_scans_shar
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.shared_work import run_shared
 from racecar_sim.validation import check_poses
-from racecar_sim.vesc import vesc_odometry
 
 __all__ = ["RaceWorld", "boxes_overlap"]
 
 _START_TRIES = 200  # random starts tried per car before giving up (no track)
 _CHUNK = 2  # cars per work item of a threaded cast
-_ONE = np.uint64(1)
 
 
 def boxes_overlap(a: np.ndarray, b: np.ndarray, gap: float = 0.0) -> bool:
@@ -101,9 +99,9 @@ class RaceWorld:
         self.dt = first.dt
         self.car_params = first.car_params
         self.lidar_params = first.lidar_params
-        self._odo_prop, self._odo_add = first.odometry.proportional, first.odometry.additive
-        self._physics = FreeStepBatch([c.physics for c in self.cars])
-        self._phys = [c.physics for c in self.cars]
+        self.fleet = CarFleet(self.cars)
+        """The cars' physics, scan seeds and odometry on arrays ([`CarFleet`][racecar_sim.car.fleet.CarFleet])."""
+        self._phys = self.fleet.physics
         self._pairs = np.triu_indices(n_cars, 1)
         self.contacts = CarContacts([c.physics for c in self.cars])
         lidar = first.lidar
@@ -140,10 +138,6 @@ class RaceWorld:
         self.scan_poses = np.zeros((n, 3))
         """(N, 3) the rear-axle world poses the last scans were taken at."""
         self._everyone = np.arange(n)
-        self._z = np.zeros((n, 6))  # each car's odometry normals of the step, a row per car
-        self._z_rows = list(self._z)
-        self._raw: list = []  # per car, its generator's raw draw (bound at reset)
-        self._normal: list = []  # per car, its generator's standard_normal (bound at reset)
 
     # ------------------------------------------------------------------ geometry
     def boxes(self, poses: np.ndarray | None = None) -> np.ndarray:
@@ -196,8 +190,6 @@ class RaceWorld:
         for i, car in enumerate(self.cars):
             car.physics.reset(arr[i])
             car.command_delay.reset(car.physics.steer, car.physics.wheel_speed)
-        self._raw = [car.np_random.bit_generator.random_raw for car in self.cars]
-        self._normal = [car.np_random.standard_normal for car in self.cars]
         self.time = 0.0
         self.clocks.reset()
         self.poses = np.array([car.physics.pose for car in self.cars])
@@ -234,21 +226,13 @@ class RaceWorld:
                     vel[i] = phys[i].world_velocity()
         self.contacts.clear()
         self.contacts.show(pairs, poses, vel)
-        hits, free = self._physics.step(stepped, actions, self.dt)
-        collided = np.zeros(n, dtype=np.bool_)
-        collided[stepped_arr] = hits
         new_poses = poses.copy()
-        if free:
-            new_poses[free] = self._physics.poses(free)
-        if len(free) < len(stepped):  # stepped through pymunk: the body's pose
-            done_free = set(free)
-            for i in stepped:
-                if i not in done_free:
-                    new_poses[i] = phys[i].pose
+        collided = np.zeros(n, dtype=np.bool_)
+        collided[stepped_arr] = self.fleet.step(stepped, actions, self.dt, new_poses)
         self.poses = new_poses
         due = self.clocks.tick(stepped_arr)
         self.time = float(self.car_time.max())
-        self.twists[stepped_arr] = self._physics.twists[stepped_arr]
+        self.twists[stepped_arr] = self.fleet.twists[stepped_arr]
         self.fresh[:] = False
         self.fresh[due] = True
         self._cast(due)
@@ -267,10 +251,7 @@ class RaceWorld:
         if k == 0:
             return
         m = self.lidar_params.n_beams
-        raw = self._raw
-        seeds = (np.array([raw[i]() for i in due.tolist()], dtype=np.uint64) >> _ONE).astype(
-            np.int64
-        )  # seed_from(car.np_random) of each car: one raw draw, its top 63 bits
+        seeds = self.fleet.scan_seeds(due.tolist())
         everyone = k == self.n_cars  # due ascending: every car, in order
         ranges = self.ranges if everyone else np.empty((k, m))  # the kernel writes in place
         out = self.scans if everyone else np.empty((k, m), dtype=np.float32)
@@ -304,14 +285,4 @@ class RaceWorld:
                 if "imu" in obs:
                     self.imu[i] = obs["imu"]
             return
-        normal, rows = self._normal, self._z_rows
-        cl = cars.tolist()
-        for i in cl:
-            normal[i](out=rows[i])
-        phys = self._phys
-        steer = np.array([phys[i].steer for i in cl])
-        speed = np.array([phys[i].wheel_speed for i in cl])
-        out = np.empty((len(cl), 3), dtype=np.float32)
-        vesc_odometry(steer, speed, first.car_params.wheelbase, self._z[cars], self._odo_prop,
-                      self._odo_add, out)  # fmt: skip
-        self.odom[cars] = out
+        self.odom[cars] = self.fleet.odometry(cars.tolist())
