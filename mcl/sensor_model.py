@@ -180,8 +180,9 @@ class SensorModel:
         self.last_beam_skip = BeamSkip()
 
     # ------------------------------------------------------------------ stages
-    def _subsample(self, n_ranges: int) -> tuple[np.ndarray, np.ndarray]:
-        """(indexes (K,), car-frame angles (K,)) of the beams used from a scan of n_ranges."""
+    def beams_used(self, n_ranges: int) -> tuple[np.ndarray, np.ndarray]:
+        """The beams of a scan of ``n_ranges`` that the model scores: (indexes (K,), their car-frame
+        angles (K,), radians), ``num_beams_per_particle`` of them spread evenly (read-only)."""
         cached = self._subsample_cache.get(n_ranges)
         if cached is not None:
             return cached
@@ -221,7 +222,7 @@ class SensorModel:
                 or a range is negative.
         """
         scan = self._validated(scan)
-        idx, angles = self._subsample(scan.size)
+        idx, angles = self.beams_used(scan.size)
         ranges = scan[idx]
         keep = np.isfinite(ranges)
         if not keep.all():
@@ -350,7 +351,7 @@ class SensorModel:
     def _log_evaluate_field(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
         """The likelihood-field model's log-likelihoods (see :mod:`mcl.likelihood_field`)."""
         scan = self._validated(scan)
-        idx, all_angles = self._subsample(scan.size)
+        idx, all_angles = self.beams_used(scan.size)
         ranges = scan[idx]
         keep = np.isfinite(ranges) & (ranges < self.max_range)
         lidar = self.lidar_poses(particles)

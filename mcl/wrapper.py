@@ -184,7 +184,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.log: ErrorLogWriter | None = ErrorLogWriter(log_path) if log_path is not None else None
         self._step = 0
         self.last_localization: dict[str, Any] | None = None
-        self.live, self._live = _live_recorder(self, live)
+        self.live, self._live, self._owns_live = _live_recorder(self, live)
         """The Foxglove live server, or None (see ``live``)."""
 
     # ------------------------------------------------------------------ gymnasium API
@@ -298,13 +298,12 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
 def _live_recorder(
     wrapper: LocalizationWrapper, live: str | int | LiveServer | None
-) -> tuple[LiveServer | None, DriveRecorder | None]:
-    """The live server and the recorder that streams to it (None, None without ``live``)."""
-    wrapper._owns_live = False
+) -> tuple[LiveServer | None, DriveRecorder | None, bool]:
+    """The live server, the recorder that streams to it and whether the wrapper started the server
+    (None, None, False without ``live``)."""
     if live is None:
-        return None, None
+        return None, None, False
     from mcl.io.bag_writer import DriveRecorder, start_live
 
     server = live if hasattr(live, "publish") else start_live(live)
-    wrapper._owns_live = server is not live
-    return server, DriveRecorder(None, wrapper, live=server)
+    return server, DriveRecorder(None, wrapper, live=server), server is not live

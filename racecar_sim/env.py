@@ -14,6 +14,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 
+from racecar_sim.car.clock import CarClock
 from racecar_sim.compile_log import install as log_first_compile
 from racecar_sim.config import (
     CarParams,
@@ -28,7 +29,7 @@ from racecar_sim.obstacles import Obstacles
 from racecar_sim.physics import RacecarPhysics
 from racecar_sim.render import MapRenderer
 from racecar_sim.sensors import Lidar, Odometry
-from racecar_sim.start_poses import random_start, start_cells
+from racecar_sim.start_poses import random_start, shared_start_cells
 from racecar_sim.validation import check_action, check_options, check_poses, check_seed, short
 from racecar_sim.vesc import CommandDelay, lead_steps, wheel_twist
 
@@ -36,7 +37,6 @@ log_first_compile()  # the first compile of a kernel of ours is logged (racecar_
 
 __all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
 
-_EPS_TIME = 1e-9  # seconds; tolerance when comparing the clock with the next scan's due time
 _OBSTACLE_REACH = 2.5  # metres: obstacles this close to the rear axle make physics use pymunk
 
 RenderHook = Callable[[np.ndarray, MapRenderer], None]
@@ -185,7 +185,8 @@ class RacecarEnv(gym.Env):
         self._steer_hi, self._speed_hi = float(high[0]), float(high[1])
         self._penalty = float(cfg.collision_penalty)
         self._terminate = cfg.terminate_on_collision
-        self._period = self.lidar.period
+        self.clock = CarClock(self.dt, self.lidar.period)
+        """The car's clock and scan schedule ([`CarClock`][racecar_sim.car.clock.CarClock])."""
 
         # On a track (the ``track`` setting): progress, laps, lap times and rank in the info.
         self.track = None
@@ -199,17 +200,24 @@ class RacecarEnv(gym.Env):
             auto = functools.partial(drive_centerline, env_class=RacecarEnv)
             self.track = resolve_track(cfg.track, self.map, auto=auto)
             self._laps = LapCounter(self.track, 1)
-        self._start_centres: np.ndarray | None = None  # flat cell indices (K,) for random starts
+        self._start_cells: np.ndarray | None = None  # flat cell indices (K,), shared per map
         self._render_hooks: list[RenderHook] = []
         self._renderer: MapRenderer | None = None
-        self._n_steps = 0
         self._needs_reset = True  # until the first reset
-        self._next_scan = 0.0
-        self.time = 0.0
         self._scan = np.zeros(self.lidar_params.n_beams, dtype=np.float32)
         self._scan_car_pose = (0.0, 0.0, 0.0)  # rear-axle pose of the last scan (render draws it)
 
     # ------------------------------------------------------------------ state
+    @property
+    def time(self) -> float:
+        """Seconds since the reset (the car's clock: steps x dt)."""
+        return self.clock.time
+
+    @property
+    def last_scan(self) -> np.ndarray:
+        """(n_beams,) float32 the last scan, metres (the array the car keeps: do not write it)."""
+        return self._scan
+
     @property
     def pose(self) -> np.ndarray:
         """True rear-axle world pose [x, y, theta] (metres, radians in [-pi, pi))."""
@@ -241,7 +249,7 @@ class RacecarEnv(gym.Env):
         if unknown:
             raise ValueError(f"unknown reset option(s) {short(unknown, 200)}; known: ['pose']")
         if options.get("pose") is None:
-            self.physics.reset(self._random_start())
+            self.physics.reset(self.random_start())
         else:
             pose = check_poses("RacecarEnv.reset options['pose']", options["pose"])
             try:
@@ -252,14 +260,13 @@ class RacecarEnv(gym.Env):
             # Their own stream from the env's: the same seed places the same obstacles.
             obstacle_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
             self.obstacles.spawn(obstacle_rng, self.physics.pose)
-        self._n_steps = 0
+        self.clock.reset()
         self._needs_reset = False
-        self.time = 0.0
         pose = self.physics.pose
         self._take_scan(pose)
         self.command_delay.reset(self.physics.steer, self.physics.wheel_speed)
         twist = self.physics.twist
-        obs = self._observation(twist)
+        obs = self.observation(twist)
         if self._laps is not None:
             self._laps.reset(pose[None, :2])
         info = self._info(pose, twist, False, True, 0.0, 0.0)
@@ -295,7 +302,7 @@ class RacecarEnv(gym.Env):
         twist = self.physics.twist
         progress = float(twist[0]) * self.dt
         penalty = -self._penalty if collided else 0.0
-        obs = self._observation(twist)
+        obs = self.observation(twist)
         if self._laps is not None:
             self._laps.update(pose[None, :2], self.time, self.dt)
         info = self._info(pose, twist, collided, fresh, progress, penalty)
@@ -361,17 +368,13 @@ class RacecarEnv(gym.Env):
             # pymunk must see obstacles near the car (free steps only know the map's walls)
             physics.free_steps = not self.obstacles.near(physics.pose, _OBSTACLE_REACH)
         collided = physics.step((steer, speed), self.dt)
-        return collided, self._tick()
+        return collided, self.clock.tick()
 
-    def _tick(self) -> bool:
-        """Advance the clock by one step (``time``, seconds); returns whether a scan is due."""
-        self._n_steps += 1
-        self.time = self._n_steps * self.dt
-        return self.time + _EPS_TIME >= self._next_scan
-
-    def _observation(self, twist: np.ndarray) -> dict[str, np.ndarray]:
-        """The step's observation: the last scan, the odometry, then (if on) the IMU's yaw rate
-        from the true ``twist``; in this order of draws from ``np_random``."""
+    def observation(self, twist: np.ndarray) -> dict[str, np.ndarray]:
+        """The observation of the car now: the last scan, then the odometry and (if on) the IMU's
+        yaw rate from the true car-frame ``twist`` (m/s, m/s, rad/s), their noise drawn from
+        ``np_random`` in this order, as [`step`][racecar_sim.env.RacecarEnv.step] returns it
+        (for cars that the race steps)."""
         obs = {"scan": self._scan.copy(), "odom": self._measure_odometry()}
         imu = self.imu
         if imu is not None:
@@ -392,7 +395,7 @@ class RacecarEnv(gym.Env):
     def _take_scan(self, pose: np.ndarray) -> None:
         """Scan from the car's current rear-axle ``pose`` and schedule the next scan one lidar
         period later."""
-        self._store_scan(pose, self._measure_scan(pose))
+        self.keep_scan(pose, self._measure_scan(pose))
 
     def _measure_scan(self, pose: np.ndarray) -> np.ndarray:
         """A scan from rear-axle ``pose``: the map's ranges, cut by obstacles, then the noise
@@ -408,12 +411,13 @@ class RacecarEnv(gym.Env):
             return self.lidar.add_noise(ranges, self.np_random)
         return self.scan_effects.apply(ranges, max_range, self.np_random)
 
-    def _store_scan(self, pose: np.ndarray, scan: np.ndarray) -> None:
-        """Keep ``scan`` (taken at rear-axle ``pose``) and schedule the next one."""
+    def keep_scan(self, pose: np.ndarray, scan: np.ndarray) -> None:
+        """Keep ``scan`` (float32 (n_beams,), metres, taken now at rear-axle world ``pose``) as the
+        car's last scan and schedule the next one: for scans cast outside the env (the vector
+        env casts every car's in one call)."""
         self._scan = scan
         self._scan_car_pose = tuple(pose.tolist())  # for render; info["pose"] is the array
-        n_done = math.floor((self.time + _EPS_TIME) / self._period) + 1
-        self._next_scan = n_done * self._period
+        self.clock.scanned()
 
     def _info(
         self,
@@ -436,8 +440,12 @@ class RacecarEnv(gym.Env):
             info.update(self._laps.info(np.ones(1, dtype=np.int64), 0))
         return info
 
-    def _random_start(self) -> np.ndarray:
-        """A collision-free rear-axle pose with ``start_clearance`` of room, from ``np_random``."""
-        if self._start_centres is None:
-            self._start_centres = start_cells(self.map, self.car_params, self.config.start_clearance)
-        return random_start(self.physics, self._start_centres, self.np_random)
+    def random_start(self) -> np.ndarray:
+        """A collision-free rear-axle world pose [x, y, theta] with ``start_clearance`` metres of
+        room, drawn from ``np_random`` (the cells with that room: one table per map and car size,
+        shared by every env on the map)."""
+        if self._start_cells is None:
+            self._start_cells = shared_start_cells(
+                self.map, self.car_params, self.config.start_clearance
+            )
+        return random_start(self.physics, self._start_cells, self.np_random)

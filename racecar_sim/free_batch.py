@@ -35,8 +35,8 @@ def _free_steps(distance, const, states, cars, targets, n_sub, h, dt, twists, ok
 class FreeStepBatch:
     """The free steps of the cars ``physics`` (one map, one car model), stepped together.
 
-    Rebinds each car's ``_free`` and ``_twist`` arrays to rows of :attr:`states` and
-    :attr:`twists` (their values kept), which :class:`RacecarPhysics` only ever updates in place.
+    Each car keeps its free-step state and twist in rows of ``states`` and ``twists``
+    (``RacecarPhysics.share_state``).
     """
 
     def __init__(self, physics: list[RacecarPhysics]) -> None:
@@ -45,14 +45,11 @@ class FreeStepBatch:
         self.states = np.zeros((n, len(STATE_FIELDS)))
         self.twists = np.zeros((n, 3))
         for i, p in enumerate(physics):
-            self.states[i] = p._free
-            self.twists[i] = p._twist
-            p._free = self.states[i]
-            p._twist = self.twists[i]
+            p.share_state(self.states[i], self.twists[i])
         first = physics[0]
         car = first.car
-        self._const = first._free_const
-        self._distance = first._distance
+        self._const = first.free_constants
+        self._distance = first.map.distance
         self._low = np.array([-car.max_steer, -car.max_reverse_speed])
         self._high = np.array([car.max_steer, car.max_speed])
 
@@ -67,10 +64,7 @@ class FreeStepBatch:
         physics = self.physics
         free: list[int] = []
         for i in cars:
-            p = physics[i]
-            if p.free_steps and p._quiet >= p._quiet_needed:
-                if not p._free_valid:
-                    p._load_free_state()
+            if physics[i].may_step_freely():
                 free.append(i)
         collided = np.zeros(len(cars), dtype=np.bool_)
         done: set[int] = set()
@@ -85,14 +79,8 @@ class FreeStepBatch:
                 self._distance, self._const, self.states, idx, targets, n_sub, h, dt, self.twists,
                 ok,
             )  # fmt: skip
-            rows = self.states[idx, 6:9].tolist()
-            half_h = 0.5 * h
             for j in np.flatnonzero(ok).tolist():
-                p = physics[free[j]]
-                p._steer, p._speed, p._omega = rows[j]
-                p._half_h = half_h
-                p._free_valid = True
-                p._body_stale = True
+                physics[free[j]].stepped_freely(h)
             if len(free) == len(cars) and ok.all():  # the usual case: every car stepped freely
                 return collided, free
             done = {free[j] for j in np.flatnonzero(ok).tolist()}

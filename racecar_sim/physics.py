@@ -189,6 +189,11 @@ class RacecarPhysics:
     def _on_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> None:
         self._contact = True
 
+    def mark_contact(self) -> None:
+        """Record that the car touched something in the current pymunk substep (for collision
+        handlers that replace this class's own wall handler, such as the race's)."""
+        self._contact = True
+
     # ------------------------------------------------------------------ state
     @property
     def pose(self) -> np.ndarray:
@@ -245,6 +250,33 @@ class RacecarPhysics:
             return math.atan2(float(self._free[9]), self._speed)
         return math.atan(self.car.cg_to_rear * math.tan(self._steer) / self.car.wheelbase)
 
+    @property
+    def local_corners(self) -> np.ndarray:
+        """(4, 2) the car's box in the car frame (x forward, y left, origin at the rear axle),
+        metres: rear right, front right, front left, rear left (a copy)."""
+        return self._local_corners.copy()
+
+    @property
+    def free_constants(self) -> np.ndarray:
+        """The free steps' constants, float64 laid out as
+        `racecar_sim.free_steps.CONSTANT_FIELDS` (read-only: shared with the kernel)."""
+        return self._free_const
+
+    @property
+    def speed_bound(self) -> float:
+        """The bound on the box centre's speed per unit wheel speed (free-step constant
+        ``centre_speed``): the centre moves at most this many metres per metre of the wheels."""
+        return float(self._free_const[CONSTANT_FIELDS.index("centre_speed")])
+
+    def world_velocity(self) -> tuple[float, float, float]:
+        """World [vx, vy, omega] of the rear axle (m/s, m/s, rad/s) as the next substep will move
+        it: the free steps' state when that is current, else pymunk's body."""
+        if self._free_valid:
+            f = self._free
+            return float(f[3]), float(f[4]), float(f[5])
+        vx, vy = self.body.velocity
+        return float(vx), float(vy), float(self.body.angular_velocity)
+
     def footprint(self, pose: np.ndarray | None = None) -> np.ndarray:
         """(4, 2) world corners of the car's box (rear right, front right, front left, rear left).
 
@@ -266,15 +298,14 @@ class RacecarPhysics:
         centre = self.footprint((x, y, theta)).mean(axis=0)
         if not bool(self.map.is_free(centre)):
             return False
-        # The walls there, added for the query only (the car's own walls stay as they are).
-        extra = self._walls.add_missing(x, y, self._extent)
         self._query_body.position = (x, y)
         self._query_body.angle = theta
         self._query_shape.cache_bb()
-        try:
-            return not self.space.shape_query(self._query_shape)
-        finally:
-            self._walls.remove(extra)
+        # The car's space: the walls near the car, obstacles, other cars' boxes; then the walls
+        # there, in the map's shared query space (none are added to the car's own).
+        if self.space.shape_query(self._query_shape):
+            return False
+        return not self._walls.tiles.overlaps(self._query_shape, x, y, self._extent)
 
     @staticmethod
     def _check_pose(pose, name: str) -> tuple[float, float, float]:
@@ -374,10 +405,7 @@ class RacecarPhysics:
                 self._distance, self._free_const, f, target_steer, target_speed, n_sub, h, dt,
                 self._twist,
             ):  # fmt: skip
-                self._steer, self._speed, self._omega = float(f[6]), float(f[7]), float(f[8])
-                self._half_h = 0.5 * h
-                self._free_valid = True
-                self._body_stale = True
+                self.stepped_freely(h)
                 return False
         self._sync_body()
         self._free_valid = False
@@ -445,6 +473,35 @@ class RacecarPhysics:
         return ux
 
     # ------------------------------------------------------------------ free steps
+    def share_state(self, state: np.ndarray, twist: np.ndarray) -> None:
+        """Keep the free-step state (`racecar_sim.free_steps.STATE_FIELDS`) and the twist
+        in the given float64 arrays from now on (their values copied in): rows of the arrays a
+        batch of cars steps in one kernel call (`racecar_sim.free_batch.FreeStepBatch`).
+        This class only ever updates them in place."""
+        state[:] = self._free
+        twist[:] = self._twist
+        self._free = state
+        self._twist = twist
+
+    def may_step_freely(self) -> bool:
+        """Whether the next step may be taken without pymunk (free steps on, no contact cached);
+        if so, the free-step state is brought up to date for the kernel. Whether a wall is within
+        reach the kernel decides (`racecar_sim.free_steps.free_step`)."""
+        if not (self.free_steps and self._quiet >= self._quiet_needed):
+            return False
+        if not self._free_valid:
+            self._load_free_state()
+        return True
+
+    def stepped_freely(self, h: float) -> None:
+        """Take over a free step that a kernel made on the shared state (substeps of ``h``
+        seconds): the wheels' state from it, pymunk's body behind it."""
+        f = self._free
+        self._steer, self._speed, self._omega = float(f[6]), float(f[7]), float(f[8])
+        self._half_h = 0.5 * h
+        self._free_valid = True
+        self._body_stale = True
+
     def _load_free_state(self) -> None:
         """Bring the free-step state array up to date (from pymunk's body unless it is current)."""
         f = self._free

@@ -22,6 +22,7 @@ the beam model describes objects in front of a *mapped* surface; that is the dec
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -31,7 +32,7 @@ from racecar_sim.rand import seed_from
 from racecar_sim.raycast import RayCaster
 from racecar_sim.raycast.scan import add_beam_noise, scan_geometry, scan_with_noise
 
-__all__ = ["Lidar", "Odometry", "check_pose"]
+__all__ = ["Lidar", "Odometry", "ScanKernelInputs", "check_pose"]
 
 _DEFAULT_LIDAR = LidarParams()
 _DEFAULT_ODOMETRY = OdometryNoise()
@@ -49,6 +50,23 @@ def check_pose(pose: np.ndarray, name: str = "pose") -> np.ndarray:
     if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite [x, y, theta], got {arr.tolist()}")
     return arr
+
+
+class ScanKernelInputs(NamedTuple):
+    """What the scan kernels that cast many cars' scans in one call
+    (`racecar_sim.raycast.scan`, `racecar_sim.race.lidar`) take for one lidar model:
+    the same arrays [`Lidar.measure`][racecar_sim.sensors.Lidar.measure] casts with. Read-only: shared, not copied."""
+
+    field: np.ndarray
+    """The exact caster's grid of the map ([`RayCaster.field`][racecar_sim.raycast.caster.RayCaster.field])."""
+    geometry: np.ndarray
+    """The map's frame and the mount offset (`racecar_sim.raycast.scan.scan_geometry`)."""
+    cos_a: np.ndarray
+    """(n_beams,) cosines of the beam angles in the car frame."""
+    sin_a: np.ndarray
+    """(n_beams,) sines of the beam angles in the car frame."""
+    noise: np.ndarray
+    """The four-part beam noise: sigma, max_range, p_rand, p_max, p_short, short_lambda."""
 
 
 class Lidar:
@@ -83,6 +101,13 @@ class Lidar:
         self._cos_a = np.cos(self.angles)
         self._sin_a = np.sin(self.angles)
         self._ranges = np.empty(self._n)
+
+    @property
+    def kernel_inputs(self) -> ScanKernelInputs:
+        """The arrays this lidar casts with, for kernels that cast many cars' scans at once."""
+        return ScanKernelInputs(
+            self._caster.field, self._geometry, self._cos_a, self._sin_a, self._noise
+        )
 
     # ------------------------------------------------------------------ geometry
     def mount_pose(self, pose: np.ndarray) -> np.ndarray:
@@ -163,6 +188,16 @@ class Odometry:
         self._add = np.asarray(noise.additive, dtype=np.float64)
         self._prop_f = [float(v) for v in noise.proportional]
         self._add_f = [float(v) for v in noise.additive]
+
+    @property
+    def proportional(self) -> np.ndarray:
+        """(3,) float64 proportional standard deviations of [vx, vy, omega] (unitless)."""
+        return self._prop
+
+    @property
+    def additive(self) -> np.ndarray:
+        """(3,) float64 additive standard deviations of [vx, vy, omega] (m/s, m/s, rad/s)."""
+        return self._add
 
     def measure(self, twist: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Noisy (3,) float32 [vx, vy, omega] (m/s, m/s, rad/s, car frame) from the true ``twist``.

@@ -4,6 +4,8 @@ drawn there (world frame, rear axle, metres and radians)."""
 from __future__ import annotations
 
 import math
+import threading
+import weakref
 
 import numpy as np
 
@@ -11,7 +13,7 @@ from racecar_sim.maps import MapError, OccupancyMap
 from racecar_sim.physics import RacecarPhysics
 from racecar_sim.vehicle.params import CarParams
 
-__all__ = ["START_TRIES", "random_start", "start_cells"]
+__all__ = ["START_TRIES", "random_start", "shared_start_cells", "start_cells"]
 
 START_TRIES = 1000
 """Random start poses tried before giving up."""
@@ -41,6 +43,39 @@ def start_cells(occupancy_map: OccupancyMap, car: CarParams, clearance: float) -
     raise MapError(
         f"map {occupancy_map.name!r} has no place {2 * need:.2f} m wide where the car fits"
     )
+
+
+_shared: dict[tuple[int, float, float, float], tuple[weakref.ref, np.ndarray]] = {}
+_shared_lock = threading.Lock()
+
+
+def shared_start_cells(
+    occupancy_map: OccupancyMap, car: CarParams, clearance: float
+) -> np.ndarray:
+    """`start_cells`, built once per map object, car size and clearance and shared (a
+    read-only array) by every car that asks while the map lives: on the Stata basement the table
+    is about 2.7 MB, which each car of a vector env or a race would otherwise hold.
+
+    Raises:
+        MapError: as `start_cells`.
+    """
+    key = (id(occupancy_map), float(car.length), float(car.width), float(clearance))
+    with _shared_lock:
+        hit = _shared.get(key)
+        if hit is not None and hit[0]() is occupancy_map:
+            return hit[1]
+    cells = start_cells(occupancy_map, car, clearance)
+    cells.setflags(write=False)
+
+    def forget(_ref: weakref.ref, key: tuple = key) -> None:
+        with _shared_lock:
+            entry = _shared.get(key)
+            if entry is not None and entry[0] is _ref:
+                del _shared[key]
+
+    with _shared_lock:
+        _shared[key] = (weakref.ref(occupancy_map, forget), cells)
+    return cells
 
 
 def random_start(

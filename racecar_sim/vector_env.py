@@ -30,16 +30,14 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from racecar_sim.car.fleet import CarFleet
 from racecar_sim.config import EnvConfig, merge_settings
 from racecar_sim.env import RacecarEnv
-from racecar_sim.free_batch import FreeStepBatch
 from racecar_sim.maps import OccupancyMap, resolve_map
-from racecar_sim.rand import seed_from
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil, scans_shared
 from racecar_sim.raycast.shared_work import run_shared
 from racecar_sim.validation import check_action, check_options, short
-from racecar_sim.vesc import wheel_twist
 
 __all__ = ["PROBE_EVERY", "RacecarVectorEnv", "car_seeds"]
 
@@ -167,12 +165,7 @@ class RacecarVectorEnv(VectorEnv):
         self._cast_times: tuple[list[float], list[float]] = ([], [])
         self._casts = 0
         lidar = first.lidar
-        self._field = lidar._caster.field
-        self._geometry = lidar._geometry
-        self._cos_a, self._sin_a, self._noise = lidar._cos_a, lidar._sin_a, lidar._noise
-        odo = first.odometry
-        self._odo_prop, self._odo_add = odo._prop, odo._add
-        self._wheelbase = first._wheelbase
+        self._field, self._geometry, self._cos_a, self._sin_a, self._noise = lidar.kernel_inputs
         self._low = first.action_space.low.astype(np.float64)
         self._high = first.action_space.high.astype(np.float64)
         self._penalty = float(cfg.collision_penalty)
@@ -181,7 +174,8 @@ class RacecarVectorEnv(VectorEnv):
         self._never_reset = np.ones(num_envs, dtype=np.bool_)  # cars with no state yet
         self._last_odom = np.zeros((num_envs, 3), dtype=np.float32)
         self._workers = max(1, int(workers if workers is not None else (os.cpu_count() or 1)))
-        self._physics = FreeStepBatch([env.physics for env in self.envs])
+        self.fleet = CarFleet(self.envs)
+        """The cars' physics, scan seeds and odometry on arrays ([`CarFleet`][racecar_sim.car.fleet.CarFleet])."""
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -216,7 +210,7 @@ class RacecarVectorEnv(VectorEnv):
                 obs["odom"][i] = o["odom"]
                 self._add_info(infos, info, i)
             else:
-                obs["scan"][i] = env._scan
+                obs["scan"][i] = env.last_scan
                 obs["odom"][i] = self._last_odom[i]
         self._never_reset &= ~mask  # after every car's reset: a refused one leaves its car unset
         self._last_odom = obs["odom"].copy()
@@ -254,41 +248,27 @@ class RacecarVectorEnv(VectorEnv):
             else:
                 stepped.append(i)
         # Physics: the cars far from walls in one kernel call, the others through pymunk.
-        hits, free = self._physics.step(stepped, acts, self.dt)
         collided = np.zeros(n, dtype=np.bool_)
-        collided[stepped] = hits
-        if free:
-            poses[free] = self._physics.poses(free)
-        done_free = set(free)
+        collided[stepped] = self.fleet.step(stepped, acts, self.dt, poses)
         times = np.zeros(n)
         n_steps = np.zeros(n, dtype=np.int64)
         for i in stepped:
-            env = envs[i]
-            if i not in done_free:
-                poses[i] = env.physics.pose
-            scan_due = env._tick()  # the clock, as RacecarEnv._advance
-            times[i] = env.time
-            n_steps[i] = env._n_steps
+            clock = envs[i].clock
+            scan_due = clock.tick()  # the car's clock, as in RacecarEnv.step
+            times[i] = clock.time
+            n_steps[i] = clock.steps
             if scan_due:
                 fresh[i] = True
                 due.append(i)
         scans = np.empty((n, self._n_beams), dtype=np.float32)
         self._cast(due, poses, scans)
 
-        twist = self._physics.twists.copy()  # the cars' own twist arrays (resets: below)
-        z = np.zeros((n, 6))
-        wheels = np.zeros((n, 3))  # the VESC's twist per car, as RacecarEnv._measure_odometry
-        wheelbase = self._wheelbase
+        twist = self.fleet.twists.copy()  # the cars' own twist arrays (resets: below)
         for i in stepped:
-            env = envs[i]
-            p = env.physics
-            wheels[i] = wheel_twist(p.wheel_speed, p.steer, wheelbase)
-            env.np_random.standard_normal(out=z[i])  # the odometry's draws, after the scan's
             if not fresh[i]:
-                scans[i] = env._scan
-        odom = (wheels * (1.0 + self._odo_prop * z[:, :3]) + self._odo_add * z[:, 3:]).astype(
-            np.float32
-        )
+                scans[i] = envs[i].last_scan
+        odom = np.zeros((n, 3), dtype=np.float32)
+        odom[stepped] = self.fleet.odometry(stepped)  # the odometry's draws, after the scan's
         progress = twist[:, 0] * self.dt
         penalty = np.where(collided, -self._penalty, 0.0)
         rewards = progress + penalty
@@ -340,7 +320,7 @@ class RacecarVectorEnv(VectorEnv):
         if not due:
             return
         k, m = len(due), self._n_beams
-        seeds = np.array([seed_from(self.envs[i].np_random) for i in due], dtype=np.int64)
+        seeds = self.fleet.scan_seeds(due)
         sub = poses[due]
         out = np.empty((k, m), dtype=np.float32)
         ranges = np.empty((k, m))
@@ -363,7 +343,7 @@ class RacecarVectorEnv(VectorEnv):
         if status.any():  # pragma: no cover - physics poses are finite and on the map
             raise RuntimeError(f"lidar cast failed for cars {np.asarray(due)[status != 0]}")
         for j, i in enumerate(due):
-            self.envs[i]._store_scan(sub[j], out[j])
+            self.envs[i].keep_scan(sub[j], out[j])
         scans[due] = out
 
     def _choose_parallel(self) -> bool:

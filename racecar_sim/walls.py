@@ -101,6 +101,8 @@ class WallTiles:
                     buckets.setdefault((i, j), []).append(k)
         self._tiles = {key: np.array(ids, dtype=np.int64) for key, ids in buckets.items()}
         self._blocks: dict[tuple[int, int, int], np.ndarray] = {}
+        self._query_space: pymunk.Space | None = None  # the walls overlap queries have needed
+        self._in_query: set[int] = set()
 
     def __len__(self) -> int:
         return len(self.segment_list)
@@ -124,6 +126,26 @@ class WallTiles:
             ids = np.unique(np.concatenate(parts)) if parts else np.zeros(0, dtype=np.int64)
             self._blocks[full] = ids
         return ids
+
+
+    def overlaps(self, shape: pymunk.Shape, x: float, y: float, reach: float) -> bool:
+        """Whether ``shape`` (its bounding box cached at its place) touches a wall, every wall
+        within ``reach`` metres of world point (x, y) counted.
+
+        The query runs in one pymunk space per map, shared by every car, which keeps the walls
+        queries have needed (each made once): a car's own space holds only the walls near where
+        it drives, and its start tries add none to it.
+        """
+        if self._query_space is None:
+            self._query_space = pymunk.Space()
+        space = self._query_space
+        radius = max(1, math.ceil(reach / self.tile))
+        new = [k for k in self.block(self.key(x, y), radius).tolist() if k not in self._in_query]
+        if new:
+            segments = self.segment_list
+            space.add(*[pymunk.Segment(space.static_body, *segments[k], 0.0) for k in new])
+            self._in_query.update(new)
+        return bool(space.shape_query(shape))
 
 
 _CACHE: dict[int, tuple[weakref.ref, WallTiles]] = {}

@@ -23,6 +23,7 @@ import gymnasium as gym
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
 from mcl import DEFAULT_PARTICLES, LocalizationWrapper
+from mcl.io import DriveRecorder, start_live
 from racecar_sim.drivers import WallFollower
 
 
@@ -51,7 +52,7 @@ def _client(port: int, ready, stop) -> None:
 
 
 class Timed:
-    """Wraps the wrapper's live recorder to add up the seconds spent streaming."""
+    """Wraps a live recorder to add up the seconds spent streaming."""
 
     def __init__(self, recorder) -> None:
         self.recorder, self.seconds, self.calls = recorder, 0.0, 0
@@ -63,15 +64,24 @@ class Timed:
         self.calls += 1
 
 
-def drive(env: LocalizationWrapper, steps: int, seed: int) -> float:
-    """Steps per second of wall time of ``steps`` steps after a reset with ``seed``."""
-    obs, _ = env.reset(seed=seed)
+def drive(env: LocalizationWrapper, steps: int, seed: int, live: Timed | None = None) -> float:
+    """Steps per second of wall time of ``steps`` steps after a reset with ``seed``; ``live``
+    streams each reset and step as the wrapper's own ``live`` does (``live(env, obs, info)``)."""
+
+    def stream(obs, info) -> None:
+        if live is not None:
+            live(env, obs, info)
+
+    obs, info = env.reset(seed=seed)
+    stream(obs, info)
     driver = WallFollower.for_env(env)
     t0 = time.perf_counter()
     for _ in range(steps):
-        obs, _, terminated, truncated, _ = env.step(driver(obs))
+        obs, _, terminated, truncated, info = env.step(driver(obs))
+        stream(obs, info)
         if terminated or truncated:
-            obs, _ = env.reset(seed=seed)
+            obs, info = env.reset(seed=seed)
+            stream(obs, info)
     return steps / (time.perf_counter() - t0)
 
 
@@ -84,28 +94,37 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     config = {"filter": {"n_particles": args.particles}}
     plain = LocalizationWrapper(gym.make("RacecarSim-v0"), config)
-    idle = LocalizationWrapper(gym.make("RacecarSim-v0"), config, live=0)
-    watched = LocalizationWrapper(gym.make("RacecarSim-v0"), config, live=0)
+    idle = LocalizationWrapper(gym.make("RacecarSim-v0"), config)
+    watched = LocalizationWrapper(gym.make("RacecarSim-v0"), config)
+    servers = {"live, no client": start_live(0), "live, watched": start_live(0)}
+    timed = {
+        name: Timed(DriveRecorder(None, env, live=servers[name]))
+        for name, env in (("live, no client", idle), ("live, watched", watched))
+    }  # the recorder the wrapper's live=0 would stream through, timed
+    live_of = {id(idle): timed["live, no client"], id(watched): timed["live, watched"]}
     context = multiprocessing.get_context("spawn")
     ready, stop = context.Event(), context.Event()
-    client = context.Process(target=_client, args=(watched.live.port, ready, stop), daemon=True)
+    port = servers["live, watched"].port
+    client = context.Process(target=_client, args=(port, ready, stop), daemon=True)
     client.start()
     if not ready.wait(120):
         raise SystemExit("the benchmark's client did not subscribe within 120 s")
     for env in (plain, idle, watched):
-        drive(env, 50, args.seed)  # warm-up: kernels, tables, the client's subscriptions
-    timed = {"live, no client": Timed(idle._live), "live, watched": Timed(watched._live)}
-    idle._live, watched._live = timed["live, no client"], timed["live, watched"]
+        drive(env, 50, args.seed, live_of.get(id(env)))  # warm-up: kernels, tables, the client's subscriptions
+    for t in timed.values():
+        t.seconds, t.calls = 0.0, 0
     rates: dict[str, list[float]] = {"plain": [], "live, no client": [], "live, watched": []}
     for r in range(args.rounds):
         order = list(zip(rates, (plain, idle, watched), strict=True))
         for name, env in order if r % 2 == 0 else order[::-1]:
-            rates[name].append(drive(env, args.steps, args.seed))
+            rates[name].append(drive(env, args.steps, args.seed, live_of.get(id(env))))
     stop.set()
     client.join(10)
-    sent = watched.live.n_published
+    sent = servers["live, watched"].n_published
     for env in (plain, idle, watched):
         env.close()
+    for server in servers.values():
+        server.close()
     print(f"{args.steps} steps x {args.rounds} rounds, {args.particles} particles, basement_loop")
     print("| drive | steps/s (median) | x plain (median of rounds) | streaming, ms per step |")
     print("|---|---:|---:|---:|")

@@ -70,7 +70,7 @@ class PeerDynamics(PeerProcess):
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             env={**os.environ, "PYTHONPATH": ""},
         )  # fmt: skip
-        self.info = self._answer("ready")
+        self.info = self.answer("ready")
         self.params: dict[str, float] = self.info["params"]
 
     def drive(self, commands: np.ndarray, dt: float, substeps: int) -> np.ndarray:
@@ -80,4 +80,4 @@ class PeerDynamics(PeerProcess):
                "substeps": substeps}  # fmt: skip
         self.proc.stdin.write(json.dumps(job) + "\n")
         self.proc.stdin.flush()
-        return np.array(self._answer("states")["states"])
+        return np.array(self.answer("states")["states"])

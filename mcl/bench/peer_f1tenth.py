@@ -153,13 +153,13 @@ class _Peer(PeerProcess):
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             env={**os.environ, "PYTHONPATH": ""},
         )  # fmt: skip
-        self.info = self._answer("ready")
+        self.info = self.answer("ready")
 
     def run(self, steps: int) -> dict[str, Any]:
         assert self.proc.stdin is not None
         self.proc.stdin.write(json.dumps({"op": "run", "steps": steps}) + "\n")
         self.proc.stdin.flush()
-        return self._answer("wall")
+        return self.answer("wall")
 
 
 def run_ours(env, steps: int, seed: int, pose: np.ndarray, cars: int = 0) -> dict[str, Any]:

@@ -14,7 +14,7 @@ class PeerProcess:
 
     proc: subprocess.Popen
 
-    def _answer(self, key: str) -> dict[str, Any]:
+    def answer(self, key: str) -> dict[str, Any]:
         """The next JSON line on the peer's stdout that has ``key``; RuntimeError with its stderr
         when it ends first."""
         assert self.proc.stdout is not None

@@ -141,7 +141,7 @@ class _RacePeer:
         cmd = {"op": "run", "steps": steps, "agents": len(poses), "poses": poses.tolist()}
         proc.stdin.write(json.dumps(cmd) + "\n")
         proc.stdin.flush()
-        return self._peer._answer("wall")
+        return self._peer.answer("wall")
 
     def close(self) -> None:
         self._peer.close()

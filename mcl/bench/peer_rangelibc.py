@@ -306,7 +306,7 @@ def compare(
         )
 
     # Timing, interleaved: one update of each in turn, medians over `updates`.
-    idx, _ = ours._subsample(scan.size)
+    idx, _ = ours.beams_used(scan.size)
     odometry = twist_to_odometry(TWIST, DT)
     filters = {}
     for t in threads:

@@ -61,7 +61,7 @@ def glt_inputs(grid: OccupancyMap, sm, scan: np.ndarray, seed: int):
         if peer_rangelibc.available()
         else None
     )
-    idx, _ = sm._subsample(scan.size)
+    idx, _ = sm.beams_used(scan.size)
     angles, _ = sm.observe(scan)
     return peer, idx, angles, twist_to_odometry(TWIST, DT)
 
@@ -174,7 +174,7 @@ def compare_spread(
     out(f"median {clock} ms per update (range over rounds); x GLT: median (range) of per-round "
         "ratios")  # fmt: skip
     for name in work:
-        gu, gv, *_ = sm0.caster._grid_frame(work[name])
+        gu, gv = sm0.caster.grid_cells(work[name])
         sorts = spread_order(gu, gv, sm0.caster.lut_params.sort_extent / grid.resolution)
         out(f"{name} particles ({'sorted' if sorts is not None else 'narrow: not sorted'}):")
         base = times[name, "glt"] if peer is not None else None

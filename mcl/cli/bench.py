@@ -11,7 +11,7 @@ from collections.abc import Iterator, Sequence
 from types import ModuleType
 from typing import Any, NoReturn
 
-from mcl.cli.common import HelpFormatter, accept_negative_numbers
+from mcl.cli.common import HelpFormatter, NegativeValuesParser
 
 BENCHMARKS: dict[str, str] = {
     "raycast": "ray casting rates and errors per method",
@@ -26,11 +26,12 @@ BENCHMARKS: dict[str, str] = {
     "live": "a localized drive with and without the Foxglove live view (steps/s)",
     "dynamics": "the single-track car vs f1tenth_gym (skidpad, open loop) and its speed cost",
     "race_matrix": "scripted races on the loop maps: contacts, passes, laps per car by speed",
+    "memory": "resident memory per car of the vector env, reset without poses (1, 32, 128 cars)",
 }
 """Benchmark name -> what it measures (module ``mcl.bench.<name>``)."""
 
 
-class _CommandParser(argparse.ArgumentParser):
+class _CommandParser(NegativeValuesParser):
     """A benchmark's parser as ``racecar-sim bench NAME``: help with defaults, one-line errors."""
 
     command = "racecar-sim bench"
@@ -39,7 +40,6 @@ class _CommandParser(argparse.ArgumentParser):
         kwargs["prog"] = self.command
         kwargs["formatter_class"] = HelpFormatter
         super().__init__(*args, **kwargs)
-        accept_negative_numbers(self)
 
     def add_argument(self, *args: Any, **kwargs: Any) -> argparse.Action:
         default = kwargs.get("default")

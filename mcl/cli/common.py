@@ -19,6 +19,7 @@ import difflib
 import math
 import os
 import re
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
@@ -32,8 +33,8 @@ __all__ = [
     "MAP_HELP",
     "NEGATIVE_NUMBERS",
     "HelpFormatter",
+    "NegativeValuesParser",
     "Parser",
-    "accept_negative_numbers",
     "check_bag",
     "check_env",
     "check_env_builds",
@@ -70,8 +71,7 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
             or default is None
             or default is False
             or default == []
-            or default is argparse.SUPPRESS
-            or isinstance(action, argparse._HelpAction | argparse._VersionAction)
+            or default is argparse.SUPPRESS  # also --help and --version
         ):
             return text
         if isinstance(default, tuple | list):
@@ -88,27 +88,40 @@ NEGATIVE_NUMBERS = re.compile(rf"^-{_NUMBER}(?:\s*,\s*[-+]?{_NUMBER})*$")
 an option's value, not an option (argparse alone takes only ``-3`` and ``-0.5`` so)."""
 
 
-def accept_negative_numbers(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    """Let ``parser`` read ``--init -20.9,-0.3,1.26`` as it reads ``--init=-20.9,-0.3,1.26``.
+class NegativeValuesParser(argparse.ArgumentParser):
+    """An ArgumentParser that reads ``--init -20.9,-0.3,1.26`` as ``--init=-20.9,-0.3,1.26``.
 
-    argparse decides whether a word starting with ``-`` is an option by its private
-    ``_negative_number_matcher`` (``-3`` and ``-0.5`` only, so a pose with a negative x was taken
-    for an unknown option: ``expected one argument``). It is widened to :data:`NEGATIVE_NUMBERS`,
-    for every flag of the parser; none of our flags looks like a number, so nothing is lost.
+    argparse takes a word starting with ``-`` for an option unless it is ``-3`` or ``-0.5`` alone,
+    so a pose with a negative x after its flag was an unknown option (``expected one argument``).
+    Here a word matching `NEGATIVE_NUMBERS` right after a flag that takes one value is joined
+    to it with ``=`` before argparse sees the words; nothing else changes.
     """
-    parser._negative_number_matcher = NEGATIVE_NUMBERS  # type: ignore[attr-defined]
-    return parser
+
+    def parse_known_args(self, args: Sequence[str] | None = None, namespace: Any = None) -> Any:
+        words = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(self._joined_negative_values(words), namespace)
+
+    def _joined_negative_values(self, words: list[str]) -> list[str]:
+        takes_one = {
+            flag for action in self._actions if action.nargs is None for flag in action.option_strings
+        }
+        out: list[str] = []
+        for word in words:
+            if out and out[-1] in takes_one and NEGATIVE_NUMBERS.match(word):
+                out[-1] = f"{out[-1]}={word}"
+            else:
+                out.append(word)
+        return out
 
 
-class Parser(argparse.ArgumentParser):
+class Parser(NegativeValuesParser):
     """An ArgumentParser whose errors are one line (``PROG: error: PROBLEM``) and exit code 2, and
-    which takes values such as ``-20.9,-0.3,1.26`` after a flag (:func:`accept_negative_numbers`)."""
+    which takes values such as ``-20.9,-0.3,1.26`` after a flag ([`NegativeValuesParser`][mcl.cli.common.NegativeValuesParser])."""
 
     def __init__(self, prog: str, description: str | None, epilog: str | None = None) -> None:
         super().__init__(
             prog=prog, description=description, epilog=epilog, formatter_class=HelpFormatter
         )
-        accept_negative_numbers(self)
 
     def error(self, message: str) -> NoReturn:
         one_line = " ".join(message.split())

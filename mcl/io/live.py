@@ -115,7 +115,9 @@ class LiveServer:
         self._channels[topic].log(data, log_time=log_time_ns)
         self.n_published += 1
 
-    def _resend(self, topics: Iterable[str]) -> None:
+    def resend_latched(self, topics: Iterable[str]) -> None:
+        """Send the last message of each latched topic of ``topics`` again (a client that has just
+        subscribed gets the map and the static transforms)."""
         with self._lock:
             latched = {t: self._latched[t] for t in topics if t in self._latched}
         for topic, (data, ns) in latched.items():
@@ -141,6 +143,6 @@ def _resend_listener(base: type, server: LiveServer):
     class Resend(base):
         def on_subscribe(self, client, channel) -> None:
             if channel.topic in LATCHED:
-                server._resend([channel.topic])
+                server.resend_latched([channel.topic])
 
     return Resend()

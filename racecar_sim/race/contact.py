@@ -74,7 +74,7 @@ class CarContacts:
         self._busy: set[int] = set()  # cars with a ghost in their space (no free steps)
         self._hit: set[int] = set()  # cars whose touched set is not empty
         self._owner: dict[int, int] = {}  # id(ghost shape) -> the car it stands for
-        corners = [tuple(p) for p in physics[0]._local_corners.tolist()]
+        corners = [tuple(p) for p in physics[0].local_corners.tolist()]
         self._corners = corners
         for i, p in enumerate(physics):
             space = p.space
@@ -86,7 +86,7 @@ class CarContacts:
         physics, touched, hit = self.physics[i], self.touched[i], self._hit
 
         def on_wall(arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> None:
-            physics._contact = True
+            physics.mark_contact()
             touched.add(WALL)
             hit.add(i)
 
@@ -96,7 +96,7 @@ class CarContacts:
         physics, touched, owner, hit = self.physics[i], self.touched[i], self._owner, self._hit
 
         def on_car(arbiter: pymunk.Arbiter, space: pymunk.Space, data) -> None:
-            physics._contact = True
+            physics.mark_contact()
             a, b = arbiter.shapes
             touched.add(owner[id(b if a.collision_type == CAR_COLLISION_TYPE else a)])
             hit.add(i)
@@ -166,15 +166,6 @@ class CarContacts:
         body, shape = self._ghosts[(i, j)]
         self.physics[i].space.remove(body, shape)
         self._shown.discard((i, j))
-
-
-def world_velocity(physics: RacecarPhysics) -> tuple[float, float, float]:
-    """World [vx, vy, omega] of a car's rear axle as its physics will move it next substep."""
-    if physics._free_valid:
-        f = physics._free
-        return float(f[3]), float(f[4]), float(f[5])
-    vx, vy = physics.body.velocity
-    return float(vx), float(vy), float(physics.body.angular_velocity)
 
 
 def bounding_radius(local_corners: np.ndarray) -> float:

@@ -38,7 +38,7 @@ def car_boxes(poses: np.ndarray, local_corners: np.ndarray) -> np.ndarray:
     """(N, 4, 2) world corners of the cars' boxes at rear-axle world ``poses`` (N, 3).
 
     ``local_corners`` (4, 2): the box in the car frame (x forward, y left, origin at the rear
-    axle), as :attr:`RacecarPhysics._local_corners`.
+    axle), as [`RacecarPhysics.local_corners`][racecar_sim.physics.RacecarPhysics.local_corners].
     """
     c = np.cos(poses[:, 2])[:, None]
     s = np.sin(poses[:, 2])[:, None]

@@ -10,13 +10,13 @@ due scan is cast in one numba call that cuts the beams at the other cars' boxes
 its odometry's six normals, as the single env's does, so a world of one car gives what
 ``RacecarSim-v0`` gives for the same seed, start and actions.
 
-Per step, the work for all cars is done on arrays, not car by car: the cars' clocks (each the
-single env's ``steps x dt``, its scan due one lidar period after the last), their last scans and
-the poses those were taken at, and their odometry (:func:`~racecar_sim.vesc.vesc_odometry`, the
-single env's arithmetic) live here; a car's own ``RacecarEnv`` keeps its physics, its lidar
-settings and its generator. What stays per car in Python is what is per car by nature: one raw
-draw and one draw of six normals from each car's generator, and the pymunk step of a car near a
-wall or another car.
+Per step, the work for all cars is done on arrays, not car by car: the cars' clocks (the car's
+clock, ``racecar_sim.car.clock.CarClocks``: the single env's rules on arrays), their last scans and
+the poses those were taken at live here; their physics step, scan seeds and odometry are the
+vector env's too (``racecar_sim.car.fleet.CarFleet``); a car's own ``RacecarEnv`` keeps its
+physics, its lidar settings and its generator. What stays per car in Python is what is per car by
+nature: one raw draw and one draw of six normals from each car's generator, and the pymunk step
+of a car near a wall or another car.
 
 Frames: world (the map's), car (x forward, y left, origin at the rear axle).
 """
@@ -28,29 +28,26 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from racecar_sim.car.clock import CarClocks
+from racecar_sim.car.fleet import CarFleet
 from racecar_sim.config import EnvConfig
 from racecar_sim.env import RacecarEnv
-from racecar_sim.free_batch import FreeStepBatch
 from racecar_sim.race.contact import (
     WALL,
     CarContacts,
     bounding_radius,
     box_centres,
     near_pairs,
-    world_velocity,
 )
 from racecar_sim.race.lidar import car_boxes, race_scans_serial, race_scans_shared
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.shared_work import run_shared
 from racecar_sim.validation import check_poses
-from racecar_sim.vesc import vesc_odometry
 
 __all__ = ["RaceWorld", "boxes_overlap"]
 
 _START_TRIES = 200  # random starts tried per car before giving up (no track)
 _CHUNK = 2  # cars per work item of a threaded cast
-_EPS_TIME = 1e-9  # seconds, as RacecarEnv's: the clock against the next scan's due time
-_ONE = np.uint64(1)
 
 
 def boxes_overlap(a: np.ndarray, b: np.ndarray, gap: float = 0.0) -> bool:
@@ -102,22 +99,21 @@ class RaceWorld:
         self.dt = first.dt
         self.car_params = first.car_params
         self.lidar_params = first.lidar_params
-        self._odo_prop, self._odo_add = first.odometry._prop, first.odometry._add
-        self._physics = FreeStepBatch([c.physics for c in self.cars])
-        self._phys = [c.physics for c in self.cars]
+        self.fleet = CarFleet(self.cars)
+        """The cars' physics, scan seeds and odometry on arrays ([`CarFleet`][racecar_sim.car.fleet.CarFleet])."""
+        self._phys = self.fleet.physics
         self._pairs = np.triu_indices(n_cars, 1)
         self.contacts = CarContacts([c.physics for c in self.cars])
         lidar = first.lidar
-        self._field, self._geometry = lidar._caster.field, lidar._geometry
-        self._cos_a, self._sin_a, self._noise = lidar._cos_a, lidar._sin_a, lidar._noise
+        self._field, self._geometry, self._cos_a, self._sin_a, self._noise = lidar.kernel_inputs
         angles = lidar.angles
         self._angle0 = float(angles[0])
         self._step = float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
-        self._corners = first.physics._local_corners.copy()
+        self._corners = first.physics.local_corners
         self._centre = self._corners.mean(axis=0)  # car frame, the box's centre
         self.radius = bounding_radius(self._corners)
         """Metres from a car box's centre to its corners."""
-        self._speed_factor = float(first.physics._free_const[6])
+        self._speed_factor = first.physics.speed_bound
         self._workers = workers
         self._threaded = n_cars * self.lidar_params.n_beams >= PARALLEL_MIN_RAYS and workers > 1
         n, m = n_cars, self.lidar_params.n_beams
@@ -135,18 +131,13 @@ class RaceWorld:
         self.fresh = np.zeros(n, dtype=np.bool_)
         self.time = 0.0
         """Seconds since the reset: the clock of the car that has driven longest."""
-        self.car_time = np.zeros(n)
+        self.clocks = CarClocks(n, self.dt, first.lidar.period)
+        """Every car's clock and scan schedule ([`CarClocks`][racecar_sim.car.clock.CarClocks])."""
+        self.car_time = self.clocks.times
         """(N,) each car's clock, seconds (a car stops its clock when it leaves the race)."""
         self.scan_poses = np.zeros((n, 3))
         """(N, 3) the rear-axle world poses the last scans were taken at."""
-        self._n_steps = np.zeros(n, dtype=np.int64)
-        self._next_scan = np.zeros(n)  # seconds, when each car's next scan is due
-        self._period = first._period
         self._everyone = np.arange(n)
-        self._z = np.zeros((n, 6))  # each car's odometry normals of the step, a row per car
-        self._z_rows = list(self._z)
-        self._raw: list = []  # per car, its generator's raw draw (bound at reset)
-        self._normal: list = []  # per car, its generator's standard_normal (bound at reset)
 
     # ------------------------------------------------------------------ geometry
     def boxes(self, poses: np.ndarray | None = None) -> np.ndarray:
@@ -176,7 +167,7 @@ class RaceWorld:
         poses = np.zeros((self.n_cars, 3))
         for i, car in enumerate(self.cars):
             for _ in range(_START_TRIES):
-                pose = car._random_start()
+                pose = car.random_start()
                 box = car_boxes(pose[None], self._corners)[0]
                 if not any(boxes_overlap(box, b, gap) for b in self.boxes(poses[:i])):
                     poses[i] = pose
@@ -199,11 +190,8 @@ class RaceWorld:
         for i, car in enumerate(self.cars):
             car.physics.reset(arr[i])
             car.command_delay.reset(car.physics.steer, car.physics.wheel_speed)
-        self._raw = [car.np_random.bit_generator.random_raw for car in self.cars]
-        self._normal = [car.np_random.standard_normal for car in self.cars]
         self.time = 0.0
-        self.car_time[:] = 0.0
-        self._n_steps[:] = 0
+        self.clocks.reset()
         self.poses = np.array([car.physics.pose for car in self.cars])
         self.twists = np.array([car.physics.twist for car in self.cars])
         everyone = np.arange(self.n_cars)
@@ -226,7 +214,7 @@ class RaceWorld:
                 actions[i] = delay.push(float(actions[i, 0]), float(actions[i, 1]))
         poses = self.poses
         phys = self._phys
-        speed = np.array([p._speed for p in phys])
+        speed = np.array([p.speed for p in phys])
         travel = self.dt * np.maximum(np.abs(speed), np.abs(actions[:, 1])) * self._speed_factor
         travel[~active] = 0.0
         centres = box_centres(poses, self._centre)
@@ -235,28 +223,16 @@ class RaceWorld:
         if len(pairs):
             for i in np.unique(pairs).tolist():
                 if active[i]:
-                    vel[i] = world_velocity(phys[i])
+                    vel[i] = phys[i].world_velocity()
         self.contacts.clear()
         self.contacts.show(pairs, poses, vel)
-        hits, free = self._physics.step(stepped, actions, self.dt)
-        collided = np.zeros(n, dtype=np.bool_)
-        collided[stepped_arr] = hits
         new_poses = poses.copy()
-        if free:
-            new_poses[free] = self._physics.poses(free)
-        if len(free) < len(stepped):  # stepped through pymunk: the body's pose
-            done_free = set(free)
-            for i in stepped:
-                if i not in done_free:
-                    new_poses[i] = phys[i].pose
+        collided = np.zeros(n, dtype=np.bool_)
+        collided[stepped_arr] = self.fleet.step(stepped, actions, self.dt, new_poses)
         self.poses = new_poses
-        # Each car's clock, as the single env's (RacecarEnv._tick): steps x dt, a scan when due.
-        self._n_steps[stepped_arr] += 1
-        times = self._n_steps[stepped_arr] * self.dt
-        self.car_time[stepped_arr] = times
-        due = stepped_arr[times + _EPS_TIME >= self._next_scan[stepped_arr]]
+        due = self.clocks.tick(stepped_arr)
         self.time = float(self.car_time.max())
-        self.twists[stepped_arr] = self._physics.twists[stepped_arr]
+        self.twists[stepped_arr] = self.fleet.twists[stepped_arr]
         self.fresh[:] = False
         self.fresh[due] = True
         self._cast(due)
@@ -275,10 +251,7 @@ class RaceWorld:
         if k == 0:
             return
         m = self.lidar_params.n_beams
-        raw = self._raw
-        seeds = (np.array([raw[i]() for i in due.tolist()], dtype=np.uint64) >> _ONE).astype(
-            np.int64
-        )  # seed_from(car.np_random) of each car: one raw draw, its top 63 bits
+        seeds = self.fleet.scan_seeds(due.tolist())
         everyone = k == self.n_cars  # due ascending: every car, in order
         ranges = self.ranges if everyone else np.empty((k, m))  # the kernel writes in place
         out = self.scans if everyone else np.empty((k, m), dtype=np.float32)
@@ -295,13 +268,11 @@ class RaceWorld:
             self.ranges[due] = ranges
             self.scans[due] = out
         self.scan_poses[due] = self.poses[due]
-        # The next scan one lidar period after the last one due (RacecarEnv._store_scan).
-        done = np.floor((self.car_time[due] + _EPS_TIME) / self._period) + 1.0
-        self._next_scan[due] = done * self._period
+        self.clocks.scanned(due)
 
     def _measure_odometry(self, cars: np.ndarray) -> None:
         """The odometry (and IMU) of ``cars`` after their scans, as the single env measures it
-        (:meth:`RacecarEnv._observation`), drawn from each car's generator in its order: with an
+        ([`RacecarEnv.observation`][racecar_sim.env.RacecarEnv.observation]), drawn from each car's generator in its order: with an
         IMU, an odometry bias or lead, the single env's own call per car; else the VESC's twist
         from the wheels and the noise on arrays (the same draws and double operations)."""
         if len(cars) == 0:
@@ -309,19 +280,9 @@ class RaceWorld:
         first = self.cars[0]
         if first.imu is not None or first.odom_bias is not None or first.command_delay.n:
             for i in cars.tolist():
-                obs = self.cars[i]._observation(self.twists[i])
+                obs = self.cars[i].observation(self.twists[i])
                 self.odom[i] = obs["odom"]
                 if "imu" in obs:
                     self.imu[i] = obs["imu"]
             return
-        normal, rows = self._normal, self._z_rows
-        cl = cars.tolist()
-        for i in cl:
-            normal[i](out=rows[i])
-        phys = self._phys
-        steer = np.array([phys[i]._steer for i in cl])
-        speed = np.array([phys[i]._speed for i in cl])  # the wheel speed
-        out = np.empty((len(cl), 3), dtype=np.float32)
-        vesc_odometry(steer, speed, first._wheelbase, self._z[cars], self._odo_prop,
-                      self._odo_add, out)  # fmt: skip
-        self.odom[cars] = out
+        self.odom[cars] = self.fleet.odometry(cars.tolist())

@@ -223,6 +223,12 @@ class RayCaster:
         )
 
     # ------------------------------------------------------------------ casting
+    def grid_cells(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(u, v), each (N,): the world ``poses`` (N, 3) in the casters' grid frame, in cells (the
+        map frame divided by the resolution, shifted by the one-cell pad), as the casts see them."""
+        gu, gv, *_ = self._grid_frame(poses)
+        return gu, gv
+
     def _grid_frame(self, poses: np.ndarray) -> tuple[np.ndarray, ...]:
         """World poses (N, 3) -> pad-frame position in cells and map-frame heading (radians)."""
         uv = self.map.world_to_map(poses[:, :2]) / self.map.resolution + 1.0

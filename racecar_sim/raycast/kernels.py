@@ -79,7 +79,13 @@ def field_from_occupancy(occupied: np.ndarray) -> np.ndarray:
     # Pad once more so the dilation sees the ring as occupied on every side.
     dil = cv2.dilate(np.pad(occ, 1, constant_values=1), np.ones((3, 3), np.uint8))[1:-1, 1:-1]
     dist = cv2.distanceTransform((dil == 0).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    jump = np.floor(np.clip(dist - _JUMP_MARGIN, 0.0, 254.0)).astype(np.uint8)
+    # In place: the same float32 operations without three more map-sized temporaries (a
+    # freed 9 MB temporary on Stata stays in the process's resident memory).
+    np.subtract(dist, _JUMP_MARGIN, out=dist)
+    np.clip(dist, 0.0, 254.0, out=dist)
+    np.floor(dist, out=dist)
+    jump = dist.astype(np.uint8)
+    del dist
     jump[jump < JUMP_MIN] = 0
     jump[occ.astype(bool)] = OCCUPIED
     return np.ascontiguousarray(jump)

@@ -122,7 +122,7 @@ def test_an_opponent_sector_is_left_out(room, models) -> None:
     expected = plain.expected_ranges(particles, angles)
     d = np.clip(expected / plain.m_per_px, 0, plain.z_max)
     explained = (np.abs(z_px[None, :] - d) < 0.5 / plain.m_per_px).mean(axis=0) > 0.3
-    idx, _ = plain._subsample(scan.size)
+    idx, _ = plain.beams_used(scan.size)
     blocked = (idx >= 480) & (idx < 600)
     assert not explained[blocked].any()  # every blocked beam is left out
     assert decision.converged and not decision.forced
@@ -144,7 +144,7 @@ def test_short_only_keeps_long_returns(room, models) -> None:
     scan[100:200] = LIDAR.max_range  # drop-outs: long returns
     scan[480:600] = 0.9  # an opponent: short returns
     model.log_evaluate(particles, scan)
-    idx, _ = model._subsample(scan.size)
+    idx, _ = model.beams_used(scan.size)
     short = int(((idx >= 480) & (idx < 600)).sum())
     long_ = int(((idx >= 100) & (idx < 200)).sum())
     skipped = model.last_beam_skip.skipped

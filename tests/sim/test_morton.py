@@ -68,7 +68,7 @@ def test_sorted_casts_equal_unsorted_casts_bit_for_bit(default_map) -> None:
     sorted_ = RayCaster(default_map, 10.0, method="lut", parallel=False)
     plain = RayCaster(default_map, 10.0, method="lut", parallel=False)
     plain.lut_params = dataclasses.replace(plain.lut_params, sort_extent=math.inf)
-    gu, gv, *_ = sorted_._grid_frame(poses)
+    gu, gv = sorted_.grid_cells(poses)
     assert spread_order(gu, gv, sorted_.lut_params.sort_extent / default_map.resolution) is not None
     assert np.array_equal(sorted_.cast(poses, angles), plain.cast(poses, angles))
     rows = rng.normal(size=(angles.size, 200))

@@ -362,8 +362,8 @@ def test_scans_of_many_cars_equal_one_scan_each(grid: OccupancyMap, parallel: bo
     poses = grid.sample_free_poses(rng, 12, clearance=0.3)
     seeds = rng.integers(0, 2**62, size=12)
     m = lidar.angles.size
-    args = (lidar._caster.field, poses, lidar._geometry, lidar._cos_a, lidar._sin_a, seeds,
-            lidar._noise)  # fmt: skip
+    field, geometry, cos_a, sin_a, noise = lidar.kernel_inputs
+    args = (field, poses, geometry, cos_a, sin_a, seeds, noise)
     ranges, out = np.empty((12, m)), np.empty((12, m), dtype=np.float32)
     status = scans_with_noise(*args, ranges, out, parallel)
     assert not status.any()

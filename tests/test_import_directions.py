@@ -1,0 +1,63 @@
+"""Imports point down only: the simulator knows nothing of the filter, the filter nothing of the
+wrappers or the lab around it, and only the command line and the benchmarks import themselves.
+
+Every import counts (top level, inside a function, under ``TYPE_CHECKING``), as in
+``tests/test_import_cycles.py``, whose graph this reads.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.test_import_cycles import import_graph
+
+FILTER = (
+    "adaptive", "alpha_motion", "angles", "augmented", "beam_skip", "filter_bounds",
+    "filter_params", "kld", "likelihood_field", "motion_model", "particle_filter", "resampling",
+    "sensor_model", "sensor_params", "step_kernels", "uncertainty",
+)  # fmt: skip
+"""The particle filter's modules of ``mcl`` (flat today; ``mcl.filter`` in the layout to come)."""
+WRAPPERS = ("mcl.wrapper", "mcl.vector_wrapper", "mcl.race_wrapper", "mcl.localization",
+            "mcl.wrapper_checks", "mcl.error_log")  # fmt: skip
+LAB = ("mcl.io", "mcl.experiments", "mcl.calibration", "mcl.agents", "mcl.bench", "mcl.cli")
+
+
+def within(module: str, package: str) -> bool:
+    return module == package or module.startswith(package + ".")
+
+
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set[str]]:
+    return import_graph()
+
+
+def test_the_graph_sees_the_packages(graph) -> None:
+    assert "racecar_sim.env" in graph and "mcl.particle_filter" in graph
+    assert "racecar_sim.env" in graph["racecar_sim.vector_env"]  # it does import the env
+
+
+def test_racecar_sim_never_imports_mcl(graph) -> None:
+    bad = sorted(
+        f"{m} -> {d}" for m, deps in graph.items() if within(m, "racecar_sim")
+        for d in deps if within(d, "mcl")
+    )  # fmt: skip
+    assert not bad, "\n".join(bad)
+
+
+def test_the_filter_imports_neither_wrappers_nor_the_lab(graph) -> None:
+    missing = [f for f in FILTER if f"mcl.{f}" not in graph]
+    assert not missing, f"filter modules gone (update FILTER): {missing}"
+    bad = sorted(
+        f"mcl.{f} -> {d}" for f in FILTER for d in graph[f"mcl.{f}"]
+        if any(within(d, p) for p in WRAPPERS + LAB)
+    )  # fmt: skip
+    assert not bad, "\n".join(bad)
+
+
+@pytest.mark.parametrize("lab", ["mcl.cli", "mcl.bench"])
+def test_only_the_command_line_and_the_benchmarks_import_themselves(graph, lab: str) -> None:
+    bad = sorted(
+        f"{m} -> {d}" for m, deps in graph.items() if not within(m, lab)
+        for d in deps if within(d, lab)
+    )  # fmt: skip
+    assert not bad, "\n".join(bad)
