@@ -27,6 +27,7 @@ FILTER_BOUNDS: dict[str, Bound] = {
     "filter.global_clearance": Bound(0.0, 10.0, "m", "more room than any corridor"),
     "filter.init_spread": Bound(0.0, 10_000.0, "m, rad", "wider than any map; use a global start"),
     "filter.update_min_distance": Bound(0.0, 100.0, "m", "a scan at least every 100 m"),
+    "odometry_scale.window": Bound(0.1, 100.0, "m", "a comparison at least every 100 m"),
     "filter.update_min_angle": Bound(0.0, 2 * math.pi, "rad", "a full turn"),
     "sensor.num_beams_per_particle": Bound(1, 10_000, "beams", "as the lidar's n_beams",
                                            integer=True),

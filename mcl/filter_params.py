@@ -14,6 +14,7 @@ import numpy as np
 from mcl.augmented import AugmentedParams
 from mcl.filter_bounds import FILTER_BOUNDS, check_filter
 from mcl.kld import KLDParams
+from mcl.odometry_scale import OdometryScaleParams
 from mcl.resampling import RESAMPLERS
 from mcl.uncertainty import ClusterParams
 from racecar_sim.config import nested
@@ -56,6 +57,8 @@ class ParticleFilterParams:
         augmented: :class:`~mcl.augmented.AugmentedParams` (alphas 0: off).
         kld: :class:`~mcl.kld.KLDParams` (``enabled=False``: fixed count).
         clusters: :class:`~mcl.uncertainty.ClusterParams` of :meth:`uncertainty`.
+        odometry_scale: [OdometryScaleParams][mcl.odometry_scale.OdometryScaleParams]: the forward
+            speed scale learned online from where the scan pins the car (on by default).
     """
 
     n_particles: int = DEFAULT_PARTICLES
@@ -71,6 +74,7 @@ class ParticleFilterParams:
     update_min_angle: float = 0.0
     augmented: AugmentedParams = field(default_factory=AugmentedParams)
     kld: KLDParams = field(default_factory=KLDParams)
+    odometry_scale: OdometryScaleParams = field(default_factory=OdometryScaleParams)
     clusters: ClusterParams = field(default_factory=ClusterParams)
 
     def __post_init__(self) -> None:
@@ -128,6 +132,7 @@ class ParticleFilterParams:
             ("augmented", AugmentedParams),
             ("kld", KLDParams),
             ("clusters", ClusterParams),
+            ("odometry_scale", OdometryScaleParams),
         ):
             object.__setattr__(
                 self, name, nested(getattr(self, name), cls, f"ParticleFilterParams.{name}")

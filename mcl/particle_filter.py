@@ -53,6 +53,7 @@ from mcl.augmented import LikelihoodAverages
 from mcl.filter_params import ParticleFilterParams, spread_sd
 from mcl.kld import kld_count
 from mcl.motion_model import MotionModel, twist_to_odometry
+from mcl.odometry_scale import OdometryScale
 from mcl.resampling import resample_particles
 from mcl.sensor_model import SensorModel
 from mcl.step_kernels import bayes_step, covariance_about, pose_moments
@@ -126,6 +127,7 @@ class ParticleFilter:
         self.n_skipped = 0
         self._moved = [math.inf, math.inf]  # metres, radians of odometry since the last used scan
         self._global_count: int | None = None
+        self.odometry_scale = OdometryScale(params.odometry_scale)
 
     # ------------------------------------------------------------------ state
     def _require(self) -> tuple[np.ndarray, np.ndarray]:
@@ -254,16 +256,24 @@ class ParticleFilter:
         self.averages.reset()
         self.pending_random = 0
         self._moved = [math.inf, math.inf]
+        self.odometry_scale.restart()
 
     # ------------------------------------------------------------------ update steps
     def predict(self, twist: np.ndarray, dt: float) -> None:
         """Move the particles by a car-frame twist [vx, vy, omega] held for ``dt`` seconds."""
         twist = np.asarray(twist, dtype=np.float64)
-        if twist.shape != (3,) or not all(map(math.isfinite, values := twist.tolist())):
+        if twist.shape != (3,) or not all(map(math.isfinite, twist.tolist())):
             raise ValueError(f"twist must be three finite numbers [vx, vy, omega], got {twist!r}")
         if not (math.isfinite(dt) and dt >= 0):
             raise ValueError(f"dt must be a non-negative number of seconds, got {dt!r}")
-        self.move(twist_to_odometry(values, dt))
+        scale = self.odometry_scale
+        if scale.needs_estimate() and self._particles is not None:
+            covariance = self.covariance()
+            spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
+            scale.observe(twist, dt, self.estimate(), spread)
+        else:
+            scale.observe(twist, dt)
+        self.move(twist_to_odometry(scale.scaled(twist).tolist(), dt))
 
     def move(self, odometry: np.ndarray) -> None:
         """Move the particles by a car-frame displacement [dx, dy, dtheta] (metres, radians)."""
