@@ -93,7 +93,7 @@ class MotionModelParams:
     """
 
     scheme: str = "gaussian"
-    coefficients: float | tuple[float, float, float] = (0.02, 0.01, 0.02)
+    coefficients: float | tuple[float, float, float] = (0.005, 0.01, 0.02)
     alphas: tuple[float, float, float, float] = (0.2, 0.08, 0.16, 0.02)
 
     def __post_init__(self) -> None:

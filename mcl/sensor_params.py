@@ -30,7 +30,9 @@ class SensorModelParams:
         alpha_short: weight of short returns (unmapped obstacles).
         alpha_max: weight of max-range drop-outs.
         alpha_rand: weight of uniformly random returns.
-        sigma_hit: standard deviation of the hit Gaussian, in pixels (table cells).
+        sigma_hit: standard deviation of the hit Gaussian, in pixels (table cells): 2 cells, 0.1 m on
+            a 0.05 m map (the MIT lab used 8; the real Hokuyo's hits spread 0.05 m about the Stata
+            map, and 8 cells let clutter pull the estimate: docs/localization_changing_world.md).
         table_width: number of table rows and columns; z_max = table_width - 1 pixels.
         max_range: metres of the table's last cell (the beam model's range: measured and expected
             ranges beyond it land in the max-range cell). None = ``z_max`` map cells, i.e.
@@ -82,7 +84,7 @@ class SensorModelParams:
     alpha_short: float = 0.07
     alpha_max: float = 0.07
     alpha_rand: float = 0.12
-    sigma_hit: float = 8.0
+    sigma_hit: float = 2.0
     table_width: int = 201
     max_range: float | None = None
     squash_exponent: float = 1.0 / 2.2
