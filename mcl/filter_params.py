@@ -81,7 +81,9 @@ class ParticleFilterParams:
         owner = "ParticleFilterParams"  # bounds and their reasons: mcl.filter_bounds
         check_filter(owner, "n_particles", self.n_particles, "filter.n_particles")
         if self.global_particles is not None:
-            check_filter(owner, "global_particles", self.global_particles, "filter.global_particles")
+            check_filter(
+                owner, "global_particles", self.global_particles, "filter.global_particles"
+            )
         for name in ("global_max_particles", "global_density", "global_clearance",
                      "update_min_distance", "update_min_angle"):  # fmt: skip
             check_filter(owner, name, getattr(self, name), f"filter.{name}")
@@ -113,7 +115,9 @@ class ParticleFilterParams:
             or not isinstance(c, int | float)
             or not (math.isfinite(c) and c >= 0)
         ):
-            raise ValueError(f"ParticleFilterParams.global_clearance = {short(c)} must be >= 0 metres")
+            raise ValueError(
+                f"ParticleFilterParams.global_clearance = {short(c)} must be >= 0 metres"
+            )
         g = self.global_particles
         if g is not None and (isinstance(g, bool) or not isinstance(g, int) or g < 1):
             raise ValueError(

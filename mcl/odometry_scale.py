@@ -60,8 +60,14 @@ class OdometryScaleParams:
             raise ValueError(f"OdometryScaleParams.enabled = {short(self.enabled)} must be a bool")
         for name in ("window", "gain", "low", "high", "max_spread", "min_straightness"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-                raise ValueError(f"OdometryScaleParams.{name} = {short(value)} must be a finite number")
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not math.isfinite(value)
+            ):
+                raise ValueError(
+                    f"OdometryScaleParams.{name} = {short(value)} must be a finite number"
+                )
             object.__setattr__(self, name, float(value))
         check_filter("OdometryScaleParams", "window", self.window, "odometry_scale.window")
         if not 0.0 < self.gain <= 1.0:

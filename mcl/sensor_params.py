@@ -33,6 +33,12 @@ class SensorModelParams:
         sigma_hit: standard deviation of the hit Gaussian, in pixels (table cells): 2 cells, 0.1 m on
             a 0.05 m map (the MIT lab used 8; the real Hokuyo's hits spread 0.05 m about the Stata
             map, and 8 cells let clutter pull the estimate: docs/localization_changing_world.md).
+        search_sigma_hit: pixels; the hit spread while the filter searches (None: ``sigma_hit``
+            always). A particle a few decimetres from the car must still score for a global start or
+            a kidnap's random particles to find it, so the search uses the lab's 8 cells.
+        search_spread: metres; the filter searches while its cloud's position standard deviation
+            (square root of the covariance's xy trace) exceeds this, or when random particles have
+            just joined the cloud (augmented MCL, recovery).
         table_width: number of table rows and columns; z_max = table_width - 1 pixels.
         max_range: metres of the table's last cell (the beam model's range: measured and expected
             ranges beyond it land in the max-range cell). None = ``z_max`` map cells, i.e.
@@ -85,6 +91,8 @@ class SensorModelParams:
     alpha_max: float = 0.07
     alpha_rand: float = 0.12
     sigma_hit: float = 2.0
+    search_sigma_hit: float | None = 8.0
+    search_spread: float = 0.15
     table_width: int = 201
     max_range: float | None = None
     squash_exponent: float = 1.0 / 2.2
@@ -148,6 +156,14 @@ class SensorModelParams:
             isinstance(mr, bool) or not isinstance(mr, int | float) or not 0 < mr < math.inf
         ):
             raise bad("max_range", "must be None or a positive number of metres")
+        ss = self.search_sigma_hit
+        if ss is not None and (
+            isinstance(ss, bool) or not isinstance(ss, int | float) or not 0 < ss <= 1000
+        ):
+            raise bad("search_sigma_hit", "must be None or a number of pixels in (0, 1000]")
+        sp = self.search_spread
+        if isinstance(sp, bool) or not isinstance(sp, int | float) or not 0 <= sp < math.inf:
+            raise bad("search_spread", "must be a number of metres >= 0")
         if self.model not in MODELS:
             raise bad("model", f"must be one of {MODELS}")
         if self.likelihood_z_rand < 0:
@@ -188,7 +204,9 @@ class SensorModelParams:
             if not isinstance(getattr(self, name), bool):
                 raise bad(name, "must be true or false")
         if self.beam_skip and self.model != "beam":
-            raise bad("beam_skip", f"is implemented for the beam model only, not {short(self.model)}")
+            raise bad(
+                "beam_skip", f"is implemented for the beam model only, not {short(self.model)}"
+            )
         for name in ("beam_skip_distance", "beam_skip_converged_distance"):
             if getattr(self, name) <= 0:
                 raise bad(name, "must be > 0 metres")

@@ -84,7 +84,10 @@ def _drive(out: Path, world: str, seed: int, duration: float, maps: Path) -> Rec
         drive = RecordedDrive.load(path)
         s = drive.settings or {}
         if (s.get("scene"), s.get("noise_profile"), s.get("seed"), s.get("duration")) == (
-            spec.scene, spec.noise_profile, seed, duration
+            spec.scene,
+            spec.noise_profile,
+            seed,
+            duration,
         ):
             return drive
     drive = record_drive(

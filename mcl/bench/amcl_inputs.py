@@ -166,8 +166,10 @@ def update_steps(
     for k in fresh_steps[1:].tolist():  # one comparison per scan, a few thousand a drive
         p = poses[k]
         turn = abs(math.remainder(p[2] - last[2], 2 * math.pi))
-        if abs(p[0] - last[0]) > update_min_d or abs(p[1] - last[1]) > update_min_d or (
-            turn > update_min_a
+        if (
+            abs(p[0] - last[0]) > update_min_d
+            or abs(p[1] - last[1]) > update_min_d
+            or (turn > update_min_a)
         ):
             out.append(k)
             last = p
@@ -182,9 +184,7 @@ def relative_poses(base: np.ndarray, poses: np.ndarray) -> np.ndarray:
     return np.stack([c * dx + s * dy, -s * dx + c * dy, wrap_angle(poses[:, 2] - base[:, 2])], -1)
 
 
-def estimates_between(
-    updates: np.ndarray, at: np.ndarray, poses: np.ndarray
-) -> np.ndarray:
+def estimates_between(updates: np.ndarray, at: np.ndarray, poses: np.ndarray) -> np.ndarray:
     """(n, 3) world estimates at every step from amcl's estimates at its update steps.
 
     Args:

@@ -277,8 +277,13 @@ class AmclPeer(PeerProcess):
         np.savez(f"{stem}_in.npz", ranges=ranges, odom=poses[at], range_max=drive.max_range,
                  mount_offset=drive.mount_offset, init_pose=drive.truth[0],
                  init_var=np.square(np.asarray(init_spread, dtype=np.float64)))  # fmt: skip
-        request = {"grid": str(self._grid_path), "input": f"{stem}_in.npz",
-                   "output": f"{stem}_out.npy", "params": asdict(self.params), "seed": int(seed)}
+        request = {
+            "grid": str(self._grid_path),
+            "input": f"{stem}_in.npz",
+            "output": f"{stem}_out.npy",
+            "params": asdict(self.params),
+            "seed": int(seed),
+        }
         assert self.proc.stdin is not None
         self.proc.stdin.write(json.dumps(request) + "\n")
         self.proc.stdin.flush()
@@ -297,7 +302,9 @@ class AmclPeer(PeerProcess):
             raise RuntimeError(f"amcl failed: {msg.get('error')}")
         updates = np.load(msg["done"])
         Path(msg["done"]).unlink(missing_ok=True)
-        return localized_run(estimates_between(updates, at, poses), drive.truth), float(msg["cpu_s"])
+        return localized_run(estimates_between(updates, at, poses), drive.truth), float(
+            msg["cpu_s"]
+        )
 
     def close(self) -> None:
         """Stop the subprocess and remove its files."""
@@ -316,4 +323,3 @@ def localize_with_amcl(python: str, grid: AmclGrid, drive: RecordedDrive, seed: 
         return peer.collect()[0]
     finally:
         peer.close()
-

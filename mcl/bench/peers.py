@@ -61,7 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
-        "--only", choices=("rangelibc", "spread", "f1tenth", "race", "amcl"),
+        "--only",
+        choices=("rangelibc", "spread", "f1tenth", "race", "amcl"),
         help="run one part only",
     )
     parser.add_argument(

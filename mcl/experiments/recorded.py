@@ -342,7 +342,9 @@ def _map(spec: str) -> OccupancyMap:
 _SENSOR_MODELS: dict[tuple[Any, ...], SensorModel] = {}
 
 
-def _sensor_model(grid: OccupancyMap, config: LocalizationConfig, drive: RecordedDrive) -> SensorModel:
+def _sensor_model(
+    grid: OccupancyMap, config: LocalizationConfig, drive: RecordedDrive
+) -> SensorModel:
     """The sensor model of ``config`` for the drive's lidar on ``grid``, shared by the replays
     of a process (its lookup table is built once)."""
     angles = np.asarray(drive.beam_angles, dtype=np.float64)
@@ -366,4 +368,3 @@ def _jsonable(value: Any) -> Any:
     if value is None or isinstance(value, bool | int | float | str):
         return value
     return repr(value)
-

@@ -17,8 +17,16 @@ from racecar_sim.config import from_mapping
 from racecar_sim.maps import OccupancyMap
 
 
-def _drive(scale: OdometryScale, true_over_reported: float, estimate_follows: str, steps: int,
-           speed: float = 2.0, omega: float = 0.0, dt: float = 0.025, spread: float = 0.05):
+def _drive(
+    scale: OdometryScale,
+    true_over_reported: float,
+    estimate_follows: str,
+    steps: int,
+    speed: float = 2.0,
+    omega: float = 0.0,
+    dt: float = 0.025,
+    spread: float = 0.05,
+):
     """Drive straight (or on a circle) with wheels that report 1 / true_over_reported of the
     speed; the estimate is the truth ("truth": the scan pins the car) or the scaled odometry
     ("odometry": the scan says nothing along the path)."""
@@ -97,8 +105,12 @@ def test_the_filter_loads_the_setting_from_a_mapping_and_applies_it():
     occupied = np.zeros((200, 200), dtype=bool)
     occupied[0, :] = occupied[-1, :] = occupied[:, 0] = occupied[:, -1] = True
     grid = OccupancyMap(occupied, resolution=0.1)
-    pf = ParticleFilter(grid, motion_model=MotionModel(MotionModelParams(scheme="none")),
-                        params=ParticleFilterParams(n_particles=50), rng=0)
+    pf = ParticleFilter(
+        grid,
+        motion_model=MotionModel(MotionModelParams(scheme="none")),
+        params=ParticleFilterParams(n_particles=50),
+        rng=0,
+    )
     pf.initialize(np.array([5.0, 10.0, 0.0]), (0.0, 0.0, 0.0))
     pf.odometry_scale.scale = 1.1
     before = pf.particles.copy()
