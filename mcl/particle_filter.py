@@ -259,6 +259,7 @@ class ParticleFilter:
         self.pending_random = 0
         self._moved = [math.inf, math.inf]
         self.odometry_scale.restart()
+        self.searching = False
 
     # ------------------------------------------------------------------ update steps
     def predict(self, twist: np.ndarray, dt: float) -> None:
@@ -393,12 +394,14 @@ class ParticleFilter:
 
     def is_searching(self) -> bool:
         """Whether the next correction scores with the sensor model's wide search hit: random
-        particles just joined, or the cloud's position spread exceeds ``search_spread`` metres."""
+        particles just joined, or the cloud's position spread exceeds ``search_start_spread``
+        metres (a tracking filter) or ``search_spread`` (a searching one: hysteresis)."""
         if self.last_injected > 0:
             return True
         covariance = self.covariance()
         spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
-        return spread > float(self.sensor_model.params.search_spread)
+        params = self.sensor_model.params
+        return spread > (params.search_spread if self.searching else params.search_start_spread)
 
     def should_correct(self) -> bool:
         """Whether the car moved ``update_min_distance`` or turned ``update_min_angle`` since the

@@ -36,9 +36,11 @@ class SensorModelParams:
         search_sigma_hit: pixels; the hit spread while the filter searches (None: ``sigma_hit``
             always). A particle a few decimetres from the car must still score for a global start or
             a kidnap's random particles to find it, so the search uses the lab's 8 cells.
-        search_spread: metres; the filter searches while its cloud's position standard deviation
-            (square root of the covariance's xy trace) exceeds this, or when random particles have
-            just joined the cloud (augmented MCL, recovery).
+        search_spread: metres; a searching filter tracks again once its cloud's position standard
+            deviation (square root of the covariance's xy trace) is below this.
+        search_start_spread: metres; a tracking filter searches when its cloud's position standard
+            deviation exceeds this (a global start), or when random particles have just joined the
+            cloud (augmented MCL, recovery). Between the two the filter keeps its mode.
         table_width: number of table rows and columns; z_max = table_width - 1 pixels.
         max_range: metres of the table's last cell (the beam model's range: measured and expected
             ranges beyond it land in the max-range cell). None = ``z_max`` map cells, i.e.
@@ -93,6 +95,7 @@ class SensorModelParams:
     sigma_hit: float = 2.0
     search_sigma_hit: float | None = 8.0
     search_spread: float = 0.15
+    search_start_spread: float = 1.0
     table_width: int = 201
     max_range: float | None = None
     squash_exponent: float = 1.0 / 2.2
@@ -161,9 +164,12 @@ class SensorModelParams:
             isinstance(ss, bool) or not isinstance(ss, int | float) or not 0 < ss <= 1000
         ):
             raise bad("search_sigma_hit", "must be None or a number of pixels in (0, 1000]")
-        sp = self.search_spread
-        if isinstance(sp, bool) or not isinstance(sp, int | float) or not 0 <= sp < math.inf:
-            raise bad("search_spread", "must be a number of metres >= 0")
+        for name in ("search_spread", "search_start_spread"):
+            sp = getattr(self, name)
+            if isinstance(sp, bool) or not isinstance(sp, int | float) or not 0 <= sp < math.inf:
+                raise bad(name, "must be a number of metres >= 0")
+        if self.search_start_spread < self.search_spread:
+            raise bad("search_start_spread", "must be >= search_spread")
         if self.model not in MODELS:
             raise bad("model", f"must be one of {MODELS}")
         if self.likelihood_z_rand < 0:
