@@ -15,7 +15,9 @@ alpha_fast 0.1). All three start around the true start pose (standard deviations
 Per seed: mean position error and the percentage of the time it exceeds 1 m; per world and
 filter: the median of the means and the runs lost (more than 2 % of the time over 1 m). Printed as
 markdown and written to ``--out`` (``amcl_results.csv``, ``amcl_results.md``; recorded drives are
-kept in ``--out/drives`` and reused when the same drive is asked again).
+kept in ``--out/drives`` and reused when the same drive is asked again; the results of drives
+already in ``amcl_results.csv`` are kept and those drives not run again, so a run cut short
+continues where it stopped).
 """
 
 from __future__ import annotations
@@ -34,7 +36,17 @@ from mcl.bench import shared_dir
 from mcl.experiments.recorded import LocalizedRun, RecordedDrive, localize_recorded, record_drive
 from mcl.localization import LocalizationConfig
 
-__all__ = ["FILTERS", "LOST_SHARE", "WORLDS", "World", "lost", "run_benchmark", "summary_md"]
+__all__ = [
+    "FILTERS",
+    "LOST_SHARE",
+    "WORLDS",
+    "World",
+    "lost",
+    "read_rows",
+    "results_md",
+    "run_benchmark",
+    "summary_md",
+]
 
 LOST_SHARE = 0.02
 """A run is lost when its error exceeds 1 m more than this share of the time."""
@@ -128,15 +140,22 @@ def run_benchmark(
         for name, peer in peers.items():
             run, cpu = peer.collect()
             rows.append(_row(world, seed, name, run, cpu))
-        _write(out, rows, seeds, duration)
+        _write(out, rows, seeds, duration, worlds)
         mine = {r["filter"]: r for r in rows if (r["world"], r["seed"]) == (world, seed)}
         echo(f"{world} seed {seed}: " + ", ".join(
             f"{n} {mine[n]['mean_error_m']:.3f} m ({mine[n]['pct_over_1m']:.1f} % > 1 m)"
             for n in FILTERS if n in mine))  # fmt: skip
 
+    rows += read_rows(out / "amcl_results.csv")  # every world and seed stays in the file
+    done = {(r["world"], r["seed"]) for r in rows if r["filter"] == FILTERS[-1]}
+    rows[:] = [r for r in rows if (r["world"], r["seed"]) in done]
+    if done:
+        echo(f"kept {len(done)} drives' results from {out / 'amcl_results.csv'}")
     try:
-        for world in worlds:
-            for seed in range(seeds):
+        for seed in range(seeds):  # seeds outside: a run cut short still covers every world
+            for world in worlds:
+                if (world, seed) in done:
+                    continue
                 drive = _drive(out, world, seed, duration, maps)
                 for peer in peers.values():
                     peer.submit(drive, seed, config.filter.init_spread)
@@ -154,12 +173,27 @@ def run_benchmark(
     return rows
 
 
-def _write(out: Path, rows: list[dict[str, Any]], seeds: int, duration: float) -> None:
+def read_rows(path: Path) -> list[dict[str, Any]]:
+    """The rows of an ``amcl_results.csv`` written before (none when it is absent)."""
+    if not path.is_file():
+        return []
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r["seed"] = int(r["seed"])
+        r["lost"] = r["lost"] == "True"
+        for key in ("mean_error_m", "p95_error_m", "max_error_m", "pct_over_1m", "cpu_s"):
+            r[key] = float(r[key])
+    return rows
+
+
+def _write(out: Path, rows: list[dict[str, Any]], seeds: int, duration: float,
+           worlds: Sequence[str]) -> None:  # fmt: skip
     with open(out / "amcl_results.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    (out / "amcl_results.md").write_text(results_md(rows, seeds, duration))
+    (out / "amcl_results.md").write_text(results_md(rows, seeds, duration, worlds))
 
 
 def per_seed_md(rows: list[dict[str, Any]], world: str) -> str:
@@ -197,8 +231,12 @@ def summary_md(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def results_md(rows: list[dict[str, Any]], seeds: int, duration: float) -> str:
-    """The whole report: workload, summary, per-seed tables."""
+def results_md(rows: list[dict[str, Any]], seeds: int, duration: float,
+               worlds: Sequence[str] | None = None) -> str:  # fmt: skip
+    """The whole report of seeds 0..``seeds``-1 in ``worlds`` (None: all): workload, summary,
+    per-seed tables."""
+    rows = [r for r in rows if r["seed"] < seeds and (worlds is None or r["world"] in worlds)]
+    rows.sort(key=lambda r: (list(WORLDS).index(r["world"]), r["seed"], FILTERS.index(r["filter"])))
     parts = [
         "# Our filter vs nav2 amcl on the same drives",
         "",

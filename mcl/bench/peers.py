@@ -254,7 +254,7 @@ def amcl_part(args: argparse.Namespace) -> int:
     rows = amcl_bench.run_benchmark(
         python, args.amcl_worlds, args.seeds, args.amcl_duration, args.out
     )
-    print(amcl_bench.results_md(rows, args.seeds, args.amcl_duration))
+    print(amcl_bench.results_md(rows, args.seeds, args.amcl_duration, args.amcl_worlds))
     return 0
 
 

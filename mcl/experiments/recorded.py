@@ -8,8 +8,8 @@ true pose and the time, plus the lidar's geometry and the maps' paths, in a
 [save][mcl.experiments.recorded.RecordedDrive.save] / [load][mcl.experiments.recorded.RecordedDrive.load]).
 [localize_recorded][mcl.experiments.recorded.localize_recorded] feeds it through the same filter
 code as [LocalizationWrapper][mcl.wrapper.LocalizationWrapper]
-([start_filter][mcl.localization.start_filter], ``predict`` with the step's odometry,
-[correct_with_scan][mcl.localization.correct_with_scan] on a fresh scan): with the same seed it
+(``mcl.localization.start_filter``, ``predict`` with the step's odometry,
+``mcl.localization.correct_with_scan`` on a fresh scan): with the same seed it
 gives the online run's estimates bit for bit. A peer filter (nav2's amcl,
 ``mcl.bench.peer_amcl``) gets the very same drives.
 
@@ -190,12 +190,12 @@ def record_drive(
     Args:
         world_map: the world (bundled name or map YAML).
         filter_map: the map a filter should hold (stored, not used here); None = the world.
-        scene: ``"clean"``, ``"cluttered"``, ``"none"`` or None ([racecar_sim.scenes][]).
+        scene: ``"clean"``, ``"cluttered"``, ``"none"`` or None (``racecar_sim.scenes``).
         noise_profile: e.g. ``"mit_racecar"``; None = the env's own (ideal) settings.
         driver: a key of [DRIVERS][mcl.experiments.runs.DRIVERS].
         seed: the reset seed (start pose, sensor noise, obstacles).
         duration: simulated seconds.
-        env: further [EnvConfig][racecar_sim.env.EnvConfig] settings.
+        env: further [EnvConfig][racecar_sim.config.EnvConfig] settings.
     """
     from mcl.experiments.runs import make_driver  # runs imports the wrapper; only needed here
 
@@ -277,7 +277,7 @@ def localize_recorded(
 
     The filter starts on the reset's true pose (``config.init="pose"``, spread
     ``config.filter.init_spread``) or uniformly (``"global"``) with the generator
-    [filter_rng][mcl.localization.filter_rng] derives from ``seed``, is corrected by the reset's
+    ``mcl.localization.filter_rng`` derives from ``seed``, is corrected by the reset's
     scan, then per step predicts with the odometry held for ``drive.dt`` and corrects on a fresh
     scan. With the drive's seed the estimates equal the online run's bit for bit.
 
@@ -323,7 +323,7 @@ def localized_run(
     estimate: np.ndarray, truth: np.ndarray, n_particles: np.ndarray | None = None
 ) -> LocalizedRun:
     """A [LocalizedRun][mcl.experiments.recorded.LocalizedRun] of estimates (n, 3) against the
-    truth (n, 3), errors as [pose_error][mcl.localization.pose_error] takes them (vectorised)."""
+    truth (n, 3), errors as ``mcl.localization.pose_error`` takes them (vectorised)."""
     estimate = np.asarray(estimate, dtype=np.float64)
     truth = np.asarray(truth, dtype=np.float64)
     position = np.hypot(estimate[:, 0] - truth[:, 0], estimate[:, 1] - truth[:, 1])

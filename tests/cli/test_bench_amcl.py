@@ -222,3 +222,20 @@ def test_amcl_tracks_a_recorded_drive():
     run = peer_amcl.localize_with_amcl(python, amcl_grid(resolve_map("basement_loop")), drive, 2)
     assert run.position_error.mean() < 0.15
     assert run.position_error.max() < 0.5
+
+
+def test_results_survive_a_restart_and_the_report_covers_the_seeds_asked(tmp_path):
+    rows = [
+        {"world": w, "seed": s, "filter": f, "mean_error_m": 0.1 * (s + 1), "p95_error_m": 0.5,
+         "max_error_m": 1.5, "pct_over_1m": 3.0 * s, "lost": amcl_bench.lost(
+             np.r_[np.zeros(100 - 3 * s), np.full(3 * s, 2.0)]), "cpu_s": 1.0}
+        for w in ("ideal", "cluttered") for s in range(3) for f in amcl_bench.FILTERS
+    ]  # fmt: skip
+    amcl_bench._write(tmp_path, rows, 3, 60.0, ["ideal", "cluttered"])
+    back = amcl_bench.read_rows(tmp_path / "amcl_results.csv")
+    assert back == rows
+    report = amcl_bench.results_md(back, 2, 60.0, ["cluttered"])
+    assert "## cluttered: per seed" in report and "ideal" not in report.split("## Summary")[1]
+    # seeds 0 and 1 only: means 0.1 and 0.2 (median 0.150), seed 1 at 3 % over 1 m is lost
+    assert "| cluttered | ours | 2 | 0.150 | 1/2 | 1.5 |" in report
+    assert "\n| 1 | 0.200 |" in report and "\n| 2 | " not in report  # per-seed rows: 0, 1
