@@ -204,7 +204,9 @@ class AdaptiveParticleFilter(ParticleFilter):
         self._join_pending_random()
         squash = self.squash
         factor = squash / float(self.sensor_model.params.squash_exponent)
-        self.update_weights(self.sensor_model.log_evaluate(self.particles, scan) * factor)
+        self.update_weights(
+            self.sensor_model.log_evaluate(self.particles, scan, self.is_searching()) * factor
+        )
         self.averages.update(self.last_log_mean_likelihood, int(n_beams), squash)
         if self.needs_resampling():
             self.resample()

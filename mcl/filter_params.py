@@ -14,6 +14,7 @@ import numpy as np
 from mcl.augmented import AugmentedParams
 from mcl.filter_bounds import FILTER_BOUNDS, check_filter
 from mcl.kld import KLDParams
+from mcl.odometry_scale import OdometryScaleParams
 from mcl.resampling import RESAMPLERS
 from mcl.uncertainty import ClusterParams
 from racecar_sim.config import nested
@@ -56,6 +57,8 @@ class ParticleFilterParams:
         augmented: :class:`~mcl.augmented.AugmentedParams` (alphas 0: off).
         kld: :class:`~mcl.kld.KLDParams` (``enabled=False``: fixed count).
         clusters: :class:`~mcl.uncertainty.ClusterParams` of :meth:`uncertainty`.
+        odometry_scale: [OdometryScaleParams][mcl.odometry_scale.OdometryScaleParams]: the forward
+            speed scale learned online from where the scan pins the car (on by default).
     """
 
     n_particles: int = DEFAULT_PARTICLES
@@ -71,13 +74,16 @@ class ParticleFilterParams:
     update_min_angle: float = 0.0
     augmented: AugmentedParams = field(default_factory=AugmentedParams)
     kld: KLDParams = field(default_factory=KLDParams)
+    odometry_scale: OdometryScaleParams = field(default_factory=OdometryScaleParams)
     clusters: ClusterParams = field(default_factory=ClusterParams)
 
     def __post_init__(self) -> None:
         owner = "ParticleFilterParams"  # bounds and their reasons: mcl.filter_bounds
         check_filter(owner, "n_particles", self.n_particles, "filter.n_particles")
         if self.global_particles is not None:
-            check_filter(owner, "global_particles", self.global_particles, "filter.global_particles")
+            check_filter(
+                owner, "global_particles", self.global_particles, "filter.global_particles"
+            )
         for name in ("global_max_particles", "global_density", "global_clearance",
                      "update_min_distance", "update_min_angle"):  # fmt: skip
             check_filter(owner, name, getattr(self, name), f"filter.{name}")
@@ -109,7 +115,9 @@ class ParticleFilterParams:
             or not isinstance(c, int | float)
             or not (math.isfinite(c) and c >= 0)
         ):
-            raise ValueError(f"ParticleFilterParams.global_clearance = {short(c)} must be >= 0 metres")
+            raise ValueError(
+                f"ParticleFilterParams.global_clearance = {short(c)} must be >= 0 metres"
+            )
         g = self.global_particles
         if g is not None and (isinstance(g, bool) or not isinstance(g, int) or g < 1):
             raise ValueError(
@@ -128,6 +136,7 @@ class ParticleFilterParams:
             ("augmented", AugmentedParams),
             ("kld", KLDParams),
             ("clusters", ClusterParams),
+            ("odometry_scale", OdometryScaleParams),
         ):
             object.__setattr__(
                 self, name, nested(getattr(self, name), cls, f"ParticleFilterParams.{name}")

@@ -86,14 +86,19 @@ class MotionModelParams:
         coefficients: per-update noise of the car-frame odometry (dx metres, dy metres, dtheta
             radians): the half-width c for ``"uniform"``, the standard deviation for ``"gaussian"``
             and for the constant floor of ``"alpha"``, ignored for ``"none"``. One number applies
-            to all three components.
+            to all three components. The forward 0.005 m is tight on purpose: the scan must not drag
+            the cloud along a corridor whose map is out of date (docs/localization_changing_world.md).
+        search_coefficients: the coefficients while the filter searches (its cloud spread, random
+            particles just joined: [is_searching][mcl.particle_filter.ParticleFilter.is_searching]),
+            so that a spread cloud keeps exploring even while the car stands; None: ``coefficients``.
         alphas: ``"alpha"`` only: a1 (rad² of rotation noise variance per rad² of rotation), a2
             (rad² per m² of translation), a3 (m² of translation variance per m²), a4 (m² per rad²);
             amcl's ``odom_alpha1..4`` (:mod:`mcl.alpha_motion`).
     """
 
     scheme: str = "gaussian"
-    coefficients: float | tuple[float, float, float] = (0.02, 0.01, 0.02)
+    coefficients: float | tuple[float, float, float] = (0.005, 0.01, 0.02)
+    search_coefficients: float | tuple[float, float, float] | None = (0.02, 0.01, 0.02)
     alphas: tuple[float, float, float, float] = (0.2, 0.08, 0.16, 0.02)
 
     def __post_init__(self) -> None:
@@ -102,6 +107,10 @@ class MotionModelParams:
                 f"MotionModelParams.scheme = {short(self.scheme)}; choose one of {list(SCHEMES)}"
             )
         object.__setattr__(self, "coefficients", _three("coefficients", self.coefficients))
+        if self.search_coefficients is not None:
+            object.__setattr__(
+                self, "search_coefficients", _three("search_coefficients", self.search_coefficients)
+            )
         try:
             alphas = tuple(float(a) for a in self.alphas)
         except (TypeError, ValueError):
@@ -187,9 +196,7 @@ class MotionModel:
     def _coefficients(self) -> np.ndarray:
         return self._arrays()[0]
 
-    def noisy_odometry(
-        self, n: int, odometry: np.ndarray, rng: np.random.Generator
-    ) -> np.ndarray:
+    def noisy_odometry(self, n: int, odometry: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """(n, 3) noisy car-frame displacements (metres, metres, radians) of ``odometry`` (3,), one
         per particle, as :meth:`evaluate` composes them (every scheme; one raw draw of ``rng``)."""
         odo = np.asarray(odometry, dtype=np.float64).reshape(3)

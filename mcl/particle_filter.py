@@ -53,6 +53,7 @@ from mcl.augmented import LikelihoodAverages
 from mcl.filter_params import ParticleFilterParams, spread_sd
 from mcl.kld import kld_count
 from mcl.motion_model import MotionModel, twist_to_odometry
+from mcl.odometry_scale import OdometryScale
 from mcl.resampling import resample_particles
 from mcl.sensor_model import SensorModel
 from mcl.step_kernels import bayes_step, covariance_about, pose_moments
@@ -126,6 +127,9 @@ class ParticleFilter:
         self.n_skipped = 0
         self._moved = [math.inf, math.inf]  # metres, radians of odometry since the last used scan
         self._global_count: int | None = None
+        self.odometry_scale = OdometryScale(params.odometry_scale)
+        self.searching = False  # whether the last correction scored with the wide search hit
+        self._search_motion: MotionModel | None = None
 
     # ------------------------------------------------------------------ state
     def _require(self) -> tuple[np.ndarray, np.ndarray]:
@@ -254,24 +258,47 @@ class ParticleFilter:
         self.averages.reset()
         self.pending_random = 0
         self._moved = [math.inf, math.inf]
+        self.odometry_scale.restart()
+        self.searching = False
 
     # ------------------------------------------------------------------ update steps
     def predict(self, twist: np.ndarray, dt: float) -> None:
-        """Move the particles by a car-frame twist [vx, vy, omega] held for ``dt`` seconds."""
+        """Move the particles by a car-frame twist [vx, vy, omega] held for ``dt`` seconds (its
+        forward speed times the learned [odometry_scale][mcl.odometry_scale.OdometryScale])."""
+        self._require()
         twist = np.asarray(twist, dtype=np.float64)
-        if twist.shape != (3,) or not all(map(math.isfinite, values := twist.tolist())):
+        if twist.shape != (3,) or not all(map(math.isfinite, twist.tolist())):
             raise ValueError(f"twist must be three finite numbers [vx, vy, omega], got {twist!r}")
         if not (math.isfinite(dt) and dt >= 0):
             raise ValueError(f"dt must be a non-negative number of seconds, got {dt!r}")
-        self.move(twist_to_odometry(values, dt))
+        scale = self.odometry_scale
+        if scale.needs_estimate() and self._particles is not None:
+            covariance = self.covariance()
+            spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
+            scale.observe(twist, dt, self.estimate(), spread)
+        else:
+            scale.observe(twist, dt)
+        self.move(twist_to_odometry(scale.scaled(twist).tolist(), dt))
 
     def move(self, odometry: np.ndarray) -> None:
         """Move the particles by a car-frame displacement [dx, dy, dtheta] (metres, radians)."""
         particles, _ = self._require()
-        self._particles = self.motion_model.evaluate(particles, odometry, self.rng)
+        self._particles = self._motion().evaluate(particles, odometry, self.rng)
         dx, dy, dtheta = np.asarray(odometry, dtype=np.float64).tolist()
         self._moved[0] += math.hypot(dx, dy)
         self._moved[1] += abs(dtheta)
+
+    def _motion(self) -> MotionModel:
+        """The motion model, with its search coefficients while the filter searches."""
+        mp = self.motion_model.params
+        if not self.searching or mp.search_coefficients is None or mp.scheme == "none":
+            return self.motion_model
+        if (
+            self._search_motion is None
+            or self._search_motion.params.coefficients != mp.search_coefficients
+        ):
+            self._search_motion = MotionModel(replace(mp, coefficients=mp.search_coefficients))
+        return self._search_motion
 
     def update_weights(self, log_likelihood: np.ndarray) -> None:
         """Multiply the weights by ``exp(log_likelihood)`` (N,) and normalise (Bayes rule).
@@ -346,7 +373,9 @@ class ParticleFilter:
         batch until Fox's rule stops or :attr:`max_particles` draws are made.
         """
         particles, weights = self._require()
-        return kld_count(particles, weights, self.params.kld, self.max_particles, self.rng, p_random)
+        return kld_count(
+            particles, weights, self.params.kld, self.max_particles, self.rng, p_random
+        )
 
     def _join_pending_random(self) -> None:
         """Add the random particles kept aside by :meth:`resample`, each with the mean weight."""
@@ -362,6 +391,17 @@ class ParticleFilter:
         self.pending_random = 0
         self.last_injected = k
         self.n_injected += k
+
+    def is_searching(self) -> bool:
+        """Whether the next correction scores with the sensor model's wide search hit: random
+        particles just joined, or the cloud's position spread exceeds ``search_start_spread``
+        metres (a tracking filter) or ``search_spread`` (a searching one: hysteresis)."""
+        if self.last_injected > 0:
+            return True
+        covariance = self.covariance()
+        spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
+        params = self.sensor_model.params
+        return spread > (params.search_spread if self.searching else params.search_start_spread)
 
     def should_correct(self) -> bool:
         """Whether the car moved ``update_min_distance`` or turned ``update_min_angle`` since the
@@ -393,7 +433,18 @@ class ParticleFilter:
         self._moved = [0.0, 0.0]
         self.last_injected = 0
         self._join_pending_random()
-        self.update_weights(self.sensor_model.log_evaluate(self.particles, scan))
+        log_likelihood = self.sensor_model.log_evaluate(self.particles, scan)
+        self.searching = self.is_searching()
+        if self.sensor_model.has_search_hit and self.searching:
+            # weigh by the wide hit; the likelihood averages (augmented MCL) keep the narrow one
+            _, _, top, total, _ = bayes_step(self._log_weights, log_likelihood)
+            self.update_weights(self.sensor_model.log_evaluate(self.particles, scan, True))
+            if math.isfinite(self.last_log_mean_likelihood):
+                self.last_log_mean_likelihood = (
+                    float(top + math.log(total)) if total > 0 else -math.inf
+                )
+        else:
+            self.update_weights(log_likelihood)
         squash = float(self.sensor_model.params.squash_exponent)
         self.averages.update(self.last_log_mean_likelihood, int(n_beams), squash)
         if self.needs_resampling():

@@ -29,6 +29,8 @@ from ``beam_angles`` raises ``ValueError``. With every beam dropped, all particl
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numba as nb
 import numpy as np
 
@@ -148,6 +150,13 @@ class SensorModel:
         with np.errstate(divide="ignore"):
             log_table = p.squash_exponent * np.log(self.table)
         self._log_table = np.ascontiguousarray(log_table)
+        self._search_log_table = self._log_table
+        self.has_search_hit = False
+        if p.search_sigma_hit is not None and p.search_sigma_hit != p.sigma_hit:
+            wide = beam_table(replace(p, sigma_hit=float(p.search_sigma_hit)))
+            with np.errstate(divide="ignore"):
+                self._search_log_table = np.ascontiguousarray(p.squash_exponent * np.log(wide))
+            self.has_search_hit = True
         if beam_angles is not None:
             beam_angles = np.asarray(beam_angles, dtype=np.float64)
             if beam_angles.ndim != 1 or beam_angles.size == 0:
@@ -319,8 +328,12 @@ class SensorModel:
         return self._score_into(expected, rows, table, np.empty(expected.shape[0]))
 
     # ------------------------------------------------------------------ API
-    def log_evaluate(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
-        """(N,) natural-log likelihoods of ``scan`` (metres) from each particle (see module doc)."""
+    def log_evaluate(
+        self, particles: np.ndarray, scan: np.ndarray, searching: bool = False
+    ) -> np.ndarray:
+        """(N,) natural-log likelihoods of ``scan`` (metres) from each particle (see module doc);
+        ``searching`` scores with the wide hit of ``params.search_sigma_hit``."""
+        log_table = self._search_log_table if searching else self._log_table
         if self.caster is None:
             return self._log_evaluate_field(particles, scan)
         angles, z_px = self.observe(scan)
@@ -342,11 +355,15 @@ class SensorModel:
             return self.caster.cast_score(
                 particles,
                 angles,
-                self._log_table[z_px],
+                log_table[z_px],
                 1.0 / self.m_per_px,
                 offset=float(self.params.mount_offset),
             )
-        return self.score(self.expected_ranges(particles, angles), z_px)
+        expected = np.ascontiguousarray(self.expected_ranges(particles, angles), dtype=np.float64)
+        out = np.empty(expected.shape[0], dtype=np.float64)
+        return self._score_into(
+            expected, np.ascontiguousarray(z_px, dtype=np.int64), log_table, out
+        )
 
     def _log_evaluate_field(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
         """The likelihood-field model's log-likelihoods (see :mod:`mcl.likelihood_field`)."""

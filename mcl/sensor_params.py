@@ -30,7 +30,17 @@ class SensorModelParams:
         alpha_short: weight of short returns (unmapped obstacles).
         alpha_max: weight of max-range drop-outs.
         alpha_rand: weight of uniformly random returns.
-        sigma_hit: standard deviation of the hit Gaussian, in pixels (table cells).
+        sigma_hit: standard deviation of the hit Gaussian, in pixels (table cells): 2 cells, 0.1 m on
+            a 0.05 m map (the MIT lab used 8; the real Hokuyo's hits spread 0.05 m about the Stata
+            map, and 8 cells let clutter pull the estimate: docs/localization_changing_world.md).
+        search_sigma_hit: pixels; the hit spread while the filter searches (None: ``sigma_hit``
+            always). A particle a few decimetres from the car must still score for a global start or
+            a kidnap's random particles to find it, so the search uses the lab's 8 cells.
+        search_spread: metres; a searching filter tracks again once its cloud's position standard
+            deviation (square root of the covariance's xy trace) is below this.
+        search_start_spread: metres; a tracking filter searches when its cloud's position standard
+            deviation exceeds this (a global start), or when random particles have just joined the
+            cloud (augmented MCL, recovery). Between the two the filter keeps its mode.
         table_width: number of table rows and columns; z_max = table_width - 1 pixels.
         max_range: metres of the table's last cell (the beam model's range: measured and expected
             ranges beyond it land in the max-range cell). None = ``z_max`` map cells, i.e.
@@ -82,7 +92,10 @@ class SensorModelParams:
     alpha_short: float = 0.07
     alpha_max: float = 0.07
     alpha_rand: float = 0.12
-    sigma_hit: float = 8.0
+    sigma_hit: float = 2.0
+    search_sigma_hit: float | None = 8.0
+    search_spread: float = 0.15
+    search_start_spread: float = 1.0
     table_width: int = 201
     max_range: float | None = None
     squash_exponent: float = 1.0 / 2.2
@@ -146,6 +159,17 @@ class SensorModelParams:
             isinstance(mr, bool) or not isinstance(mr, int | float) or not 0 < mr < math.inf
         ):
             raise bad("max_range", "must be None or a positive number of metres")
+        ss = self.search_sigma_hit
+        if ss is not None and (
+            isinstance(ss, bool) or not isinstance(ss, int | float) or not 0 < ss <= 1000
+        ):
+            raise bad("search_sigma_hit", "must be None or a number of pixels in (0, 1000]")
+        for name in ("search_spread", "search_start_spread"):
+            sp = getattr(self, name)
+            if isinstance(sp, bool) or not isinstance(sp, int | float) or not 0 <= sp < math.inf:
+                raise bad(name, "must be a number of metres >= 0")
+        if self.search_start_spread < self.search_spread:
+            raise bad("search_start_spread", "must be >= search_spread")
         if self.model not in MODELS:
             raise bad("model", f"must be one of {MODELS}")
         if self.likelihood_z_rand < 0:
@@ -186,7 +210,9 @@ class SensorModelParams:
             if not isinstance(getattr(self, name), bool):
                 raise bad(name, "must be true or false")
         if self.beam_skip and self.model != "beam":
-            raise bad("beam_skip", f"is implemented for the beam model only, not {short(self.model)}")
+            raise bad(
+                "beam_skip", f"is implemented for the beam model only, not {short(self.model)}"
+            )
         for name in ("beam_skip_distance", "beam_skip_converged_distance"):
             if getattr(self, name) <= 0:
                 raise bad(name, "must be > 0 metres")

@@ -38,7 +38,6 @@ def wrap(a):
     return out - _TWO_PI if out >= math.pi else out
 
 
-
 @nb.njit(cache=True, inline="always")
 def wrap_near(a):
     """``(wrap(a), ok)`` for an angle within about one turn of [-pi, pi) (radians): a shift by
@@ -60,6 +59,7 @@ def wrap_near(a):
     out = r - math.pi
     out = out - _TWO_PI if out >= math.pi else out
     return out, (x >= -_TWO_PI) & (x < 2.0 * _TWO_PI)
+
 
 # fdlibm's (Sun, 1993) kernels of sin and cos on [-pi/4, pi/4] and its two-step Cody-Waite
 # reduction by pi/2 (k_sin.c, k_cos.c, e_rem_pio2.c).

@@ -8,12 +8,15 @@ package, beside the current working directory.
 import importlib
 from pathlib import Path
 
-_bundled = importlib.import_module("racecar_sim.maps.bundled")  # the module (maps.bundled is a function)
+_bundled = importlib.import_module(
+    "racecar_sim.maps.bundled"
+)  # the module (maps.bundled is a function)
 
 
 def checkout_maps_dir() -> Path | None:
     """:func:`racecar_sim.maps.bundled.checkout_maps_dir`: the checkout's maps/, None if installed."""
     return _bundled.checkout_maps_dir()
+
 
 __all__ = ["SHARED", "STATA", "missing_map", "shared_dir", "stata_map"]
 

@@ -236,7 +236,10 @@ def speed_cost(map_yaml: Path, steps: int, vector_steps: int, runs: int, num_env
           "kinematic, wall (median, rounds) | the same by CPU time (median, rounds) |")  # fmt: skip
     print("|---|---:|---:|---:|---:|")
     out = {}
-    for kind, label in (("single", "one env"), ("vector", f"vector env, {num_envs} cars (car-steps/s)")):
+    for kind, label in (
+        ("single", "one env"),
+        ("vector", f"vector env, {num_envs} cars (car-steps/s)"),
+    ):
         kin, st = rates[("kinematic", kind)], rates[("single_track", kind)]
         ratios = [k / s for k, s in zip(kin, st, strict=True)]
         cpu = [k / s for k, s in zip(rates[("kinematic", kind, "cpu")],
@@ -344,7 +347,9 @@ def main(argv: list[str] | None = None) -> int:
         if not map_yaml.is_file():
             from racecar_sim.maps import bundled
 
-            print(f"map {map_yaml} not found (the Stata map lives in ../shared/maps): basement_loop")
+            print(
+                f"map {map_yaml} not found (the Stata map lives in ../shared/maps): basement_loop"
+            )
             map_yaml = bundled("basement_loop")
         runs = 2 if args.quick else args.runs
         speed_cost(map_yaml, args.sim_steps, args.vector_steps, runs, args.num_envs)

@@ -42,7 +42,15 @@ from mcl.bench.peer_process import PeerProcess
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
 
-__all__ = ["ENV_SETTINGS", "PEER_PREAMBLE", "PEER_SCRIPT", "WORKLOAD", "compare", "slalom", "start_pose"]
+__all__ = [
+    "ENV_SETTINGS",
+    "PEER_PREAMBLE",
+    "PEER_SCRIPT",
+    "WORKLOAD",
+    "compare",
+    "slalom",
+    "start_pose",
+]
 
 ENV_SETTINGS: dict[str, Any] = {
     "n_beams": 1080,
@@ -112,7 +120,9 @@ with tempfile.TemporaryDirectory() as tmp:
 """The start of a peer script: reads ``cfg`` (JSON in ``argv[1]``), imports f1tenth_gym from
 its checkout and loads the map as its ``Track`` (a converted copy in a temporary folder)."""
 
-PEER_SCRIPT = PEER_PREAMBLE + r"""
+PEER_SCRIPT = (
+    PEER_PREAMBLE
+    + r"""
 env = gym.make("f1tenth_gym:f1tenth-v0", config={
     "map": track, "num_agents": 1, "timestep": 0.01, "integrator": "rk4", "model": "st",
     "control_input": ["speed", "steering_angle"], "observation_config": {"type": "original"},
@@ -136,6 +146,7 @@ for line in sys.stdin:
                       "collided": bool(obs["collisions"][0]),
                       "end": [float(obs["poses_x"][0]), float(obs["poses_y"][0])]}), flush=True)
 """
+)
 """Run by the peer's Python (``-c``): loads the map and the env once, then times one episode per
 ``{"op": "run", "steps": N}`` line on stdin and answers with one JSON line."""
 
@@ -254,7 +265,9 @@ def _report(rows: dict[str, list[dict[str, Any]]], num_envs: int) -> dict[str, A
             ratio_w = statistics.median(walls)
             ratio_c = statistics.median(rate(a, "cpu") / rate(b, "cpu") for a, b in pairs)
             spread = f" (rounds {min(walls):.2f}-{max(walls):.2f})"
-        cpu_text = f"{cpu:.0f}" if key != "vector" else f"({cpu:.0f}, up to {os.cpu_count()} threads)"
+        cpu_text = (
+            f"{cpu:.0f}" if key != "vector" else f"({cpu:.0f}, up to {os.cpu_count()} threads)"
+        )
         ratio_c_text = f"{ratio_c:.2f}" if key != "vector" else "-"
         hits = sum(r["collided"] for r in res_list)
         print(f"| {labels[key]} | {wall:.0f} | {cpu_text} | {ratio_w:.2f}{spread} | {ratio_c_text} | "

@@ -21,12 +21,18 @@
   round; f1tenth_gym runs in its own venv (``--f1tenth-python``, ``--f1tenth-path``), skipped
   with a message when those are not given.
 
+* amcl (:mod:`mcl.bench.amcl_bench`): localization error of our filter against nav2's amcl
+  (PyPI ``amcl``, GPL-3: its own venv, ``--amcl-python`` / ``$AMCL_PYTHON`` or made in
+  ``out/peers/amcl-venv`` on first use, run as a subprocess) on the same recorded 60 s drives,
+  ``--seeds`` seeds in the honest world (cluttered and clean scenes) and the ideal one; tables in
+  ``--out``; skipped with a message when the venv cannot be made.
+
 Other peers add their part as a function ``part(args) -> int`` in :data:`PARTS` and their options
 in :func:`add_arguments`. Every part prints its workload (particles, beams, range, threads) and
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
-        [--only rangelibc|spread|f1tenth|race] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
+        [--only rangelibc|spread|f1tenth|race|amcl] [--seeds 20] [--amcl-worlds cluttered clean ideal] [--amcl-python PY] [--out DIR] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
         [--sim-steps 1000] [--sim-runs 5] [--num-envs 32]
 """
 
@@ -38,7 +44,7 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from mcl.bench import missing_map, stata_map
+from mcl.bench import missing_map, shared_dir, stata_map
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -55,7 +61,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
-        "--only", choices=("rangelibc", "spread", "f1tenth", "race"), help="run one part only"
+        "--only",
+        choices=("rangelibc", "spread", "f1tenth", "race", "amcl"),
+        help="run one part only",
     )
     parser.add_argument(
         "--spread-particles", type=int, nargs="+", default=[4000, 10000],
@@ -86,6 +94,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--race-spacing", type=float, default=1.0, help="metres between the cars' rear axles"
     )
+    parser.add_argument("--seeds", type=int, default=20, help="drives per world (amcl part)")
+    parser.add_argument(
+        "--amcl-worlds", nargs="+", default=["cluttered", "clean", "ideal"],
+        choices=("cluttered", "clean", "ideal"), help="worlds of the amcl part",
+    )  # fmt: skip
+    parser.add_argument("--amcl-duration", type=float, default=60.0,
+                        help="simulated seconds per drive (amcl part)")  # fmt: skip
+    parser.add_argument(
+        "--amcl-python", help="python of a venv with PyPI amcl (default: $AMCL_PYTHON, else "
+        "out/peers/amcl-venv, made on first use)",
+    )  # fmt: skip
+    parser.add_argument("--out", type=Path, default=Path("out/peers/amcl"),
+                        help="folder of the amcl part's tables and drives")  # fmt: skip
 
 
 def rangelibc_part(args: argparse.Namespace) -> int:
@@ -211,11 +232,38 @@ def race_part(args: argparse.Namespace) -> int:
     return 0
 
 
+def amcl_part(args: argparse.Namespace) -> int:
+    """Localization error of our filter against nav2's amcl on the same drives (amcl in its own
+    venv; skipped with the reason when it cannot be had)."""
+    from mcl.bench import amcl_bench, peer_amcl
+
+    print("== localization vs nav2 amcl, the same recorded drives ==")
+    maps = shared_dir() / "maps"
+    needed = [maps / amcl_bench.FILTER_MAP, *{maps / amcl_bench.WORLDS[w].world_map
+                                              for w in args.amcl_worlds}]  # fmt: skip
+    absent = [p for p in needed if not p.is_file()]
+    if absent:
+        print(f"skipped: {absent[0]} not found (../shared beside the checkout holds the maps)")
+        return 0
+    python, why = peer_amcl.amcl_python(args.amcl_python)
+    if python is None:
+        print(f"skipped: {why}")
+        return 0
+    print(f"{args.seeds} seeds x {args.amcl_duration:g} s x worlds {', '.join(args.amcl_worlds)}; "
+          f"amcl from {python}; results into {args.out}")  # fmt: skip
+    rows = amcl_bench.run_benchmark(
+        python, args.amcl_worlds, args.seeds, args.amcl_duration, args.out
+    )
+    print(amcl_bench.results_md(rows, args.seeds, args.amcl_duration, args.amcl_worlds))
+    return 0
+
+
 PARTS: list[Callable[[argparse.Namespace], int]] = [
     rangelibc_part,
     spread_part,
     f1tenth_part,
     race_part,
+    amcl_part,
 ]
 """The peer comparisons run by :func:`main`, in order."""
 
@@ -237,6 +285,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--race-workers must be at least 1")
     if any(n < 1 for n in args.spread_particles) or args.spread_rounds < 1:
         parser.error("--spread-particles and --spread-rounds must be at least 1")
+    if args.seeds < 1 or not 0 < args.amcl_duration <= 86400:
+        parser.error("--seeds must be at least 1 and --amcl-duration in (0, 86400] seconds")
     if args.global_rounds < 0:
         parser.error("--global-rounds must be at least 0")
     for name in ("sim_steps", "sim_runs", "num_envs", "vector_steps", "race_steps", "race_runs"):

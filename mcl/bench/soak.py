@@ -110,7 +110,9 @@ def _marks(text: str) -> tuple[float, ...]:
     try:
         values = tuple(sorted(float(v) for v in text.split(",") if v.strip()))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated minutes, got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated minutes, got {text!r}"
+        ) from None
     if not values or values[0] <= 0:
         raise argparse.ArgumentTypeError(f"every mark must be > 0 minutes, got {text!r}")
     return values

@@ -59,7 +59,9 @@ def part_densities(
     denom = -np.expm1(-lam * z_star)
     with np.errstate(divide="ignore", invalid="ignore"):
         p_short = np.where(
-            (z <= z_star) & (denom > 0), lam * np.exp(-lam * z) / np.where(denom > 0, denom, 1.0), 0.0
+            (z <= z_star) & (denom > 0),
+            lam * np.exp(-lam * z) / np.where(denom > 0, denom, 1.0),
+            0.0,
         )
     p_rand = np.full(z.shape, 1.0 / max_range)
     return p_hit, p_short, p_rand
@@ -79,7 +81,9 @@ def _erf(x: np.ndarray) -> np.ndarray:
     sign = np.sign(x)
     a = np.abs(x)
     t = 1.0 / (1.0 + 0.3275911 * a)
-    poly = t * (0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429))))
+    poly = t * (
+        0.254829592 + t * (-0.284496736 + t * (1.421413741 + t * (-1.453152027 + t * 1.061405429)))
+    )
     return sign * (1.0 - poly * np.exp(-a * a))
 
 

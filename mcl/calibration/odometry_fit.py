@@ -122,7 +122,9 @@ def fit_odometry(
     for c in range(3):
         x, e = ref[:, c], odo[:, c] - ref[:, c]
         moving = np.abs(x) > 1e-3
-        if c == 1 or moving.sum() < 5:  # vy: the true lateral speed is ~0, fit the spread only  # no signal to scale (vy reads 0): offset and spread only
+        if (
+            c == 1 or moving.sum() < 5
+        ):  # vy: the true lateral speed is ~0, fit the spread only  # no signal to scale (vy reads 0): offset and spread only
             s, o = 0.0, float(e.mean())
         else:
             A = np.column_stack([x, np.ones_like(x)])

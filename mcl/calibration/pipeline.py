@@ -253,7 +253,10 @@ def profile_document(cal: Calibration, sim_dt: float = 0.025) -> dict[str, Any]:
         },
         "odom_proportional": [_r(v) for v in prop],
         "odom_additive": [_r(v) for v in add],
-        "odom_bias": {"scale": [_r(v) for v in od.scale_bias], "offset": [_r(v) for v in od.offset]},
+        "odom_bias": {
+            "scale": [_r(v) for v in od.scale_bias],
+            "offset": [_r(v) for v in od.offset],
+        },
         # The odometry's measured lead over the motion (a lag, negative, has no causal model here).
         "odom_lead": _r(max(od.lag, 0.0), 3),
     }
@@ -272,7 +275,9 @@ def profile_document(cal: Calibration, sim_dt: float = 0.025) -> dict[str, Any]:
         },
         "settings": settings,
         "fit": {
-            "beam_model_em": {k: (_r(v, 5) if isinstance(v, float) else v) for k, v in beam.items()},
+            "beam_model_em": {
+                k: (_r(v, 5) if isinstance(v, float) else v) for k, v in beam.items()
+            },
             "residuals": {k: _r(v) for k, v in cal.failures.fractions.as_dict().items()},
             "residuals_sensor": {k: _r(v) for k, v in fr.as_dict().items()},
             "residuals_per_bag": {b: _rounded(d) for b, d in cal.per_bag.items()},

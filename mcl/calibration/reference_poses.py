@@ -126,7 +126,9 @@ def scan_twist(rec: BagData, k: int) -> tuple[float, float]:
     return float(rec.odom_twist[i, 0]), float(rec.odom_twist[i, 2])
 
 
-def scan_beams(rec: BagData, k: int, mount: float, use_deskew: bool) -> tuple[np.ndarray, np.ndarray]:
+def scan_beams(
+    rec: BagData, k: int, mount: float, use_deskew: bool
+) -> tuple[np.ndarray, np.ndarray]:
     """Ranges and angles of scan ``k``, de-skewed to its stamp when ``use_deskew``."""
     if not use_deskew:
         return rec.scans[k], rec.angles

@@ -119,7 +119,9 @@ def room_beams(z: np.ndarray, z_star: np.ndarray, spacing: float, max_range: flo
     with np.errstate(invalid="ignore"):
         short = valid & (res < -_TOL)
         long = valid & (res > _TOL)
-    return wide_runs(short, z_star, spacing, ROOM_WIDTH) | wide_runs(long, z_star, spacing, ROOM_WIDTH)
+    return wide_runs(short, z_star, spacing, ROOM_WIDTH) | wide_runs(
+        long, z_star, spacing, ROOM_WIDTH
+    )
 
 
 def sensor_beams(z: np.ndarray, z_star: np.ndarray, spacing: float, max_range: float) -> np.ndarray:

@@ -154,7 +154,9 @@ class ScanMatcher:
         best[2] = (best[2] + math.pi) % (2 * math.pi) - math.pi
         return best, best_loss
 
-    def global_search(self, ranges: np.ndarray, clearance: float = 0.15) -> tuple[np.ndarray, float]:
+    def global_search(
+        self, ranges: np.ndarray, clearance: float = 0.15
+    ) -> tuple[np.ndarray, float]:
         """The best lidar pose of one scan over the whole map: (pose (3,), mean robust loss)."""
         p = self.params
         m = self.map

@@ -18,7 +18,7 @@ BENCHMARKS: dict[str, str] = {
     "sim": "simulator steps per second",
     "mcl": "particle filter update rate per stage",
     "uncertainty": "cost of the uncertainty report and KLD count",
-    "peers": "the full MCL update against real peers (range_libc), in the same run",
+    "peers": "the MCL update against real peers (range_libc, f1tenth_gym); localization vs nav2 amcl",
     "sensor_models": "beam model vs likelihood field: localization error in the same drives",
     "executors": "the same sweep on the process pool and on a local Ray",
     "replay": "replaying the real bags: real-time factor on one core, settling time, scan_fit",

@@ -48,7 +48,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--out", type=path_arg, help="profile YAML to write: a new file or one it wrote (required)"
     )
-    parser.add_argument("--mount-offset", type=float, default=0.275, help="lidar ahead of base_link, m")
+    parser.add_argument(
+        "--mount-offset", type=float, default=0.275, help="lidar ahead of base_link, m"
+    )
     parser.add_argument(
         "--start",
         type=_pose,
@@ -67,7 +69,9 @@ def main(argv: list[str] | None = None) -> int:
         help="per bag, a replay's trajectory.csv (racecar-sim replay) whose poses are used instead "
         "of scan matching (repeat once per bag, in order; default: scan matching)",
     )
-    parser.add_argument("--sim-dt", type=float, default=0.025, help="env step the odometry noise is for")
+    parser.add_argument(
+        "--sim-dt", type=float, default=0.025, help="env step the odometry noise is for"
+    )
     args = parser.parse_args(argv)
     if not args.bags:
         parser.fail("BAG", "give at least one bag")

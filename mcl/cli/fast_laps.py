@@ -40,7 +40,12 @@ def build_parser() -> Parser:
         "racecar-sim made")  # fmt: skip
     add("--map", default="basement_loop", help="bundled map with a known loop")
     add("--speed", type=positive_float, default=6.0, help="m/s the car holds, corners included")
-    add("--seeds", type=positive_int, default=5, help="runs per motion model (starts round the loop)")
+    add(
+        "--seeds",
+        type=positive_int,
+        default=5,
+        help="runs per motion model (starts round the loop)",
+    )
     add("--duration", type=duration_seconds, default=60.0, help="simulated seconds per run")
     add("--particles", type=positive_int, default=1500, help="particles per filter")
     add("--workers", type=positive_int, default=None, help="processes (default: the CPU count)")

@@ -21,12 +21,18 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "experiment": ("mcl.cli.experiment", "the noise sweep, or global localization / kidnapping"),
     "ablation": ("mcl.cli.recovery_ablation", "the recovery experiment with one part switched off"),
     "race": ("mcl.cli.race", "N cars race on a track: drivers, speeds, laps, optional MCL per car"),
-    "opponents": ("mcl.cli.opponents", "MCL error alone and among opponents, plain and beam skipping"),
+    "opponents": (
+        "mcl.cli.opponents",
+        "MCL error alone and among opponents, plain and beam skipping",
+    ),
     "replay": ("mcl.cli.replay", "replay a ROS 1 / ROS 2 bag through the filter on a map"),
     "bench": ("mcl.cli.bench", "benchmarks (racecar-sim bench lists them)"),
     "make-maps": ("mcl.cli.make_maps", "draw the bundled maps"),
     "train-agent": ("mcl.cli.train_agent", "PPO laps on the scan and a pose (extra [rl])"),
-    "fast-laps": ("mcl.cli.fast_laps", "localization on fast laps: lab motion noise vs the alpha model"),
+    "fast-laps": (
+        "mcl.cli.fast_laps",
+        "localization on fast laps: lab motion noise vs the alpha model",
+    ),
     "calibrate-noise": (
         "mcl.cli.calibrate_noise",
         "fit a simulator noise profile from real ROS bags (lidar and odometry)",

@@ -13,7 +13,9 @@ import numpy as np
 from mcl.cli.common import Parser, check_out, output_folder, path_arg
 from racecar_sim.maps import draw
 
-_bundled = importlib.import_module("racecar_sim.maps.bundled")  # the module (maps.bundled is a function)
+_bundled = importlib.import_module(
+    "racecar_sim.maps.bundled"
+)  # the module (maps.bundled is a function)
 
 EXAMPLES = """\
 examples:

@@ -83,9 +83,16 @@ def fast_lap_specs(cfg: FastLapConfig) -> list[RunSpec]:
         for label, motion in cfg.motions.items():
             specs.append(
                 RunSpec(
-                    map=cfg.map, driver="racing", scenario="tracking", motion=motion, seed=seed,
-                    duration=cfg.duration, n_particles=cfg.n_particles, series=label,
-                    env=tuple(dict(cfg.env).items()), scenario_settings=(("start", start),),
+                    map=cfg.map,
+                    driver="racing",
+                    scenario="tracking",
+                    motion=motion,
+                    seed=seed,
+                    duration=cfg.duration,
+                    n_particles=cfg.n_particles,
+                    series=label,
+                    env=tuple(dict(cfg.env).items()),
+                    scenario_settings=(("start", start),),
                     driver_settings=(("speed", cfg.speed),),
                 )
             )
@@ -131,11 +138,16 @@ def summarize_fast_laps(results: Sequence[RunResult], diverged_m: float) -> list
         pooled = np.concatenate(errors) if errors else np.array([math.nan])
         rows.append(
             SeriesRow(
-                series=series, runs=len(ok), failed=len(group) - len(ok),
-                mean=float(np.mean(pooled)), median=float(np.median(pooled)),
-                p95=float(np.percentile(pooled, 95)), diverged_runs=diverged,
+                series=series,
+                runs=len(ok),
+                failed=len(group) - len(ok),
+                mean=float(np.mean(pooled)),
+                median=float(np.median(pooled)),
+                p95=float(np.percentile(pooled, 95)),
+                diverged_runs=diverged,
                 contact_steps=sum(max(r.n_collisions, 0) for r in ok),
-                corner_speed=_percentile(corner, 50), corner_speed_p5=_percentile(corner, 5),
+                corner_speed=_percentile(corner, 50),
+                corner_speed_p5=_percentile(corner, 5),
             )
         )
     return rows

@@ -44,6 +44,7 @@ __all__ = [
     "run_experiment",
 ]
 
+
 @dataclass(frozen=True)
 class ExperimentReport:
     """What :func:`run_experiment` did.

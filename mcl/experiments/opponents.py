@@ -34,7 +34,10 @@ CAR_WIDTH = 0.30
 def box_corners(centre: np.ndarray, heading: float, length: float, width: float) -> np.ndarray:
     """(4, 2) world corners of a ``length x width`` box centred at ``centre`` facing ``heading``."""
     c, s = math.cos(heading), math.sin(heading)
-    local = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64) * [length / 2, width / 2]
+    local = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64) * [
+        length / 2,
+        width / 2,
+    ]
     rot = np.array([[c, -s], [s, c]])
     return np.asarray(centre, dtype=np.float64) + local @ rot.T
 

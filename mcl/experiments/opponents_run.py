@@ -36,7 +36,14 @@ from mcl.run_bounds import check_duration
 from mcl.sensor_params import SensorModelParams
 from mcl.wrapper import LocalizationWrapper
 
-__all__ = ["BACKENDS", "METHODS", "OpponentRun", "OpponentRunResult", "opponents_table", "run_opponents"]
+__all__ = [
+    "BACKENDS",
+    "METHODS",
+    "OpponentRun",
+    "OpponentRunResult",
+    "opponents_table",
+    "run_opponents",
+]
 
 METHODS: dict[str, dict[str, Any]] = {
     "plain": {},
@@ -231,7 +238,9 @@ def opponents_table(
                 "p95_m": float(np.percentile(err, 95)),
                 "max_m": float(err.max()),
                 "diverged_steps": float(np.mean(err > diverged_m)),
-                "diverged_runs": int(sum(bool((log.position_error > diverged_m).any()) for log in logs)),
+                "diverged_runs": int(
+                    sum(bool((log.position_error > diverged_m).any()) for log in logs)
+                ),
                 "skipped_beams": float(np.mean([r.skipped_beams for r in group])),
                 "collisions": int(sum(r.collisions for r in group)),
                 "update_ms": float(np.mean(np.concatenate([log.update_s for log in logs])) * 1e3),

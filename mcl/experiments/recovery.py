@@ -64,6 +64,7 @@ __all__ = [
     "run_recovery_safely",
 ]
 
+
 @dataclass(frozen=True)
 class RecoveryReport:
     """What :func:`run_recovery_experiment` did.

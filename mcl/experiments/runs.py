@@ -228,7 +228,9 @@ def make_driver(
     try:
         return factory(env, seed, drive_on, **dict(settings or {}))
     except TypeError as exc:
-        raise ValueError(f"driver {name!r}: bad driver settings {dict(settings or {})}: {exc}") from None
+        raise ValueError(
+            f"driver {name!r}: bad driver settings {dict(settings or {})}: {exc}"
+        ) from None
 
 
 # ---------------------------------------------------------------------- per-process caches

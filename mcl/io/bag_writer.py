@@ -316,7 +316,9 @@ def pose_array_cdr(stamp_ns: int, frame_id: str, poses: np.ndarray) -> bytes:
     serialized as little-endian CDR in one numpy pass (the same bytes as rosbags'
     ``serialize_cdr`` of the message, tested; hundreds of times faster for 500 poses)."""
     frame = frame_id.encode() + b"\0"
-    head = struct.pack("<4siII", b"\x00\x01\x00\x00", stamp_ns // 10**9, stamp_ns % 10**9, len(frame))
+    head = struct.pack(
+        "<4siII", b"\x00\x01\x00\x00", stamp_ns // 10**9, stamp_ns % 10**9, len(frame)
+    )
     body = head + frame
     body += b"\0" * (-len(body) % 4) + struct.pack("<I", len(poses))
     body += b"\0" * (-(len(body) - 4) % 8)  # doubles align to 8 bytes after the 4-byte header

@@ -88,7 +88,10 @@ class LiveServer:
         listener = _resend_listener(foxglove.ServerListener, self)
         try:
             self._server = foxglove.start_server(
-                name=name, host=self.host, port=port, context=self._context,
+                name=name,
+                host=self.host,
+                port=port,
+                context=self._context,
                 server_listener=listener,
             )
         except Exception as exc:  # the SDK raises its own error type for a busy port

@@ -84,7 +84,9 @@ def test_converged_means_every_particle_near_the_mean(seed: int, n: int, sd: flo
 # ---------------------------------------------------------------------- the sensor model
 @settings(max_examples=15)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(20, 300), sd=st.floats(0.6, 3.0))
-def test_not_converged_scores_as_the_plain_model(room, models, seed: int, n: int, sd: float) -> None:
+def test_not_converged_scores_as_the_plain_model(
+    room, models, seed: int, n: int, sd: float
+) -> None:
     plain, skip = models
     rng = np.random.default_rng(seed)
     particles = _cloud(rng, n, sd)
@@ -92,7 +94,9 @@ def test_not_converged_scores_as_the_plain_model(room, models, seed: int, n: int
         particles[0, 0] += 2.0  # spread it for sure
     scan = _true_scan(room, POSE)
     scan[300:500] = 1.0  # an opponent
-    np.testing.assert_array_equal(skip.log_evaluate(particles, scan), plain.log_evaluate(particles, scan))
+    np.testing.assert_array_equal(
+        skip.log_evaluate(particles, scan), plain.log_evaluate(particles, scan)
+    )
     assert not skip.last_beam_skip.converged and skip.last_beam_skip.skipped == 0
 
 

@@ -55,7 +55,9 @@ def test_run_spec_filter_map_reaches_the_filter(tmp_path):
     result = run_one(spec, tmp_path / "log.csv")
     assert result.status == "ok"
     with pytest.raises(MapError, match=r"not found|no bundled"):
-        run_one(RunSpec(map="basement_loop", filter_map="nope.yaml", duration=0.1), tmp_path / "x.csv")
+        run_one(
+            RunSpec(map="basement_loop", filter_map="nope.yaml", duration=0.1), tmp_path / "x.csv"
+        )
 
 
 def test_world_differs_from_the_filter_map_stata(tmp_path):

@@ -84,7 +84,9 @@ def test_cast_score_offset_is_a_cast_from_the_point_ahead(room) -> None:
     """Both paths: scoring with a mount offset equals scoring poses moved that far ahead."""
     rng = np.random.default_rng(8)
     poses = room.sample_free_poses(rng, 40, clearance=0.5)
-    ahead = poses + np.column_stack([0.3 * np.cos(poses[:, 2]), 0.3 * np.sin(poses[:, 2]), 0 * poses[:, 2]])
+    ahead = poses + np.column_stack(
+        [0.3 * np.cos(poses[:, 2]), 0.3 * np.sin(poses[:, 2]), 0 * poses[:, 2]]
+    )
     angles = np.linspace(-2.0, 2.0, 9)
     rows = rng.normal(size=(9, 41))
     for method in ("exact", "lut"):

@@ -202,8 +202,12 @@ def test_evaluate_adds_exactly_the_noise_sample_noise_draws(scheme, seed, n, odo
     moved = model.evaluate(particles, odo, np.random.default_rng(seed))
     noise = model.sample_noise(n, np.random.default_rng(seed))
     np.testing.assert_allclose(moved, compose(particles, odo + noise), rtol=0, atol=1e-12)
-    np.testing.assert_array_equal(moved, model.evaluate(particles, odo, np.random.default_rng(seed)))
-    assert not np.array_equal(moved, model.evaluate(particles, odo, np.random.default_rng(seed + 1)))
+    np.testing.assert_array_equal(
+        moved, model.evaluate(particles, odo, np.random.default_rng(seed))
+    )
+    assert not np.array_equal(
+        moved, model.evaluate(particles, odo, np.random.default_rng(seed + 1))
+    )
 
 
 def test_new_params_take_effect_on_the_next_draw() -> None:

@@ -281,7 +281,9 @@ def test_params_validation_and_override(room, sensor) -> None:
     # a spread wider than any map (10 km, the config's bound) is refused: 1e300 made the
     # cloud's covariance NaN
     for wide in (1e300, (0.1, 0.1, 1e5)):
-        with pytest.raises(ValueError, match=r"spread must be one or three numbers in \[0, 10000\]"):
+        with pytest.raises(
+            ValueError, match=r"spread must be one or three numbers in \[0, 10000\]"
+        ):
             pf.initialize(TRUTH, wide)
     with pytest.raises(ValueError):
         pf.particles[0, 0] = 1.0  # read-only view

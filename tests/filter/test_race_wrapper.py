@@ -111,9 +111,14 @@ def test_wrapping_anything_but_a_race_names_the_wrapper_that_takes_it() -> None:
 
     vec = gym.make_vec("RacecarSim-v0", num_envs=2, vectorization_mode="vector_entry_point",
                        map="corridor", n_beams=61)  # fmt: skip
-    with pytest.raises(TypeError, match=r"needs a racecar_sim.RaceEnv; got RacecarVectorEnv, a vector env: use mcl.LocalizedVectorEnv"):
+    with pytest.raises(
+        TypeError,
+        match=r"needs a racecar_sim.RaceEnv; got RacecarVectorEnv, a vector env: use mcl.LocalizedVectorEnv",
+    ):
         LocalizedRaceEnv(vec)
-    with pytest.raises(TypeError, match=r"got RacecarEnv, a single env: use mcl.LocalizationWrapper"):
+    with pytest.raises(
+        TypeError, match=r"got RacecarEnv, a single env: use mcl.LocalizationWrapper"
+    ):
         LocalizedRaceEnv(RacecarEnv("corridor", n_beams=61))
 
 
@@ -125,5 +130,7 @@ def test_reset_options_of_the_wrong_kind_or_place_name_the_option_and_the_car() 
         env.reset(options={"init_pose": {"car_0": [9.0, 2.5, 0.0]}})
     _, infos = env.reset(seed=0)
     good = infos["car_0"]["pose"]
-    with pytest.raises(ValueError, match=r"option init_pose\[1\] = \[5000.0, 5000.0, 0.0\] is off the filter map"):
+    with pytest.raises(
+        ValueError, match=r"option init_pose\[1\] = \[5000.0, 5000.0, 0.0\] is off the filter map"
+    ):
         env.reset(options={"init_pose": [good, [5000.0, 5000.0, 0.0]]})

@@ -124,14 +124,14 @@ def test_bayes_update_matches_the_numpy_formulas(old, data):
 
 _TURN = 2.0 * math.pi
 _EDGES = [
-    k * _TURN - math.pi + d
-    for k in range(-3, 4)
-    for d in (0.0, 1e-15, -1e-15, 4e-16, -4e-16)
+    k * _TURN - math.pi + d for k in range(-3, 4) for d in (0.0, 1e-15, -1e-15, 4e-16, -4e-16)
 ] + [0.0, -0.0, math.pi, -math.pi, 5e-324, -5e-324, 1e300, -1e300, math.nan]
 
 
 @settings(deadline=None)
-@given(st.lists(st.one_of(st.floats(-30.0, 30.0), st.sampled_from(_EDGES)), min_size=1, max_size=40))
+@given(
+    st.lists(st.one_of(st.floats(-30.0, 30.0), st.sampled_from(_EDGES)), min_size=1, max_size=40)
+)
 def test_wrap_near_is_wrap_bit_for_bit_where_it_says_ok(angles):
     """In its range (a + pi in [-2 pi, 4 pi)) the shift equals the float remainder, sign of zero
     included; outside it (or NaN) it says so."""
@@ -170,7 +170,9 @@ def _cloud_with_copies(p, copies):
     gaussian=st.booleans(),
     seed=st.integers(0, 2**62),
 )
-def test_move_noisy_into_is_compose_of_the_noise_bit_for_bit(p, copies, odo, dtheta, gaussian, seed):
+def test_move_noisy_into_is_compose_of_the_noise_bit_for_bit(
+    p, copies, odo, dtheta, gaussian, seed
+):
     """Odometry plus :func:`noise_into`'s draws, composed by :func:`compose_into`: the same
     doubles, with copies of a heading, headings +-0 and turns large enough to need the full
     remainder."""
@@ -286,7 +288,9 @@ def test_resample_particles_keeps_systematic_counts(w, seed, n):
     idx, drawn = resample_particles("systematic", particles, w, rng, n)
     counts = np.bincount(idx, minlength=w.size)
     expected = n * w / w.sum()
-    assert (counts >= np.floor(expected - 1e-9)).all() and (counts <= np.ceil(expected + 1e-9)).all()
+    assert (counts >= np.floor(expected - 1e-9)).all() and (
+        counts <= np.ceil(expected + 1e-9)
+    ).all()
     assert (counts[w == 0] == 0).all()
     assert np.array_equal(drawn, particles[idx])
     assert rng.random() == np.random.default_rng(seed).random(2)[1]
@@ -343,8 +347,12 @@ def test_sincos_is_libm_within_one_ulp_densely_and_near_multiples_of_half_pi():
     theta = np.concatenate([rng.uniform(-math.pi, math.pi, 20_000), near])
     s, c = np.empty_like(theta), np.empty_like(theta)
     sincos_into(theta, s, c)
-    assert max(_ulps(si, math.sin(a)) for a, si in zip(theta.tolist(), s.tolist(), strict=True)) <= 1
-    assert max(_ulps(ci, math.cos(a)) for a, ci in zip(theta.tolist(), c.tolist(), strict=True)) <= 1
+    assert (
+        max(_ulps(si, math.sin(a)) for a, si in zip(theta.tolist(), s.tolist(), strict=True)) <= 1
+    )
+    assert (
+        max(_ulps(ci, math.cos(a)) for a, ci in zip(theta.tolist(), c.tolist(), strict=True)) <= 1
+    )
 
 
 def test_sincos_outside_its_range_is_libm():

@@ -62,7 +62,9 @@ def test_each_car_localizes_as_a_single_wrapper_with_its_seed() -> None:
 
 def test_reset_mask_restarts_only_those_filters_and_global_start() -> None:
     env = LocalizedVectorEnv(
-        gym.make_vec("RacecarSim-v0", num_envs=2, vectorization_mode="vector_entry_point", **SETTINGS),
+        gym.make_vec(
+            "RacecarSim-v0", num_envs=2, vectorization_mode="vector_entry_point", **SETTINGS
+        ),
         CONFIG,
         uncertainty=True,
     )
@@ -82,8 +84,12 @@ def test_reset_mask_restarts_only_those_filters_and_global_start() -> None:
 
 def test_wrong_env_and_config() -> None:
     with pytest.raises(TypeError, match="vector env"):
-        LocalizedVectorEnv(gym.vector.SyncVectorEnv([lambda: gym.make("RacecarSim-v0", **SETTINGS)]))
-    vec = gym.make_vec("RacecarSim-v0", num_envs=1, vectorization_mode="vector_entry_point", **SETTINGS)
+        LocalizedVectorEnv(
+            gym.vector.SyncVectorEnv([lambda: gym.make("RacecarSim-v0", **SETTINGS)])
+        )
+    vec = gym.make_vec(
+        "RacecarSim-v0", num_envs=1, vectorization_mode="vector_entry_point", **SETTINGS
+    )
     with pytest.raises(ValueError, match="init"):
         LocalizedVectorEnv(vec, {"init": "nowhere"})
     env = LocalizedVectorEnv(vec, CONFIG)
@@ -107,8 +113,9 @@ def test_init_option_holds_for_that_reset_only() -> None:
         CONFIG,
     )  # fmt: skip
     sync = _sync(n, 4)
-    got, want = fast.reset(seed=7, options={"init": "global"}), sync.reset(
-        seed=7, options={"init": "global"}
+    got, want = (
+        fast.reset(seed=7, options={"init": "global"}),
+        sync.reset(seed=7, options={"init": "global"}),
     )
     np.testing.assert_array_equal(got[0]["pose_estimate"], want[0]["pose_estimate"])
     actions = np.tile([0.0, 1.0], (n, 1))
@@ -132,7 +139,9 @@ def _vec(n: int = 2) -> LocalizedVectorEnv:
 def test_a_car_left_out_of_the_first_reset_is_named_not_called_never_reset() -> None:
     env = _vec()
     env.reset(seed=0, options={"reset_mask": [True, False]})
-    with pytest.raises(ResetNeeded, match=r"car\(s\) \[1\] were never reset \(reset_mask left them out\)"):
+    with pytest.raises(
+        ResetNeeded, match=r"car\(s\) \[1\] were never reset \(reset_mask left them out\)"
+    ):
         env.step(np.zeros((2, 2)))
     env.reset(seed=1, options={"reset_mask": [False, True]})
     env.step(np.zeros((2, 2)))  # now every car has a filter
@@ -144,7 +153,9 @@ def test_reset_options_of_the_wrong_kind_or_place_are_named() -> None:
         env.reset(options=[1, 2])
     with pytest.raises(ValueError, match=r"init_pose must be a finite \(2, 3\) array.*dict"):
         env.reset(options={"init_pose": {"x": 1.0}})
-    with pytest.raises(ValueError, match=r"init_pose = \[5000.0, 5000.0, 0.0\] is off the filter map"):
+    with pytest.raises(
+        ValueError, match=r"init_pose = \[5000.0, 5000.0, 0.0\] is off the filter map"
+    ):
         env.reset(options={"init_pose": [5000.0, 5000.0, 0.0]})  # one pose for every car
 
 
@@ -152,7 +163,11 @@ def test_wrapping_a_single_env_or_a_race_names_the_wrapper_that_takes_it() -> No
     from racecar_sim.env import RacecarEnv
     from racecar_sim.race.env import RaceEnv
 
-    with pytest.raises(TypeError, match=r"got RacecarEnv, a single env: use mcl.LocalizationWrapper"):
+    with pytest.raises(
+        TypeError, match=r"got RacecarEnv, a single env: use mcl.LocalizationWrapper"
+    ):
         LocalizedVectorEnv(RacecarEnv("corridor", n_beams=61))
-    with pytest.raises(TypeError, match=r"got RaceEnv, a PettingZoo race .*use mcl.LocalizedRaceEnv"):
+    with pytest.raises(
+        TypeError, match=r"got RaceEnv, a PettingZoo race .*use mcl.LocalizedRaceEnv"
+    ):
         LocalizedVectorEnv(RaceEnv("corridor", n_cars=2, n_beams=61))

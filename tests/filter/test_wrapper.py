@@ -413,19 +413,26 @@ def test_reset_options_of_the_wrong_kind_are_refused_before_the_env_resets(room)
 
 def test_an_init_pose_off_the_filter_map_or_in_a_wall_is_refused_naming_it(room) -> None:
     env = make(room)
-    with pytest.raises(ValueError, match=r"init_pose = \[5000.0, 5000.0, 0.0\] is off the filter map 'room'"):
+    with pytest.raises(
+        ValueError, match=r"init_pose = \[5000.0, 5000.0, 0.0\] is off the filter map 'room'"
+    ):
         env.reset(seed=0, options={"pose": START, "init_pose": [5000.0, 5000.0, 0.0]})
     wall = room.grid_to_world(np.argwhere(room.occupied)[0])  # a wall cell's centre
     with pytest.raises(ValueError, match="is in a wall or unknown cell of the filter map 'room'"):
         env.reset(seed=0, options={"pose": START, "init_pose": [*wall, 0.0]})
-    env.reset(seed=0, options={"pose": START, "init_pose": START + np.array([0.2, 0.0, 0.0])})  # taken
+    env.reset(
+        seed=0, options={"pose": START, "init_pose": START + np.array([0.2, 0.0, 0.0])}
+    )  # taken
 
 
 def test_a_filter_map_that_does_not_cover_the_world_is_refused_naming_it(room) -> None:
     from racecar_sim.maps import OccupancyMap
 
     far = OccupancyMap(np.zeros((3, 3), bool), 0.05, (5000.0, 5000.0, 0.0), name="far")
-    with pytest.raises(ValueError, match=r"filter_map 'far' .* is free on 0% of the free space of the world map 'room'"):
+    with pytest.raises(
+        ValueError,
+        match=r"filter_map 'far' .* is free on 0% of the free space of the world map 'room'",
+    ):
         make(room, filter_map=far)
     # The room shifted by 70 % of its width leaves about a third of the world's floor: refused;
     # the room with one more box (an edited world) covers nearly all of it: taken.
@@ -443,9 +450,13 @@ def test_wrapping_a_race_or_a_vector_env_names_the_wrapper_that_takes_it(room) -
     from racecar_sim.race.env import RaceEnv
     from racecar_sim.vector_env import RacecarVectorEnv
 
-    with pytest.raises(TypeError, match=r"got RaceEnv, a PettingZoo race .*use mcl.LocalizedRaceEnv"):
+    with pytest.raises(
+        TypeError, match=r"got RaceEnv, a PettingZoo race .*use mcl.LocalizedRaceEnv"
+    ):
         LocalizationWrapper(RaceEnv(room, n_cars=2, n_beams=FEW_BEAMS))
-    with pytest.raises(TypeError, match=r"got RacecarVectorEnv, a vector env: use mcl.LocalizedVectorEnv"):
+    with pytest.raises(
+        TypeError, match=r"got RacecarVectorEnv, a vector env: use mcl.LocalizedVectorEnv"
+    ):
         LocalizationWrapper(RacecarVectorEnv(2, map=room, n_beams=FEW_BEAMS))
 
 

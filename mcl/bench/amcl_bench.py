@@ -1,0 +1,256 @@
+"""Our filter against nav2's amcl on the same recorded drives: ``racecar-sim bench peers --only amcl``.
+
+Workload: the car follows the right wall for 60 s in a world that is not the filter's map (the
+Stata floor as edited later, ``basement_fixed_aligned.yaml``, against ``stata_basement.yaml``),
+seeds 0..N-1 (``--seeds``), in three worlds ([WORLDS][mcl.bench.amcl_bench.WORLDS]): the honest
+world (``mit_racecar`` lidar and odometry) with the ``cluttered`` scene and with the ``clean``
+one, and the ideal world (the simulator's own sensor settings, no scene). Each drive is recorded
+once ([record_drive][mcl.experiments.recorded.record_drive]) and fed to our filter (default
+[LocalizationConfig][mcl.localization.LocalizationConfig], through
+[localize_recorded][mcl.experiments.recorded.localize_recorded]) and to amcl twice
+([mcl.bench.peer_amcl][]): nav2's defaults, and the same with the recovery on (alpha_slow 0.001,
+alpha_fast 0.1). All three start around the true start pose (standard deviations 0.25 m, 0.25 m,
+0.1 rad).
+
+Per seed: mean position error and the percentage of the time it exceeds 1 m; per world and
+filter: the median of the means and the runs lost (more than 2 % of the time over 1 m). Printed as
+markdown and written to ``--out`` (``amcl_results.csv``, ``amcl_results.md``; recorded drives are
+kept in ``--out/drives`` and reused when the same drive is asked again; the results of drives
+already in ``amcl_results.csv`` are kept and those drives not run again, so a run cut short
+continues where it stopped).
+"""
+
+from __future__ import annotations
+
+import csv
+import statistics
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mcl.bench import shared_dir
+from mcl.experiments.recorded import LocalizedRun, RecordedDrive, localize_recorded, record_drive
+from mcl.localization import LocalizationConfig
+
+__all__ = [
+    "FILTERS",
+    "LOST_SHARE",
+    "WORLDS",
+    "World",
+    "lost",
+    "read_rows",
+    "results_md",
+    "run_benchmark",
+    "summary_md",
+]
+
+LOST_SHARE = 0.02
+"""A run is lost when its error exceeds 1 m more than this share of the time."""
+FILTERS: tuple[str, ...] = ("ours", "amcl", "amcl_recovery")
+"""The filters compared: our default filter, amcl with nav2's defaults, amcl with recovery on."""
+
+
+@dataclass(frozen=True)
+class World:
+    """Where the drives happen: the world map (a ``../shared/maps`` file), scene, noise profile."""
+
+    world_map: str
+    scene: str | None
+    noise_profile: str | None
+
+
+WORLDS: dict[str, World] = {
+    "cluttered": World("basement_fixed_aligned.yaml", "cluttered", "mit_racecar"),
+    "clean": World("basement_fixed_aligned.yaml", "clean", "mit_racecar"),
+    "ideal": World("basement_fixed_aligned.yaml", None, None),
+}
+"""The worlds by name; the filters all hold ``stata_basement.yaml``."""
+FILTER_MAP = "stata_basement.yaml"
+
+
+def lost(errors: np.ndarray) -> bool:
+    """Whether a run is lost (errors in metres over 1 m more than [LOST_SHARE][mcl.bench.amcl_bench.LOST_SHARE] of the steps)."""
+    return float(np.mean(np.asarray(errors) > 1.0)) > LOST_SHARE
+
+
+def _row(world: str, seed: int, name: str, run: LocalizedRun, cpu_s: float) -> dict[str, Any]:
+    e = run.position_error
+    return {
+        "world": world, "seed": seed, "filter": name,
+        "mean_error_m": float(e.mean()), "p95_error_m": float(np.percentile(e, 95)),
+        "max_error_m": float(e.max()), "pct_over_1m": 100.0 * float(np.mean(e > 1.0)),
+        "lost": lost(e), "cpu_s": cpu_s,
+    }  # fmt: skip
+
+
+def _drive(out: Path, world: str, seed: int, duration: float, maps: Path) -> RecordedDrive:
+    """The recorded drive of ``world`` and ``seed``: from ``out/drives`` when made before with the
+    same settings, else recorded and saved there."""
+    spec = WORLDS[world]
+    path = out / "drives" / f"{world}_seed{seed}_{duration:g}s.npz"
+    if path.is_file():
+        drive = RecordedDrive.load(path)
+        s = drive.settings or {}
+        if (s.get("scene"), s.get("noise_profile"), s.get("seed"), s.get("duration")) == (
+            spec.scene,
+            spec.noise_profile,
+            seed,
+            duration,
+        ):
+            return drive
+    drive = record_drive(
+        str(maps / spec.world_map), filter_map=str(maps / FILTER_MAP), scene=spec.scene,
+        noise_profile=spec.noise_profile, driver="wall", seed=seed, duration=duration,
+    )  # fmt: skip
+    drive.save(path)
+    return drive
+
+
+def run_benchmark(
+    python: str,
+    worlds: Sequence[str],
+    seeds: int,
+    duration: float,
+    out: Path,
+    config: LocalizationConfig | None = None,
+    echo: Callable[[str], None] = print,
+) -> list[dict[str, Any]]:
+    """Record the drives, run the three filters, write ``out/amcl_results.{csv,md}`` as rows come
+    in; returns the rows (one per world, seed and filter)."""
+    from mcl.bench.amcl_inputs import amcl_grid
+    from mcl.bench.peer_amcl import NAV2_DEFAULTS, WITH_RECOVERY, AmclPeer
+    from racecar_sim.maps import load_map
+
+    maps = shared_dir() / "maps"
+    config = config or LocalizationConfig()
+    filter_map = load_map(maps / FILTER_MAP)
+    grid = amcl_grid(filter_map)
+    out.mkdir(parents=True, exist_ok=True)
+    peers = {"amcl": AmclPeer(python, grid, NAV2_DEFAULTS, out / "work"),
+             "amcl_recovery": AmclPeer(python, grid, WITH_RECOVERY, out / "work")}  # fmt: skip
+    rows: list[dict[str, Any]] = []
+    waiting: list[tuple[str, int]] = []
+
+    def collect() -> None:
+        world, seed = waiting.pop(0)
+        for name, peer in peers.items():
+            run, cpu = peer.collect()
+            rows.append(_row(world, seed, name, run, cpu))
+        _write(out, rows, seeds, duration, worlds)
+        mine = {r["filter"]: r for r in rows if (r["world"], r["seed"]) == (world, seed)}
+        echo(f"{world} seed {seed}: " + ", ".join(
+            f"{n} {mine[n]['mean_error_m']:.3f} m ({mine[n]['pct_over_1m']:.1f} % > 1 m)"
+            for n in FILTERS if n in mine))  # fmt: skip
+
+    rows += read_rows(out / "amcl_results.csv")  # every world and seed stays in the file
+    done = {(r["world"], r["seed"]) for r in rows if r["filter"] == FILTERS[-1]}
+    rows[:] = [r for r in rows if (r["world"], r["seed"]) in done]
+    if done:
+        echo(f"kept {len(done)} drives' results from {out / 'amcl_results.csv'}")
+    try:
+        for seed in range(seeds):  # seeds outside: a run cut short still covers every world
+            for world in worlds:
+                if (world, seed) in done:
+                    continue
+                drive = _drive(out, world, seed, duration, maps)
+                for peer in peers.values():
+                    peer.submit(drive, seed, config.filter.init_spread)
+                t0 = time.process_time()
+                ours = localize_recorded(drive, config, filter_map, seed)
+                rows.append(_row(world, seed, "ours", ours, time.process_time() - t0))
+                waiting.append((world, seed))
+                if len(waiting) > 1:  # amcl works on this drive while the next one is recorded
+                    collect()
+        while waiting:
+            collect()
+    finally:
+        for peer in peers.values():
+            peer.close()
+    return rows
+
+
+def read_rows(path: Path) -> list[dict[str, Any]]:
+    """The rows of an ``amcl_results.csv`` written before (none when it is absent)."""
+    if not path.is_file():
+        return []
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r["seed"] = int(r["seed"])
+        r["lost"] = r["lost"] == "True"
+        for key in ("mean_error_m", "p95_error_m", "max_error_m", "pct_over_1m", "cpu_s"):
+            r[key] = float(r[key])
+    return rows
+
+
+def _write(out: Path, rows: list[dict[str, Any]], seeds: int, duration: float,
+           worlds: Sequence[str]) -> None:  # fmt: skip
+    with open(out / "amcl_results.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    (out / "amcl_results.md").write_text(results_md(rows, seeds, duration, worlds))
+
+
+def per_seed_md(rows: list[dict[str, Any]], world: str) -> str:
+    """The per-seed table of ``world``: mean error (m) and % of time over 1 m of each filter."""
+    head = "| seed | " + " | ".join(f"{n} mean (m) | {n} > 1 m (%)" for n in FILTERS) + " |"
+    lines = [head, "|" + "---|" * (1 + 2 * len(FILTERS))]
+    by = {(r["seed"], r["filter"]): r for r in rows if r["world"] == world}
+    for seed in sorted({s for s, _ in by}):
+        cells = []
+        for n in FILTERS:
+            r = by.get((seed, n))
+            cells += ["–", "–"] if r is None else [f"{r['mean_error_m']:.3f}",
+                                                    f"{r['pct_over_1m']:.1f}"]  # fmt: skip
+        lines.append(f"| {seed} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def summary_md(rows: list[dict[str, Any]]) -> str:
+    """Per world and filter: runs, median of the mean errors, runs lost, mean % over 1 m."""
+    lines = ["| world | filter | runs | median of means (m) | runs lost (> 2 % over 1 m) | "
+             "mean time over 1 m (%) | median CPU s per run |",
+             "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for world in dict.fromkeys(r["world"] for r in rows):
+        for n in FILTERS:
+            mine = [r for r in rows if r["world"] == world and r["filter"] == n]
+            if not mine:
+                continue
+            lines.append(
+                f"| {world} | {n} | {len(mine)} | "
+                f"{statistics.median(r['mean_error_m'] for r in mine):.3f} | "
+                f"{sum(r['lost'] for r in mine)}/{len(mine)} | "
+                f"{statistics.fmean(r['pct_over_1m'] for r in mine):.1f} | "
+                f"{statistics.median(r['cpu_s'] for r in mine):.1f} |"
+            )
+    return "\n".join(lines)
+
+
+def results_md(rows: list[dict[str, Any]], seeds: int, duration: float,
+               worlds: Sequence[str] | None = None) -> str:  # fmt: skip
+    """The whole report of seeds 0..``seeds``-1 in ``worlds`` (None: all): workload, summary,
+    per-seed tables."""
+    rows = [r for r in rows if r["seed"] < seeds and (worlds is None or r["world"] in worlds)]
+    rows.sort(key=lambda r: (list(WORLDS).index(r["world"]), r["seed"], FILTERS.index(r["filter"])))
+    parts = [
+        "# Our filter vs nav2 amcl on the same drives",
+        "",
+        f"Wall follower, {duration:g} s per drive, seeds 0..{seeds - 1}, world "
+        "basement_fixed_aligned.yaml, filters on stata_basement.yaml, all started around the true "
+        "start pose (sd 0.25 m, 0.25 m, 0.1 rad). ours: default LocalizationConfig; amcl: nav2 "
+        "defaults, beam model (the bindings' only one); amcl_recovery: the same with "
+        "recovery_alpha_slow 0.001, recovery_alpha_fast 0.1. cluttered / clean: mit_racecar "
+        "noise profile with that scene; ideal: no profile, no scene.",
+        "",
+        "## Summary",
+        "",
+        summary_md(rows),
+    ]
+    for world in dict.fromkeys(r["world"] for r in rows):
+        parts += ["", f"## {world}: per seed", "", per_seed_md(rows, world)]
+    return "\n".join(parts) + "\n"

@@ -1,0 +1,118 @@
+"""The learned odometry speed scale (mcl.odometry_scale) and its place in the particle filter."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mcl.filter_params import ParticleFilterParams
+from mcl.motion_model import MotionModel, MotionModelParams
+from mcl.odometry_scale import OdometryScale, OdometryScaleParams
+from mcl.particle_filter import ParticleFilter
+from racecar_sim.config import from_mapping
+from racecar_sim.maps import OccupancyMap
+
+
+def _drive(
+    scale: OdometryScale,
+    true_over_reported: float,
+    estimate_follows: str,
+    steps: int,
+    speed: float = 2.0,
+    omega: float = 0.0,
+    dt: float = 0.025,
+    spread: float = 0.05,
+):
+    """Drive straight (or on a circle) with wheels that report 1 / true_over_reported of the
+    speed; the estimate is the truth ("truth": the scan pins the car) or the scaled odometry
+    ("odometry": the scan says nothing along the path)."""
+    truth = np.zeros(3)
+    dead = np.zeros(3)
+    for _ in range(steps):
+        reported = np.array([speed / true_over_reported, 0.0, omega])
+        estimate = truth if estimate_follows == "truth" else dead
+        if scale.needs_estimate():
+            scale.observe(reported, dt, estimate.copy(), spread)
+        else:
+            scale.observe(reported, dt)
+        used = scale.scaled(reported)
+        for pose, v in ((truth, speed), (dead, used[0])):
+            pose[2] += omega * dt
+            pose[0] += v * math.cos(pose[2]) * dt
+            pose[1] += v * math.sin(pose[2]) * dt
+    return scale
+
+
+@settings(deadline=None, max_examples=10)
+@given(k=st.floats(0.85, 1.2))
+def test_the_scale_converges_to_the_wheels_error_where_the_scan_pins_the_car(k):
+    scale = _drive(OdometryScale(OdometryScaleParams()), k, "truth", steps=4000)  # 200 m
+    assert scale.scale == pytest.approx(k, abs=0.01)
+    assert scale.windows_used > 50
+
+
+@settings(deadline=None, max_examples=10)
+@given(k=st.floats(0.85, 1.2))
+def test_where_the_scan_says_nothing_the_scale_keeps_what_it_learned(k):
+    scale = _drive(OdometryScale(OdometryScaleParams()), k, "truth", steps=4000)
+    learned = scale.scale
+    scale.restart()  # the estimate below starts at its own origin
+    _drive(scale, k, "odometry", steps=4000)  # a long featureless corridor
+    assert scale.scale == pytest.approx(learned, abs=1e-9)
+
+
+def test_an_untrusted_cloud_or_a_turn_teaches_nothing():
+    spread = _drive(OdometryScale(OdometryScaleParams()), 1.1, "truth", steps=2000, spread=1.0)
+    assert spread.scale == 1.0 and spread.windows_used == 0
+    turning = _drive(OdometryScale(OdometryScaleParams()), 1.1, "truth", steps=2000, omega=1.5)
+    assert turning.scale == 1.0 and turning.windows_used == 0
+
+
+def test_the_scale_is_bounded():
+    scale = _drive(OdometryScale(OdometryScaleParams(high=1.1)), 1.5, "truth", steps=4000)
+    assert scale.scale == pytest.approx(1.1)
+    off = _drive(OdometryScale(OdometryScaleParams(enabled=False)), 1.2, "truth", steps=2000)
+    assert off.scale == 1.0
+    assert np.array_equal(off.scaled(np.array([1.0, 0.0, 0.0])), [1.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("gain", 0.0, "gain"),
+        ("gain", 1.5, "gain"),
+        ("low", 1.2, "low"),
+        ("high", 0.9, "high"),
+        ("window", -1.0, "window"),
+        ("max_spread", 0.0, "max_spread"),
+        ("min_straightness", 2.0, "min_straightness"),
+        ("enabled", "yes", "enabled"),
+        ("window", math.nan, "window"),
+    ],
+)
+def test_bad_settings_are_named(field, value, message):
+    with pytest.raises(ValueError, match=message):
+        OdometryScaleParams(**{field: value})
+
+
+def test_the_filter_loads_the_setting_from_a_mapping_and_applies_it():
+    params = from_mapping(ParticleFilterParams, {"odometry_scale": {"gain": 0.5}})
+    assert params.odometry_scale.gain == 0.5
+    occupied = np.zeros((200, 200), dtype=bool)
+    occupied[0, :] = occupied[-1, :] = occupied[:, 0] = occupied[:, -1] = True
+    grid = OccupancyMap(occupied, resolution=0.1)
+    pf = ParticleFilter(
+        grid,
+        motion_model=MotionModel(MotionModelParams(scheme="none")),
+        params=ParticleFilterParams(n_particles=50),
+        rng=0,
+    )
+    pf.initialize(np.array([5.0, 10.0, 0.0]), (0.0, 0.0, 0.0))
+    pf.odometry_scale.scale = 1.1
+    before = pf.particles.copy()
+    pf.predict(np.array([2.0, 0.0, 0.0]), 1.0)
+    assert np.allclose(pf.particles[:, 0] - before[:, 0], 2.2)
