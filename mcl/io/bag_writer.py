@@ -55,7 +55,7 @@ exactly these: [bag_folder][mcl.io.bag_folder])."""
 
 class BagRecorder:
     """Writes a ROS 2 / MCAP bag folder (module docstring), and / or streams the same messages
-    live to Foxglove (:class:`mcl.io.live.LiveServer`); use as a context manager.
+    live to Foxglove ([LiveServer][mcl.io.live.LiveServer]); use as a context manager.
 
     Args:
         path: the bag folder to create; None writes no bag. An existing folder is replaced
@@ -68,7 +68,8 @@ class BagRecorder:
         scan_period: seconds between scans (LaserScan.scan_time).
         max_particles: particles per ``/pf/particles`` message (an even stride through them).
         overwrite: replace an existing recording of ours at ``path``.
-        live: a Foxglove server that gets every message too (see :mod:`mcl.io.live`).
+        live: a Foxglove server that gets every message too (see [mcl.io.live][mcl.io.live]).
+        epoch_ns: time 0 in ns since the Unix epoch (a replay streams on its bag's own clock).
 
     Raises:
         FileExistsError: ``path`` exists and ``overwrite`` is False, or it is not exactly a
@@ -86,6 +87,7 @@ class BagRecorder:
         max_particles: int = 500,
         overwrite: bool = True,
         live: LiveServer | None = None,
+        epoch_ns: int = EPOCH_NS,
     ) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
@@ -98,7 +100,7 @@ class BagRecorder:
                 raise FileExistsError(f"{self.path} exists")
             remove_recording(self.path, TOPICS)
         self.ts = get_typestore(Stores.ROS2_HUMBLE)
-        self.live = live
+        self.live, self.epoch_ns = live, int(epoch_ns)
         self._t = self.ts.types
         self.map = occupancy_map
         self.angles = np.asarray(angles, dtype=np.float64)
@@ -106,8 +108,7 @@ class BagRecorder:
         self.mount_offset = float(mount_offset)
         self.scan_period = float(scan_period)
         self.max_particles = int(max_particles)
-        self._writer = None
-        self._cons = {}
+        self._writer, self._cons = None, {}
         if self.path is not None:
             self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
             self._writer.open()
@@ -136,9 +137,8 @@ class BagRecorder:
             self.live.publish(topic, ns, bytes(data))
         self.n_messages += 1
 
-    @staticmethod
-    def _stamp_ns(t: float) -> int:
-        return EPOCH_NS + round(max(t, 0.0) * 1e9)
+    def _stamp_ns(self, t: float) -> int:
+        return self.epoch_ns + round(max(t, 0.0) * 1e9)
 
     def _header(self, t: float, frame: str):
         ns = self._stamp_ns(t)
@@ -328,7 +328,7 @@ def pose_array_cdr(stamp_ns: int, frame_id: str, poses: np.ndarray) -> bytes:
 
 def start_live(address: str | int) -> LiveServer:
     """A Foxglove WebSocket server for the recording's topics at ``"[HOST:]PORT"`` (bound to
-    127.0.0.1 unless a host is given); see :mod:`mcl.io.live`."""
+    127.0.0.1 unless a host is given); see [mcl.io.live][mcl.io.live]."""
     from rosbags.typesys import Stores, get_typestore
 
     from mcl.io.live import LiveServer

@@ -177,6 +177,16 @@ class LiveServer:
         return f"ws://{host}:{self.port}"
 
     @property
+    def worker_pid(self) -> int | None:
+        """The server process's id (None once closed)."""
+        return self._proc.pid if self._proc is not None else None
+
+    @property
+    def n_pending(self) -> int:
+        """Messages waiting for room in the pipe (at most one per topic, plus one half written)."""
+        return len(self._pending) + (1 if self._partial else 0)
+
+    @property
     def alive(self) -> bool:
         """Whether the server process still takes messages."""
         return self._dead is None
