@@ -59,7 +59,7 @@ async def _connect(port: int, counts: Counter, **kwargs):
             _url(port), subprotocols=[SUBPROTOCOL], open_timeout=10, **kwargs
         )
     except Exception as exc:  # a refusal (HTTP 503) or a closed server
-        counts["refused" if "503" in str(exc) else "failed"] += 1
+        counts["refused" if "503" in str(exc) else f"failed ({type(exc).__name__})"] += 1
         return None
 
 

@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
           f"whole command {wall:.3f} (target <= 1.10: {'met' if loop <= 1.10 else 'NOT met'})")
     print(f"error logs identical (all columns but update_s): {'yes' if same else 'NO'}")
     for r, runs in enumerate(rows):
-        summary = re.search(r"live view: .*", runs[True]["stderr"])
+        summary = re.search(r"live view: \d+ messages.*", runs[True]["stderr"])
         print(f"round {r + 1}: clients {runs[True]['counts']}; "
               f"{summary.group(0) if summary else 'no live-view summary'}")
     return 0 if same else 1

@@ -280,6 +280,11 @@ class LiveServer:
             proc.kill()
             proc.wait()
 
+    def __deepcopy__(self, memo: dict) -> LiveServer:
+        """The same server: it is a running process, not a value (Gymnasium deep-copies a
+        wrapper's arguments, ``live`` among them)."""
+        return self
+
     def __enter__(self) -> LiveServer:
         return self
 
