@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import atexit
 import contextlib
-import fcntl
 import importlib.util
 import json
 import mmap
@@ -156,7 +155,9 @@ class LiveServer:
         self.port = int(answer["port"])
         self._fd = self._proc.stdin.fileno()
         os.set_blocking(self._fd, False)
-        with contextlib.suppress(OSError, AttributeError):
+        with contextlib.suppress(OSError, AttributeError, ImportError):
+            import fcntl  # POSIX; F_SETPIPE_SZ on Linux only
+
             fcntl.fcntl(self._fd, fcntl.F_SETPIPE_SZ, PIPE_BYTES)
 
     def _answer(self) -> dict:
@@ -194,14 +195,14 @@ class LiveServer:
     def wants(self, topic: str) -> bool:
         """Whether a message on ``topic`` would reach anyone (latched topics always count)."""
         i = self._index.get(topic)
-        if i is None or self._dead is not None:
+        if i is None or self._dead is not None or self._proc is None:
             return False
         return i in self._latched or self._status[worker.FLAGS_AT + i] != 0
 
     def publish(self, topic: str, log_time_ns: int, data: bytes) -> None:
         """Hand one serialized message on ``topic`` (stamped ``log_time_ns``) to the server,
         never waiting: when the pipe is full, an unsent message of the same topic is replaced."""
-        if self._dead is not None:
+        if self._dead is not None or self._proc is None:
             return
         i = self._index[topic]
         if self._pending.pop(i, None) is not None:

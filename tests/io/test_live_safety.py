@@ -81,6 +81,14 @@ def test_a_crashed_server_warns_once_and_the_drive_goes_on(capfd) -> None:
     assert "exit code -9" in err
 
 
+def test_after_close_publishing_is_a_silent_no_op(capfd) -> None:
+    server = start_live(0)
+    server.close()
+    server.publish("/scan", 1, b"x")
+    assert not server.wants("/map") and server.worker_pid is None
+    assert "warning" not in capfd.readouterr().err
+
+
 def test_the_server_process_dies_with_its_drive(tmp_path: Path) -> None:
     code = (
         "import sys, time\nfrom mcl.io.bag_writer import start_live\ns = start_live(0)\n"
