@@ -25,6 +25,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from mcl.bench.hostile_clients import KINDS as ALL_KINDS
+
 KINDS = ("stuck", "storm", "churn")
 """The misbehaviours run against the watched drive."""
 
@@ -88,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--particles", type=int, default=1500)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--kinds", nargs="+", default=list(KINDS), choices=["stuck", "storm", "churn", "slow", "silent"])
+    parser.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(ALL_KINDS))
     args = parser.parse_args(argv)
     if args.rounds < 1 or args.duration <= 0:
         parser.error("--rounds must be >= 1 and --duration > 0")

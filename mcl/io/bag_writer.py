@@ -13,8 +13,8 @@ Topics (ROS 2 Humble message types, frames as amcl publishes them):
 - ``/pf/particles`` ``geometry_msgs/msg/PoseArray`` (map frame, a subsample of the particles),
 - ``/map`` ``nav_msgs/msg/OccupancyGrid`` once at the start (0 free, 100 occupied or unknown).
 
-Times: seconds of the drive, stored as nanoseconds after :data:`EPOCH_NS` (2000-01-01), so the
-bag's first message is at (about) 0 s for :func:`mcl.io.read_bag`.
+Times: seconds of the drive, as ns after [EPOCH_NS][mcl.io.bag_writer.EPOCH_NS] (2000-01-01),
+so the bag's first message is at (about) 0 s for [read_bag][mcl.io.bag_reader.read_bag].
 """
 
 from __future__ import annotations
@@ -337,9 +337,9 @@ def start_live(address: str | int) -> LiveServer:
 
 
 class DriveRecorder:
-    """Records a :class:`mcl.LocalizationWrapper` drive step by step (the ``on_step`` hook of
-    :func:`mcl.experiments.runs.run_one`): odometry every step, the scan, the estimate and the
-    particles at every fresh scan, the true pose every step.
+    """Records a [LocalizationWrapper][mcl.wrapper.LocalizationWrapper] drive step by step (the
+    ``on_step`` hook of [run_one][mcl.experiments.runs.run_one]): odometry every step, the scan,
+    the estimate and the particles at every fresh scan, the true pose every step.
 
     Odometry: the env's twist of step k describes the motion from ``t_k - dt`` to ``t_k``, so its
     message is stamped ``t_k - dt`` with the integrated odometry pose at that time (a reader that
@@ -349,7 +349,7 @@ class DriveRecorder:
     Args:
         path: the bag folder to create; None writes no bag (``live`` only).
         wrapped: the wrapper around a ``RacecarSim-v0`` env (its lidar and map are recorded).
-        live: a Foxglove server (:func:`start_live`) that streams the same messages as they come.
+        live: a Foxglove server ([start_live][mcl.io.bag_writer.start_live]), the same messages.
     """
 
     def __init__(

@@ -137,12 +137,14 @@ class _Clients:
     async def _unsubscribe(self, count: int) -> None:
         for ws in self.pool[:count]:
             with contextlib.suppress(Exception):
-                await ws.send(json.dumps({"op": "unsubscribe", "subscriptionIds": list(range(1, 9))}))
+                ids = list(range(1, 9))
+                await ws.send(json.dumps({"op": "unsubscribe", "subscriptionIds": ids}))
 
     async def _badjson(self, count: int) -> None:
+        twice = [{"id": 1, "channelId": 1}, {"id": 1, "channelId": 1}]
         bad = ['{"op": "subscribe", "subscriptions": [{"id": 1, "channelId": 99999}]}',
                "{not json", '{"op": "unsubscribe", "subscriptionIds": [-1]}', "[]",
-               '{"op": "subscribe", "subscriptions": [{"id": 1, "channelId": 1}, {"id": 1, "channelId": 1}]}']  # fmt: skip
+               json.dumps({"op": "subscribe", "subscriptions": twice})]  # fmt: skip
         for ws in self.pool[:count]:
             with contextlib.suppress(Exception):
                 await ws.send(self.rng.choice(bad))
