@@ -90,7 +90,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--particles", type=int, default=1500)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--kinds", nargs="+", default=list(KINDS), choices=list(ALL_KINDS))
+    parser.add_argument("--kinds", nargs="*", default=list(KINDS), choices=list(ALL_KINDS),
+                        help="the misbehaving clients (none: the server alone; default: %(default)s)")
     args = parser.parse_args(argv)
     if args.rounds < 1 or args.duration <= 0:
         parser.error("--rounds must be >= 1 and --duration > 0")
@@ -106,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
             )
             rows.append(runs)
     print(f"{args.map}, {args.duration:g} s simulated, {args.particles} particles, seed "
-          f"{args.seed}; clients: {', '.join(args.kinds)}; {args.rounds} rounds")  # fmt: skip
+          f"{args.seed}; clients: {', '.join(args.kinds) or 'none'}; {args.rounds} rounds")  # fmt: skip
     print("| round | drive loop plain (s) | with --live (s) | ratio | command plain (s) | "
           "with --live (s) | ratio |")  # fmt: skip
     print("|---|---:|---:|---:|---:|---:|---:|")

@@ -5,7 +5,9 @@ Run by path (``python -P live_worker.py STATUS_FD``), it imports only the standa
 ``foxglove``, never ``mcl``. It reads framed messages on its standard input (a pipe the drive
 writes without ever blocking), logs them on foxglove-sdk channels, and says where it listens in
 one JSON line on its standard output. Clients do not reach foxglove-sdk directly: a gate on the
-public address accepts at most ``max_clients`` at once (one more gets ``HTTP 503`` and is closed),
+public address accepts at most ``max_clients`` at once and on average
+[ACCEPT_RATE][mcl.io.live_worker.ACCEPT_RATE] new ones a second (one more gets ``HTTP 503`` and is
+closed),
 closes a client that sends no handshake within [HANDSHAKE_S][mcl.io.live_worker.HANDSHAKE_S] or
 reads nothing for [STALL_S][mcl.io.live_worker.STALL_S], and forwards the rest to the SDK's server
 on a private loopback port through bounded buffers (the SDK then drops the oldest messages of a
@@ -51,6 +53,10 @@ HANDSHAKE_S = 10.0
 """Seconds a new connection has to send its first bytes before the gate closes it."""
 STALL_S = 10.0
 """Seconds a client may go without reading before the gate closes it."""
+ACCEPT_RATE = 5.0
+"""New clients the gate accepts per second on average (bursts of up to ``max_clients``); one more
+is refused like a client over the bound, so that a client connecting in a loop cannot keep the
+server (and the machine the drive runs on) busy."""
 CHUNK = 65536
 """Bytes forwarded at a time; with asyncio's write limits, what the gate buffers per client."""
 _REFUSAL = (
@@ -91,7 +97,19 @@ class Gate:
     def __init__(self, status: Status, upstream: int, max_clients: int) -> None:
         self.status, self.upstream, self.max_clients = status, upstream, max_clients
         self.active = 0
+        self.tokens, self.refilled = float(max_clients), time.monotonic()
         self.loop = asyncio.new_event_loop()
+
+    def take_token(self) -> bool:
+        """Whether a new client may come in now (a token bucket of ``max_clients`` tokens,
+        refilled at [ACCEPT_RATE][mcl.io.live_worker.ACCEPT_RATE] a second)."""
+        now = time.monotonic()
+        self.tokens = min(self.max_clients, self.tokens + (now - self.refilled) * ACCEPT_RATE)
+        self.refilled = now
+        if self.tokens < 1.0:
+            return False
+        self.tokens -= 1.0
+        return True
 
     def start(self, host: str, port: int) -> int:
         """Bind ``host:port`` and serve in a daemon thread; the bound port."""
@@ -103,9 +121,12 @@ class Gate:
 
     async def handle(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         status = self.status
-        if self.active >= self.max_clients:
+        if self.active >= self.max_clients or not self.take_token():
             status.add(REFUSED)
-            text = f"racecar-sim live view: too many clients (at most {self.max_clients})\n"
+            text = (
+                f"racecar-sim live view: too many clients (at most {self.max_clients} at once, "
+                f"{ACCEPT_RATE:g} new ones a second)\n"
+            )
             writer.write(_REFUSAL.format(n=len(text), text=text).encode())
             with contextlib.suppress(Exception):
                 await asyncio.wait_for(writer.drain(), 1.0)
