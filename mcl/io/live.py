@@ -13,8 +13,9 @@ on. When the pipe is full, a topic's unsent message is replaced by its newer one
 counted in [LiveServer.n_dropped][mcl.io.live.LiveServer.n_dropped]); the server holds at most
 [MAX_CLIENTS][mcl.io.live.MAX_CLIENTS] clients at once and accepts on average
 [ACCEPT_RATE][mcl.io.live_worker.ACCEPT_RATE] new ones a second (one more is refused with HTTP
-503), and keeps [BACKLOG][mcl.io.live.BACKLOG] messages per client (the oldest dropped for a slow one). The server
-process ends with the drive; if it dies first, the drive warns in one line and goes on.
+503), and keeps [BACKLOG][mcl.io.live.BACKLOG] messages per client (the oldest dropped for a
+slow one). The server process ends with the drive; if it dies first, the drive warns in one line
+and goes on.
 
 Open Foxglove, "Open connection", ``ws://localhost:PORT`` (WebSocket subprotocol
 ``foxglove.sdk.v1``).
