@@ -6,8 +6,11 @@ disconnecting in a loop) hammer the live one's server.
 Each round runs the plain drive and the watched one (``--live 0 --live-speed 0``, unpaced, so the
 wall times compare), alternating which goes first; the clients run in a process of their own at
 a lower priority. Reported per round: the drive loop's wall time as the command prints it, the
-whole command's wall time, their ratios (target <= 1.10), whether the error logs are identical
-(every column but ``update_s``, the filter's wall-clock time), and what the server did.
+whole command's wall time, their ratios (target <= 1.10), the CPU seconds of the plain
+command and of the watched one with its server (the clients' own are not counted: a difference
+in wall time with the same CPU time is the machine's cores shared with the clients), whether the
+error logs are identical (every column but ``update_s``, the filter's wall-clock time), and what
+the server did.
 
     racecar-sim bench live_hostile [--duration 20] [--rounds 3] [--particles 1500]
 """
@@ -18,6 +21,7 @@ import argparse
 import multiprocessing
 import os
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -56,7 +60,7 @@ def drive(folder: Path, args: argparse.Namespace, live: bool) -> dict:
            "--seed", str(args.seed), "--video-fps", "0", "--quiet", "--out", str(folder)]  # fmt: skip
     if live:
         cmd += ["--live", "0", "--live-speed", "0"]
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), _children_cpu()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     counts, err_head = {}, ""
     if live:
@@ -71,16 +75,24 @@ def drive(folder: Path, args: argparse.Namespace, live: bool) -> dict:
                 client.start()
                 break
         stdout, stderr = proc.communicate()
+        cpu = _children_cpu() - cpu0  # the drive and its server, before the clients are reaped
         stop.set()
         counts = out.get(timeout=60)
         client.join(30)
     else:
         stdout, stderr = proc.communicate()
+        cpu = _children_cpu() - cpu0
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise SystemExit(f"the drive failed (exit {proc.returncode}): {(err_head + stderr)[-800:]}")
     loop = float(re.search(r"simulated in ([\d.]+) s of wall time", stdout).group(1))
-    return {"loop": loop, "wall": wall, "stderr": err_head + stderr, "counts": counts}
+    return {"loop": loop, "wall": wall, "cpu": cpu, "stderr": err_head + stderr, "counts": counts}
+
+
+def _children_cpu() -> float:
+    """CPU seconds (user + system) of this process's finished children and theirs."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -109,15 +121,16 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{args.map}, {args.duration:g} s simulated, {args.particles} particles, seed "
           f"{args.seed}; clients: {', '.join(args.kinds) or 'none'}; {args.rounds} rounds")  # fmt: skip
     print("| round | drive loop plain (s) | with --live (s) | ratio | command plain (s) | "
-          "with --live (s) | ratio |")  # fmt: skip
-    print("|---|---:|---:|---:|---:|---:|---:|")
+          "with --live (s) | ratio | CPU plain (s) | CPU drive + server (s) |")  # fmt: skip
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     loop_ratios, wall_ratios = [], []
     for r, runs in enumerate(rows):
         plain, live = runs[False], runs[True]
         loop_ratios.append(live["loop"] / plain["loop"])
         wall_ratios.append(live["wall"] / plain["wall"])
         print(f"| {r + 1} | {plain['loop']:.1f} | {live['loop']:.1f} | {loop_ratios[-1]:.3f} | "
-              f"{plain['wall']:.1f} | {live['wall']:.1f} | {wall_ratios[-1]:.3f} |")  # fmt: skip
+              f"{plain['wall']:.1f} | {live['wall']:.1f} | {wall_ratios[-1]:.3f} | "
+              f"{plain['cpu']:.1f} | {live['cpu']:.1f} |")  # fmt: skip
     loop, wall = statistics.median(loop_ratios), statistics.median(wall_ratios)
     print(f"wall-time ratio with --live / without (median of rounds): drive loop {loop:.3f}, "
           f"whole command {wall:.3f} (target <= 1.10: {'met' if loop <= 1.10 else 'NOT met'})")
