@@ -1,6 +1,7 @@
 """A longer fuzz campaign than the tests' (tests/fuzz): many seeds of hostile maps, settings,
 filter settings, actions, command lines, damaged bags, command-line paths (``path``), hostile
-scan headers (``scan``) and the race's and the localization wrappers' API misused, each batch in
+scan headers (``scan``), the race's and the localization wrappers' API misused and misbehaving
+live-view clients against a short drive (``live``), each batch in
 a worker process under a memory and a time limit. Prints a table per kind (clean errors, correct
 runs, problems by kind: tracebacks, hangs, lost files, memory, wrong runs; the slowest case; the
 workers' peak resident memory) and every problem found; exits 1 when there was one.
@@ -21,7 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tests.fuzz import mutations
 from tests.fuzz.harness import MEMORY_LIMIT, PROBLEM_KINDS, judge, problem_kind, run_cases
 
-KINDS = ("setting", "filter", "map", "action", "cli", "bag", "path", "scan", "race_api", "localization_api")
+KINDS = ("setting", "filter", "map", "action", "cli", "bag", "path", "scan", "race_api", "localization_api",
+         "live")
 
 
 def _short(value: object) -> object:

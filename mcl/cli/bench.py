@@ -24,6 +24,7 @@ BENCHMARKS: dict[str, str] = {
     "replay": "replaying the real bags: real-time factor on one core, settling time, scan_fit",
     "soak": "a 2-hour headless drive: peak memory at 10, 60 and 120 simulated minutes",
     "live": "a localized drive with and without the Foxglove live view (steps/s)",
+    "live_hostile": "a drive with and without --live under misbehaving clients: wall ratio, same log",
     "dynamics": "the single-track car vs f1tenth_gym (skidpad, open loop) and its speed cost",
     "race_matrix": "scripted races on the loop maps: contacts, passes, laps per car by speed",
     "memory": "resident memory per car of the vector env, reset without poses (1, 32, 128 cars)",

@@ -47,7 +47,13 @@ from mcl.cli.common import (
 )
 from mcl.cli.compile_notice import compile_notice, compile_report
 from mcl.cli.filter_map_option import check_filter_map
-from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
+from mcl.cli.live_options import (
+    Pacer,
+    add_live_arguments,
+    check_live,
+    start_live_view,
+    stop_live_view,
+)
 from mcl.error_log import read_error_log
 from mcl.experiments.frame_text import draw_legend
 from mcl.experiments.metrics import DIVERGED_M
@@ -203,8 +209,7 @@ def main(argv: list[str] | None = None) -> int:
                 spec, out, args.video_fps, not args.quiet, args.bag, server, args.live_speed
             )
     finally:
-        if server is not None:
-            server.close()
+        stop_live_view(server)
 
 
 def _drive(

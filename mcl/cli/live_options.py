@@ -11,7 +11,7 @@ from collections.abc import Callable
 from mcl.cli.common import Parser, live_speed
 from mcl.io.live import LiveServer, parse_live_address
 
-__all__ = ["Pacer", "add_live_arguments", "check_live", "start_live_view"]
+__all__ = ["Pacer", "add_live_arguments", "check_live", "start_live_view", "stop_live_view"]
 
 
 def add_live_arguments(parser: Parser, what: str) -> None:
@@ -45,7 +45,11 @@ def check_live(parser: Parser, text: str | None, speed: float) -> tuple[str, int
     try:
         import foxglove  # noqa: F401
     except ImportError:
-        parser.fail("--live", "needs foxglove-sdk: pip install 'racecar-sim[live]'")
+        parser.fail(
+            "--live",
+            "needs foxglove-sdk: pip install -e '.[live]' in a checkout, "
+            "pip install 'racecar-sim[live]' from PyPI",
+        )
     return address
 
 
@@ -54,9 +58,9 @@ def start_live_view(
     address: tuple[str, int] | None,
     start: Callable[[str], LiveServer] | None = None,
 ) -> LiveServer | None:
-    """Start the server at ``address`` (from :func:`check_live`) and say where to connect;
-    ``start(address text)`` makes the server (default: the recording's topics,
-    :func:`mcl.io.bag_writer.start_live`)."""
+    """Start the server at ``address`` (from [check_live][mcl.cli.live_options.check_live]) and
+    say where to connect; ``start(address text)`` makes the server (default: the recording's
+    topics, [start_live][mcl.io.bag_writer.start_live])."""
     if address is None:
         return None
     if start is None:
@@ -69,6 +73,15 @@ def start_live_view(
         parser.fail("--live", str(exc))
     print(f"live view: in Foxglove, Open connection, {server.url}", file=sys.stderr, flush=True)
     return server
+
+
+def stop_live_view(server: LiveServer | None) -> None:
+    """Stop the server from [start_live_view][mcl.cli.live_options.start_live_view] and say in
+    one line what it sent, dropped and refused ([LiveServer.summary][mcl.io.live.LiveServer.summary])."""
+    if server is None:
+        return
+    server.close()
+    print(server.summary(), file=sys.stderr, flush=True)
 
 
 class Pacer:

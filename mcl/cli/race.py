@@ -43,7 +43,13 @@ from mcl.cli.common import (
     positive_int,
 )
 from mcl.cli.compile_notice import compile_notice, compile_report
-from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
+from mcl.cli.live_options import (
+    Pacer,
+    add_live_arguments,
+    check_live,
+    start_live_view,
+    stop_live_view,
+)
 from mcl.experiments.race_drivers import DRIVER_NAMES, DriverError, DriverSpec, parse_drivers
 from mcl.experiments.race_run import GRID_ORDERS, RaceSetup, RaceSpec
 from racecar_sim.maps import DEFAULT_MAP
@@ -256,8 +262,7 @@ def main(argv: list[str] | None = None) -> int:
         with output_folder(parser, out):
             return _race(spec, setup, out, args.video_fps, not args.quiet, on_step)
     finally:
-        if server is not None:
-            server.close()
+        stop_live_view(server)
 
 
 def _race(

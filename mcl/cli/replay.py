@@ -28,7 +28,13 @@ from mcl.cli.common import (
     positive_int,
 )
 from mcl.cli.compile_notice import compile_notice, compile_report
-from mcl.cli.live_options import Pacer, add_live_arguments, check_live, start_live_view
+from mcl.cli.live_options import (
+    Pacer,
+    add_live_arguments,
+    check_live,
+    start_live_view,
+    stop_live_view,
+)
 from racecar_sim.file_guard import shown
 
 EXAMPLES = """\
@@ -174,8 +180,7 @@ def main(argv: list[str] | None = None) -> int:
             if lost is not None:
                 print(f"warning: {lost}", file=sys.stderr)
     finally:
-        if server is not None:
-            server.close()
+        stop_live_view(server)
     compile_report()
     return 0
 

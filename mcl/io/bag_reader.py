@@ -82,6 +82,7 @@ class BagData:
             on the real bags, so the noise calibration, which pairs scans with odometry, uses
             these.
         time_increment: seconds between two consecutive beams of one sweep (0 when unknown).
+        start_ns: log time of the bag's first message, ns since the Unix epoch (time 0 above).
     """
 
     path: Path
@@ -106,6 +107,7 @@ class BagData:
     scan_stamps: np.ndarray | None = None
     odom_stamps: np.ndarray | None = None
     time_increment: float = 0.0
+    start_ns: int = 0
 
     def __post_init__(self) -> None:
         if self.scan_stamps is None:
@@ -329,6 +331,7 @@ def read_bag(
         scan_stamps=np.asarray(col.scan_stamp),
         odom_stamps=np.asarray(col.odom_stamp),
         time_increment=float(first.time_increment),
+        start_ns=int(t0),
     )
 
 

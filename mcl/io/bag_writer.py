@@ -13,8 +13,8 @@ Topics (ROS 2 Humble message types, frames as amcl publishes them):
 - ``/pf/particles`` ``geometry_msgs/msg/PoseArray`` (map frame, a subsample of the particles),
 - ``/map`` ``nav_msgs/msg/OccupancyGrid`` once at the start (0 free, 100 occupied or unknown).
 
-Times: seconds of the drive, stored as nanoseconds after :data:`EPOCH_NS` (2000-01-01), so the
-bag's first message is at (about) 0 s for :func:`mcl.io.read_bag`.
+Times: seconds of the drive, as ns after [EPOCH_NS][mcl.io.bag_writer.EPOCH_NS] (2000-01-01),
+so the bag's first message is at (about) 0 s for [read_bag][mcl.io.bag_reader.read_bag].
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 import gymnasium as gym
 import numpy as np
 
+from mcl.io import cdr
 from mcl.io.bag_folder import remove_recording
 from racecar_sim.maps import OccupancyMap
 
@@ -55,7 +56,7 @@ exactly these: [bag_folder][mcl.io.bag_folder])."""
 
 class BagRecorder:
     """Writes a ROS 2 / MCAP bag folder (module docstring), and / or streams the same messages
-    live to Foxglove (:class:`mcl.io.live.LiveServer`); use as a context manager.
+    live to Foxglove ([LiveServer][mcl.io.live.LiveServer]); use as a context manager.
 
     Args:
         path: the bag folder to create; None writes no bag. An existing folder is replaced
@@ -68,7 +69,8 @@ class BagRecorder:
         scan_period: seconds between scans (LaserScan.scan_time).
         max_particles: particles per ``/pf/particles`` message (an even stride through them).
         overwrite: replace an existing recording of ours at ``path``.
-        live: a Foxglove server that gets every message too (see :mod:`mcl.io.live`).
+        live: a Foxglove server that gets every message too (see [mcl.io.live][mcl.io.live]).
+        epoch_ns: time 0 in ns since the Unix epoch (a replay streams on its bag's own clock).
 
     Raises:
         FileExistsError: ``path`` exists and ``overwrite`` is False, or it is not exactly a
@@ -86,6 +88,7 @@ class BagRecorder:
         max_particles: int = 500,
         overwrite: bool = True,
         live: LiveServer | None = None,
+        epoch_ns: int = EPOCH_NS,
     ) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
@@ -98,7 +101,7 @@ class BagRecorder:
                 raise FileExistsError(f"{self.path} exists")
             remove_recording(self.path, TOPICS)
         self.ts = get_typestore(Stores.ROS2_HUMBLE)
-        self.live = live
+        self.live, self.epoch_ns = live, int(epoch_ns)
         self._t = self.ts.types
         self.map = occupancy_map
         self.angles = np.asarray(angles, dtype=np.float64)
@@ -106,8 +109,7 @@ class BagRecorder:
         self.mount_offset = float(mount_offset)
         self.scan_period = float(scan_period)
         self.max_particles = int(max_particles)
-        self._writer = None
-        self._cons = {}
+        self._writer, self._cons = None, {}
         if self.path is not None:
             self._writer = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
             self._writer.open()
@@ -136,9 +138,8 @@ class BagRecorder:
             self.live.publish(topic, ns, bytes(data))
         self.n_messages += 1
 
-    @staticmethod
-    def _stamp_ns(t: float) -> int:
-        return EPOCH_NS + round(max(t, 0.0) * 1e9)
+    def _stamp_ns(self, t: float) -> int:
+        return self.epoch_ns + round(max(t, 0.0) * 1e9)
 
     def _header(self, t: float, frame: str):
         ns = self._stamp_ns(t)
@@ -200,19 +201,9 @@ class BagRecorder:
         r = np.asarray(ranges, dtype=np.float32).copy()
         r[~np.isfinite(r) | (r > self.range_max)] = np.inf
         a = self.angles
-        msg = self._t["sensor_msgs/msg/LaserScan"](
-            header=self._header(t, "laser"),
-            angle_min=float(a[0]),
-            angle_max=float(a[-1]),
-            angle_increment=float((a[-1] - a[0]) / max(a.size - 1, 1)),
-            time_increment=0.0,
-            scan_time=self.scan_period,
-            range_min=0.02,
-            range_max=self.range_max,
-            ranges=r,
-            intensities=np.zeros(0, dtype=np.float32),
-        )
-        self._write("/scan", t, msg)
+        increment = float((a[-1] - a[0]) / max(a.size - 1, 1))
+        floats = (float(a[0]), float(a[-1]), increment, 0.0, self.scan_period, 0.02, self.range_max)
+        self._write_raw("/scan", t, cdr.laser_scan(self._stamp_ns(t), "laser", floats, r))
 
     def write_odom(self, t: float, pose: np.ndarray, twist: np.ndarray) -> None:
         """``/odom`` and the ``odom`` -> ``base_link`` part of ``/tf``.
@@ -221,39 +212,23 @@ class BagRecorder:
             pose: [x, y, theta] of base_link in the odometry frame (integrated odometry).
             twist: [vx, vy, omega] in base_link (m/s, rad/s).
         """
-        T = self._t
         self._last_odom = np.array([float(v) for v in pose])
         if not (self.wants("/odom") or self.wants("/tf")):
             return
         x, y, th = (float(v) for v in pose)
-        vx, vy, om = (float(v) for v in twist)
-        zero6 = np.zeros(36, dtype=np.float64)
-        msg = T["nav_msgs/msg/Odometry"](
-            header=self._header(t, "odom"),
-            child_frame_id="base_link",
-            pose=T["geometry_msgs/msg/PoseWithCovariance"](
-                pose=self._pose(x, y, th), covariance=zero6
-            ),
-            twist=T["geometry_msgs/msg/TwistWithCovariance"](
-                twist=T["geometry_msgs/msg/Twist"](
-                    linear=T["geometry_msgs/msg/Vector3"](x=vx, y=vy, z=0.0),
-                    angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=om),
-                ),
-                covariance=zero6.copy(),
-            ),
-        )
-        self._write("/odom", t, msg)
-        tf = self._transform(t, "odom", "base_link", x, y, th)
-        self._write("/tf", t, T["tf2_msgs/msg/TFMessage"](transforms=[tf]))
+        twist = tuple(float(v) for v in twist)
+        ns = self._stamp_ns(t)
+        if self.wants("/odom"):
+            self._write_raw("/odom", t, cdr.odometry(ns, "odom", "base_link", (x, y, th), twist))
+        if self.wants("/tf"):
+            self._write_raw("/tf", t, cdr.tf_message(ns, "odom", "base_link", x, y, th))
 
     def write_truth(self, t: float, pose: np.ndarray) -> None:
         """``/ground_truth``: the true base_link pose [x, y, theta] in the map frame."""
         if not self.wants("/ground_truth"):
             return
-        msg = self._t["geometry_msgs/msg/PoseStamped"](
-            header=self._header(t, "map"), pose=self._pose(*pose)
-        )
-        self._write("/ground_truth", t, msg)
+        x, y, th = (float(v) for v in pose)
+        self._write_raw("/ground_truth", t, cdr.pose_stamped(self._stamp_ns(t), "map", x, y, th))
 
     def write_estimate(
         self,
@@ -269,29 +244,23 @@ class BagRecorder:
             covariance: (3, 3) over [x, y, theta] (m², rad²), put in the 6 x 6 ROS layout.
             particles: (N, 3) map-frame poses; at most ``max_particles`` are written.
         """
-        T = self._t
         if not (self.wants("/pf/pose") or self.wants("/tf") or self.wants("/pf/particles")):
             return
         cov6 = np.zeros((6, 6))
-        c = np.asarray(covariance, dtype=np.float64)
         idx = [0, 1, 5]
-        cov6[np.ix_(idx, idx)] = c
-        msg = T["geometry_msgs/msg/PoseWithCovarianceStamped"](
-            header=self._header(t, "map"),
-            pose=T["geometry_msgs/msg/PoseWithCovariance"](
-                pose=self._pose(*pose), covariance=cov6.reshape(-1)
-            ),
-        )
-        self._write("/pf/pose", t, msg)
-        if self._last_odom is not None:
+        cov6[np.ix_(idx, idx)] = np.asarray(covariance, dtype=np.float64)
+        ns = self._stamp_ns(t)
+        ex, ey, eth = (float(v) for v in pose)
+        if self.wants("/pf/pose"):
+            msg = cdr.pose_with_covariance_stamped(ns, "map", ex, ey, eth, cov6)
+            self._write_raw("/pf/pose", t, msg)
+        if self._last_odom is not None and self.wants("/tf"):
             # map -> odom = estimate (map <- base) composed with the inverse of odom <- base.
             ox, oy, oth = self._last_odom
-            ex, ey, eth = (float(v) for v in pose)
             yaw = eth - oth
             c_, s_ = math.cos(yaw), math.sin(yaw)
             tx, ty = ex - (c_ * ox - s_ * oy), ey - (s_ * ox + c_ * oy)
-            tf = self._transform(t, "map", "odom", tx, ty, yaw)
-            self._write("/tf", t, T["tf2_msgs/msg/TFMessage"](transforms=[tf]))
+            self._write_raw("/tf", t, cdr.tf_message(ns, "map", "odom", tx, ty, yaw))
         if particles is not None and len(particles) and self.wants("/pf/particles"):
             p = np.asarray(particles, dtype=np.float64)
             step = max(1, math.ceil(len(p) / self.max_particles))
@@ -330,7 +299,7 @@ def pose_array_cdr(stamp_ns: int, frame_id: str, poses: np.ndarray) -> bytes:
 
 def start_live(address: str | int) -> LiveServer:
     """A Foxglove WebSocket server for the recording's topics at ``"[HOST:]PORT"`` (bound to
-    127.0.0.1 unless a host is given); see :mod:`mcl.io.live`."""
+    127.0.0.1 unless a host is given); see [mcl.io.live][mcl.io.live]."""
     from rosbags.typesys import Stores, get_typestore
 
     from mcl.io.live import LiveServer
@@ -339,9 +308,9 @@ def start_live(address: str | int) -> LiveServer:
 
 
 class DriveRecorder:
-    """Records a :class:`mcl.LocalizationWrapper` drive step by step (the ``on_step`` hook of
-    :func:`mcl.experiments.runs.run_one`): odometry every step, the scan, the estimate and the
-    particles at every fresh scan, the true pose every step.
+    """Records a [LocalizationWrapper][mcl.wrapper.LocalizationWrapper] drive step by step (the
+    ``on_step`` hook of [run_one][mcl.experiments.runs.run_one]): odometry every step, the scan,
+    the estimate and the particles at every fresh scan, the true pose every step.
 
     Odometry: the env's twist of step k describes the motion from ``t_k - dt`` to ``t_k``, so its
     message is stamped ``t_k - dt`` with the integrated odometry pose at that time (a reader that
@@ -351,7 +320,7 @@ class DriveRecorder:
     Args:
         path: the bag folder to create; None writes no bag (``live`` only).
         wrapped: the wrapper around a ``RacecarSim-v0`` env (its lidar and map are recorded).
-        live: a Foxglove server (:func:`start_live`) that streams the same messages as they come.
+        live: a Foxglove server ([start_live][mcl.io.bag_writer.start_live]), the same messages.
     """
 
     def __init__(

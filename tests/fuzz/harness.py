@@ -113,14 +113,14 @@ def problem_kind(result: dict[str, Any]) -> str:
     """Which of [PROBLEM_KINDS][tests.fuzz.harness.PROBLEM_KINDS] a judged problem is: a file lost
     (``loss``), the time limit (``hang``), the memory limit or a MemoryError (``memory``), a wrong
     run (``wrong``), else an exception, exit code or stderr that is not one clear line
-    (``traceback``)."""
+    (``traceback``). A case may report ``memory`` itself (a process it watched grew too big)."""
     outcome = result["outcome"]
     end = str(result.get("end", ""))
     if outcome == "loss":
         return "loss"
     if outcome == "lost" and "time limit" in end:
         return "hang"
-    if result.get("type") == "MemoryError" or (
+    if outcome == "memory" or result.get("type") == "MemoryError" or (
         outcome == "lost" and ("MemoryError" in end or "exit -9" in end or "Cannot allocate" in end)
     ):
         return "memory"

@@ -13,6 +13,7 @@ from typing import Any
 
 from tests.fuzz.api_cases import localization_api_cases, race_api_cases
 from tests.fuzz.file_mutations import path_cases, scan_cases  # the file-safety kinds
+from tests.fuzz.live_cases import live_cases  # misbehaving live-view clients
 
 __all__ = [
     "HOSTILE_TEXTS",
@@ -21,6 +22,7 @@ __all__ = [
     "bag_cases",
     "cli_cases",
     "filter_cases",
+    "live_cases",
     "localization_api_cases",
     "map_cases",
     "path_cases",

@@ -1,7 +1,8 @@
 """Seeded fuzzing: hostile maps, settings, filter settings, actions, command lines, damaged bags,
-command-line paths, hostile scan headers and the race's and the localization wrappers' API
-misused, each kind run in a worker process under a 3 GiB memory limit and a time limit. Every
-case must end in one clear error or a correct run (tests/fuzz/harness.py says what counts).
+command-line paths, hostile scan headers, the race's and the localization wrappers' API misused
+and misbehaving live-view clients, each kind run in a worker process under a 3 GiB memory limit
+and a time limit. Every case must end in one clear error or a correct run
+(tests/fuzz/harness.py says what counts).
 
 The cases are the same on every run (fixed seeds); ``scripts/fuzz.py`` runs a longer campaign with
 other seeds.
@@ -26,6 +27,7 @@ BUDGET = {
     "localization_api": (24, 240),
     "path": (16, 300),
     "scan": (16, 300),
+    "live": (8, 300),
 }
 
 
@@ -42,7 +44,7 @@ def test_fuzz_cases_end_in_one_clear_error_or_a_correct_run(kind: str) -> None:
     assert not problems, "\n".join(problems[:10])
     # the kind's cases are not all refused (or all accepted): both paths are exercised
     outcomes = {r["outcome"] if r["outcome"] != "exit" else r["exit"] for r in results}
-    assert len(outcomes) >= 2 or kind == "cli", outcomes
+    assert len(outcomes) >= 2 or kind in ("cli", "live"), outcomes  # live: every run correct
 
 
 def test_mutations_are_seeded() -> None:
@@ -85,5 +87,6 @@ def test_problems_are_counted_by_kind() -> None:
     assert problem_kind({"outcome": "lost", "end": "killed after the time limit of 9 s"}) == "hang"
     assert problem_kind({"outcome": "lost", "end": "exit 1: ... MemoryError"}) == "memory"
     assert problem_kind({"outcome": "error", "type": "MemoryError"}) == "memory"
+    assert problem_kind({"outcome": "memory", "message": "the server reached 900 MiB"}) == "memory"
     assert problem_kind({"outcome": "wrong", "message": "scan not finite"}) == "wrong"
     assert problem_kind({"outcome": "exit", "exit": 1, "stderr": "Traceback"}) == "traceback"

@@ -29,6 +29,7 @@ import numpy as np
 from tests.fuzz.api_runners import run_localization_api, run_race_api
 from tests.fuzz.file_worker import remove_case_folder, run_path, run_scan
 from tests.fuzz.hostile_maps import alias_bomb, fake_png, small_png
+from tests.fuzz.live_cases import run_live
 from tests.fuzz.mutations import decode
 
 _SMALL = {"map": "corridor", "n_beams": 60}
@@ -211,6 +212,7 @@ RUNNERS = {
     "bag": run_bag,
     "path": run_path,
     "scan": run_scan,
+    "live": run_live,
 }
 
 
