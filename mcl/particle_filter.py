@@ -89,6 +89,8 @@ class ParticleFilter:
             the next correction (augmented MCL).
         n_injected: random particles injected by augmented MCL so far; last_injected: by the last
             correction. n_skipped: scans :meth:`correct` skipped (``update_min_distance``).
+        recovery_share: the least share of each resampling's draws that are uniform poses, as
+            the lost flag's recovery asked (:meth:`request_recovery`; 0 when not lost).
     """
 
     def __init__(
@@ -124,6 +126,8 @@ class ParticleFilter:
         self.last_injected = 0
         self.pending_random = 0
         self.n_skipped = 0
+        self.recovery_share = 0.0
+        self._shrink_to: int | None = None  # the count to resample back to after a burst
         self._moved = [math.inf, math.inf]  # metres, radians of odometry since the last used scan
         self._global_count: int | None = None
 
@@ -253,6 +257,7 @@ class ParticleFilter:
         """A new initial belief: forget the likelihood history; the next scan is always used."""
         self.averages.reset()
         self.pending_random = 0
+        self.recovery_share, self._shrink_to = 0.0, None
         self._moved = [math.inf, math.inf]
 
     # ------------------------------------------------------------------ update steps
@@ -306,7 +311,7 @@ class ParticleFilter:
     def needs_resampling(self) -> bool:
         """Whether the effective sample size is at most ``resample_threshold`` x N, or augmented
         MCL wants to inject random particles (its injection probability is above 0)."""
-        if self.averages.injection_probability > 0.0:
+        if self.averages.injection_probability > 0.0 or self.recovery_share > 0.0:
             return True
         return self.effective_sample_size <= self.params.resample_threshold * self.n_particles
 
@@ -322,7 +327,7 @@ class ParticleFilter:
         Returns the chosen indexes of the old particles (the drawn, non-random ones).
         """
         particles, weights = self._require()
-        p_random = self.averages.injection_probability
+        p_random = max(self.averages.injection_probability, self.recovery_share)
         if n is None and self.params.kld.enabled:
             n, n_random = self.kld_count(p_random)
         else:
@@ -363,6 +368,23 @@ class ParticleFilter:
         self.last_injected = k
         self.n_injected += k
 
+    def request_recovery(self, share: float, burst: int = 0) -> None:
+        """Recovery asked for by the lost flag ([LostDetector][mcl.lost.LostDetector]).
+
+        Args:
+            share: from now on (until asked again) each resampling replaces at least this
+                fraction of its draws by uniform free-space poses (as augmented MCL's injection),
+                and every correction resamples; 0 stops it.
+            burst: uniform free-space poses that join the cloud at the next correction, are
+                weighed by its scan with the cloud, after which the cloud is resampled back to
+                its present count (KLD-sampling's count when it is on).
+        """
+        self.recovery_share = float(share)
+        if burst > 0:
+            if self._shrink_to is None:  # the count the next correction would have had
+                self._shrink_to = self.n_particles + self.pending_random
+            self.pending_random += int(burst)
+
     def should_correct(self) -> bool:
         """Whether the car moved ``update_min_distance`` or turned ``update_min_angle`` since the
         last used scan (always True when both are 0)."""
@@ -393,7 +415,11 @@ class ParticleFilter:
         self._moved = [0.0, 0.0]
         self.last_injected = 0
         self._join_pending_random()
+        shrink_to, self._shrink_to = self._shrink_to, None
         self.update_weights(self.sensor_model.log_evaluate(self.particles, scan))
+        if shrink_to is not None:  # a recovery burst: back to the cloud's count (or KLD's)
+            self.resample(None if self.params.kld.enabled else shrink_to)
+            return True
         squash = float(self.sensor_model.params.squash_exponent)
         self.averages.update(self.last_log_mean_likelihood, int(n_beams), squash)
         if self.needs_resampling():
