@@ -31,7 +31,6 @@ from gymnasium.error import ResetNeeded
 
 from mcl.adaptive import AdaptiveParticleFilter
 from mcl.error_log import ErrorLogWriter
-from mcl.lost import LostDetector
 from mcl.localization import (
     FilterFactory,
     LocalizationConfig,
@@ -42,6 +41,7 @@ from mcl.localization import (
     pose_estimate_space,
     sensor_model_for_lidar,
 )
+from mcl.lost import LostDetector
 from mcl.motion_model import MotionModel
 from mcl.particle_filter import ParticleFilter
 from mcl.sensor_model import SensorModel
