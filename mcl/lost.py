@@ -84,12 +84,16 @@ class LostParams:
     def __post_init__(self) -> None:
         for name in ("enabled", "recover", "skip_short"):
             if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"LostParams.{name} = {short(getattr(self, name))} must be true or false")
+                raise ValueError(
+                    f"LostParams.{name} = {short(getattr(self, name))} must be true or false"
+                )
         for name in ("beams", "burst_max"):
             v = getattr(self, name)
             low = 1 if name == "beams" else 0
             if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
-                raise ValueError(f"LostParams.{name} = {short(v)} must be an integer in [{low}, 1000000]")
+                raise ValueError(
+                    f"LostParams.{name} = {short(v)} must be an integer in [{low}, 1000000]"
+                )
 
         def number(name: str) -> float:
             v = getattr(self, name)
@@ -106,17 +110,23 @@ class LostParams:
         for name, (low, high, unit) in checks.items():
             v = number(name)
             if not low < v <= high:
-                raise ValueError(f"LostParams.{name} = {short(v)} must lie in ({low:g}, {high:g}] {unit}")
+                raise ValueError(
+                    f"LostParams.{name} = {short(v)} must lie in ({low:g}, {high:g}] {unit}"
+                )
         for name in ("raise_below", "clear_above"):
             if not 0.0 <= number(name) <= 1.0:
-                raise ValueError(f"LostParams.{name} = {short(getattr(self, name))} must be a fraction in [0, 1]")
+                raise ValueError(
+                    f"LostParams.{name} = {short(getattr(self, name))} must be a fraction in [0, 1]"
+                )
         if self.clear_above < self.raise_below:
             raise ValueError(
                 f"LostParams.clear_above = {self.clear_above} must be at least raise_below = "
                 f"{self.raise_below} (hysteresis)"
             )
         if not 0.0 <= number("inject_share") <= 0.5:
-            raise ValueError(f"LostParams.inject_share = {short(self.inject_share)} must lie in [0, 0.5]")
+            raise ValueError(
+                f"LostParams.inject_share = {short(self.inject_share)} must lie in [0, 0.5]"
+            )
         if not number("max_position_sd") > 0.0:
             raise ValueError(
                 f"LostParams.max_position_sd = {short(self.max_position_sd)} must be > 0 metres (.inf: never)"

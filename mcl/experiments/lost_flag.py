@@ -181,7 +181,7 @@ def _times(values: list[float], limit: float) -> str:
         return "–"
     if done.size == 0:
         return f"0/{v.size}"
-    return (f"{done.size}/{v.size}; median {np.median(done):.2f} s, max {np.max(done):.2f} s")
+    return f"{done.size}/{v.size}; median {np.median(done):.2f} s, max {np.max(done):.2f} s"
 
 
 def _table(config: LostFlagConfig, results: list[RunResult]) -> str:
@@ -208,7 +208,9 @@ def _table(config: LostFlagConfig, results: list[RunResult]) -> str:
             errors.append(float(np.mean(log.position_error)))
             if r.spec.scenario == "kidnap":
                 at = float(r.outcome.get("lost_at", math.nan))
-                f, rec = kidnap_times(log, at, config.hold_s) if math.isfinite(at) else (math.nan,) * 2
+                f, rec = (
+                    kidnap_times(log, at, config.hold_s) if math.isfinite(at) else (math.nan,) * 2
+                )
                 flags.append(f)
                 recovers.append(rec)
                 per_run.append(f"| {r.spec.run_id} | {at:.2f} | {f:.2f} | {rec:.2f} |")
