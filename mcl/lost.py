@@ -71,9 +71,9 @@ class LostParams:
     fit_tolerance: float = 0.2
     skip_short: bool = True
     beams: int = 100
-    window_s: float = 1.0
-    raise_below: float = 0.4
-    clear_above: float = 0.55
+    window_s: float = 0.75
+    raise_below: float = 0.5
+    clear_above: float = 0.65
     max_position_sd: float = 2.0
     recover: bool = True
     inject_share: float = 0.02
