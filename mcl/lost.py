@@ -15,6 +15,12 @@ What the filter can see, measured once per used scan (no truth involved):
 - **Smoothing and hysteresis**: the fit is averaged exponentially with a time constant of
   ``window_s`` seconds of driving; the flag is raised when the average falls below ``raise_below``
   and cleared only once it climbs above ``clear_above``.
+- **Against the car's own record**: a slower average of the smoothed fit, over ``reference_s``
+  seconds of the time the flag was down, is the fit this world usually gives at the right pose.
+  The flag is also raised when the misfit (1 - smoothed fit) grows beyond ``misfit_ratio`` times
+  the reference's misfit (at least 0.02), and cleared only once it is back under half that. A
+  clean world, where the right pose explains 98 % of the beams, flags a wrong pose that explains
+  85 %; a cluttered one, whose right pose explains 85 %, falls back on ``raise_below``.
 - **Spread**: the flag is also up while the cloud's position standard deviation (largest axis of
   the weighted covariance) exceeds ``max_position_sd`` metres, e.g. after a global start or while
   the cloud holds two distant modes.
@@ -41,6 +47,9 @@ from racecar_sim.validation import short
 
 __all__ = ["LostDetector", "LostParams", "scan_agreement"]
 
+_MIN_MISFIT = 0.02
+"""The smallest usual misfit the relative test assumes (a perfect record would flag any beam)."""
+
 
 @dataclass(frozen=True)
 class LostParams:
@@ -56,6 +65,9 @@ class LostParams:
         raise_below: the flag goes up when the averaged fit falls below this fraction.
         clear_above: the flag goes down when the averaged fit rises above this fraction
             (at least ``raise_below``: hysteresis).
+        misfit_ratio: the flag also goes up when the averaged misfit exceeds this many times
+            the reference's (at least 1; ``.inf``: never).
+        reference_s: seconds (of time not lost) over which the reference fit is averaged.
         max_position_sd: metres; the flag is also up while the cloud's position standard
             deviation exceeds this (``math.inf``: never).
         recover: inject free-space particles while the fit says lost.
@@ -74,6 +86,8 @@ class LostParams:
     window_s: float = 0.75
     raise_below: float = 0.5
     clear_above: float = 0.65
+    misfit_ratio: float = 6.0
+    reference_s: float = 20.0
     max_position_sd: float = 2.0
     recover: bool = True
     inject_share: float = 0.02
@@ -104,6 +118,7 @@ class LostParams:
         checks = {
             "fit_tolerance": (0.0, 10.0, "metres"),
             "window_s": (0.0, 60.0, "seconds"),
+            "reference_s": (0.0, 3600.0, "seconds"),
             "burst_every_s": (0.0, 600.0, "seconds"),
             "burst_density": (0.0, 10_000.0, "particles per m²"),
         }
@@ -126,6 +141,10 @@ class LostParams:
         if not 0.0 <= number("inject_share") <= 0.5:
             raise ValueError(
                 f"LostParams.inject_share = {short(self.inject_share)} must lie in [0, 0.5]"
+            )
+        if not number("misfit_ratio") >= 1.0:
+            raise ValueError(
+                f"LostParams.misfit_ratio = {short(self.misfit_ratio)} must be >= 1 (.inf: off)"
             )
         if not number("max_position_sd") > 0.0:
             raise ValueError(
@@ -173,6 +192,7 @@ class LostDetector:
     Attributes:
         fit: the last scan's fit (fraction of beams, NaN before the first scan).
         smoothed_fit: its exponential average over ``window_s`` (NaN before the first scan).
+        reference_fit: the slow average of ``smoothed_fit`` while not lost (``reference_s``).
         fit_lost: the hysteresis flag of the fit alone.
         position_sd: metres, the cloud's position standard deviation at the last scan.
         lost: the flag: ``fit_lost`` or a spread cloud.
@@ -182,6 +202,7 @@ class LostDetector:
         self.params = params if params is not None else LostParams()
         self.fit = math.nan
         self.smoothed_fit = math.nan
+        self.reference_fit = math.nan
         self.fit_lost = False
         self.position_sd = 0.0
         self.lost = False
@@ -208,16 +229,20 @@ class LostDetector:
         self.fit = fit
         if math.isfinite(fit):
             if math.isnan(self.smoothed_fit):
-                self.smoothed_fit = fit
+                self.smoothed_fit = self.reference_fit = fit
             else:
-                a = 1.0 - math.exp(-max(self._since_scan, 0.0) / p.window_s)
-                self.smoothed_fit += a * (fit - self.smoothed_fit)
+                dt = max(self._since_scan, 0.0)
+                self.smoothed_fit += (1.0 - math.exp(-dt / p.window_s)) * (fit - self.smoothed_fit)
+                if not self.fit_lost:
+                    a = 1.0 - math.exp(-dt / p.reference_s)
+                    self.reference_fit += a * (self.smoothed_fit - self.reference_fit)
         self._since_scan = 0.0
         s = self.smoothed_fit
         if math.isfinite(s):
-            if self.fit_lost and s > p.clear_above:
+            usual = max(1.0 - self.reference_fit, _MIN_MISFIT)  # the usual misfit
+            if self.fit_lost and s > p.clear_above and 1.0 - s < 0.5 * p.misfit_ratio * usual:
                 self.fit_lost = False
-            elif not self.fit_lost and s < p.raise_below:
+            elif not self.fit_lost and (s < p.raise_below or 1.0 - s > p.misfit_ratio * usual):
                 self.fit_lost = True
         cov = pf.covariance()
         self.position_sd = float(math.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
