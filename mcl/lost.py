@@ -18,7 +18,8 @@ What the filter can see, measured once per used scan (no truth involved):
 - **Against the car's own record**: a slower average of the smoothed fit, over ``reference_s``
   seconds of the time the flag was down, is the fit this world usually gives at the right pose.
   The flag is also raised when the misfit (1 - smoothed fit) grows beyond ``misfit_ratio`` times
-  the reference's misfit (at least 0.02), and cleared only once it is back under half that. A
+  the reference's misfit (at least 0.02), and cleared only once it is back under half that;
+  this test waits until the record holds ``reference_s`` of driving. A
   clean world, where the right pose explains 98 % of the beams, flags a wrong pose that explains
   85 %; a cluttered one, whose right pose explains 85 %, falls back on ``raise_below``.
 - **Spread**: the flag is also up while the cloud's position standard deviation (largest axis of
@@ -30,7 +31,9 @@ Recovery (``recover``): while the fit says lost, the filter is asked
 replace ``inject_share`` of every resampling's draws by uniform free-space poses, and every
 ``burst_every_s`` seconds to weigh a burst of uniform free-space poses (``burst_density`` per m² of
 the filter map's free floor, at most ``burst_max``) together with the cloud, after which the cloud
-is resampled back to its count. The cloud is kept, so a false alarm costs time, not the track.
+is resampled back to its count. The cloud is kept, and the burst's outcome is kept only when the
+scan fits the new estimate better (``burst_accept``) than the cloud's before the burst, so a false
+alarm costs time, not the track.
 
 Frames and units: world frame; metres, radians, seconds.
 """
@@ -43,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mcl.particle_filter import ParticleFilter
+from mcl.step_kernels import pose_moments
 from racecar_sim.validation import short
 
 __all__ = ["LostDetector", "LostParams", "scan_agreement"]
@@ -77,6 +81,10 @@ class LostParams:
             soon as the flag goes up).
         burst_density: burst particles per m² of the filter map's free floor.
         burst_max: most particles of one burst (0: no bursts).
+        burst_accept: a burst's outcome is kept only when the scan fit at the new estimate
+            beats the fit at the cloud's estimate before the burst by this much; else the
+            cloud before the burst is restored (the beam model may prefer a wrong place that a
+            cluttered, out-of-date world happens to fit).
     """
 
     enabled: bool = True
@@ -94,6 +102,7 @@ class LostParams:
     burst_every_s: float = 1.0
     burst_density: float = 20.0
     burst_max: int = 20_000
+    burst_accept: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("enabled", "recover", "skip_short"):
@@ -128,7 +137,7 @@ class LostParams:
                 raise ValueError(
                     f"LostParams.{name} = {short(v)} must lie in ({low:g}, {high:g}] {unit}"
                 )
-        for name in ("raise_below", "clear_above"):
+        for name in ("raise_below", "clear_above", "burst_accept"):
             if not 0.0 <= number(name) <= 1.0:
                 raise ValueError(
                     f"LostParams.{name} = {short(getattr(self, name))} must be a fraction in [0, 1]"
@@ -207,6 +216,7 @@ class LostDetector:
         self.position_sd = 0.0
         self.lost = False
         self._since_scan = 0.0  # seconds of driving since the last scan observed
+        self._reference_age = 0.0  # seconds of driving folded into reference_fit
         self._since_burst = math.inf
 
     def restart(self) -> None:
@@ -226,6 +236,13 @@ class LostDetector:
             return False
         estimate = pf.estimate()
         fit = self._fit(pf, estimate, scan)
+        prior = pf.burst_prior
+        if prior is not None:  # a burst: keep its winner only when the scan fits it better
+            before = self._fit(pf, pose_moments(prior[0], prior[1], False)[0], scan)
+            if not fit >= before + p.burst_accept:
+                pf.undo_burst()
+                estimate = pf.estimate()
+                fit = self._fit(pf, estimate, scan)
         self.fit = fit
         if math.isfinite(fit):
             if math.isnan(self.smoothed_fit):
@@ -236,10 +253,14 @@ class LostDetector:
                 if not self.fit_lost:
                     a = 1.0 - math.exp(-dt / p.reference_s)
                     self.reference_fit += a * (self.smoothed_fit - self.reference_fit)
+                    self._reference_age += dt
         self._since_scan = 0.0
         s = self.smoothed_fit
         if math.isfinite(s):
-            usual = max(1.0 - self.reference_fit, _MIN_MISFIT)  # the usual misfit
+            # the usual misfit, once the record holds reference_s of driving (inf before)
+            usual = max(1.0 - self.reference_fit, _MIN_MISFIT)
+            if self._reference_age < p.reference_s:
+                usual = math.inf
             if self.fit_lost and s > p.clear_above and 1.0 - s < 0.5 * p.misfit_ratio * usual:
                 self.fit_lost = False
             elif not self.fit_lost and (s < p.raise_below or 1.0 - s > p.misfit_ratio * usual):

@@ -128,6 +128,7 @@ class ParticleFilter:
         self.n_skipped = 0
         self.recovery_share = 0.0
         self._shrink_to: int | None = None  # the count to resample back to after a burst
+        self._before_burst: tuple[np.ndarray, np.ndarray, int] | None = None  # for undo_burst
         self._moved = [math.inf, math.inf]  # metres, radians of odometry since the last used scan
         self._global_count: int | None = None
 
@@ -257,7 +258,7 @@ class ParticleFilter:
         """A new initial belief: forget the likelihood history; the next scan is always used."""
         self.averages.reset()
         self.pending_random = 0
-        self.recovery_share, self._shrink_to = 0.0, None
+        self.recovery_share, self._shrink_to, self._before_burst = 0.0, None, None
         self._moved = [math.inf, math.inf]
 
     # ------------------------------------------------------------------ update steps
@@ -385,6 +386,26 @@ class ParticleFilter:
                 self._shrink_to = self.n_particles + self.pending_random
             self.pending_random += int(burst)
 
+    @property
+    def burst_prior(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(particles, weights) as they were before the last correction's recovery burst joined
+        them, or None when that correction had no burst (read-only views)."""
+        if self._before_burst is None:
+            return None
+        p, w = self._before_burst[0].view(), self._before_burst[1].view()
+        p.flags.writeable = w.flags.writeable = False
+        return p, w
+
+    def undo_burst(self) -> None:
+        """Go back to the cloud of :attr:`burst_prior` (moved and weighed as it was before the
+        burst), resampled to the count the burst's correction resampled to."""
+        if self._before_burst is None:
+            raise RuntimeError("undo_burst: the last correction had no recovery burst")
+        particles, weights, count = self._before_burst
+        self._before_burst = None
+        self.set_particles(particles, weights)
+        self.resample(None if self.params.kld.enabled else count)
+
     def should_correct(self) -> bool:
         """Whether the car moved ``update_min_distance`` or turned ``update_min_angle`` since the
         last used scan (always True when both are 0)."""
@@ -414,8 +435,9 @@ class ParticleFilter:
         n_beams = self.sensor_model.observe(scan)[1].size  # checks the scan before any change
         self._moved = [0.0, 0.0]
         self.last_injected = 0
-        self._join_pending_random()
         shrink_to, self._shrink_to = self._shrink_to, None
+        self._before_burst = None if shrink_to is None else (*self._require(), shrink_to)
+        self._join_pending_random()
         self.update_weights(self.sensor_model.log_evaluate(self.particles, scan))
         if shrink_to is not None:  # a recovery burst: back to the cloud's count (or KLD's)
             self.resample(None if self.params.kld.enabled else shrink_to)

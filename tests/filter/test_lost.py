@@ -102,15 +102,16 @@ def _drive(seconds: float, kidnap_at: float | None, seed: int, log_path=None):
 
 
 def test_the_default_filter_flags_a_kidnap_within_2_s_and_finds_the_car_within_15_s() -> None:
-    t, err, lost, kidnap = _drive(3.0 + 15.0, 3.0, seed=2)
+    at = 21.0  # after the flag's record of the usual fit has formed (LostParams.reference_s)
+    t, err, lost, kidnap = _drive(at + 15.0, at, seed=2)
     assert kidnap.kidnap_to is not None
-    assert not lost[t <= 3.0].any()  # tracking: no false alarm before the kidnap
-    after = t > 3.0 + 1e-9
+    assert not lost[t <= at].any()  # tracking: no false alarm before the kidnap
+    after = t > at + 1e-9
     assert err[after][0] > 1.0  # the kidnap moved the car away from the estimate
     flagged = t[after & lost]
-    assert flagged.size and flagged[0] - 3.0 <= 2.0
+    assert flagged.size and flagged[0] - at <= 2.0
     found = t[after & (err < 0.5)]
-    assert found.size and found[0] - 3.0 <= 15.0
+    assert found.size and found[0] - at <= 15.0
     assert (err[t >= t[-1] - 1.0] < 0.5).all()  # and keeps it
     assert not lost[-1]
 
