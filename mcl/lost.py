@@ -243,6 +243,8 @@ class LostDetector:
                 pf.undo_burst()
                 estimate = pf.estimate()
                 fit = self._fit(pf, estimate, scan)
+            elif math.isfinite(fit):  # a new estimate: the average of the old one's fit is moot
+                self.smoothed_fit = fit
         self.fit = fit
         if math.isfinite(fit):
             if math.isnan(self.smoothed_fit):
