@@ -6,7 +6,9 @@ Columns (:data:`HEADER`), one row per env step:
 (true world pose of the rear axle, metres, radians), ``x_est, y_est, theta_est`` (the filter's
 estimate, same frame and units), ``position_error`` (metres), ``heading_error`` (radians, wrapped
 to [-pi, pi), estimate minus truth), ``n_eff`` (effective sample size after the step's weight
-update, before any resampling), ``update_s`` (seconds of wall time the filter update took).
+update, before any resampling), ``update_s`` (seconds of wall time the filter update took),
+``lost`` (1 when the filter's lost flag was up after the step, else 0;
+[LostDetector][mcl.lost.LostDetector]).
 
 Every row is flushed to the operating system as soon as it is written, so a run that is killed
 (even with SIGKILL) leaves a file holding every row completed before it died. The reader ignores a
@@ -41,10 +43,12 @@ HEADER: tuple[str, ...] = (
     "heading_error",
     "n_eff",
     "update_s",
+    "lost",
 )
 """The CSV columns, in order."""
 
 _HEADER_LINE = ",".join(HEADER)
+_OLD_HEADER_LINE = ",".join(HEADER[:-1])  # logs written before the lost column: read as never lost
 
 
 def _fmt(value: float) -> str:
@@ -92,6 +96,7 @@ class ErrorLogWriter:
         heading_error: float,
         n_eff: float,
         update_s: float,
+        lost: bool = False,
     ) -> None:
         """Append one row (see the module docstring for units and frames) and flush it."""
         values = (
@@ -102,6 +107,7 @@ class ErrorLogWriter:
             heading_error,
             n_eff,
             update_s,
+            float(bool(lost)),
         )
         self._write_line(",".join([str(int(step)), *(_fmt(v) for v in values)]))
         self.n_rows += 1
@@ -128,7 +134,7 @@ class ErrorLogWriter:
 class ErrorLog:
     """The columns of an error log as float64 arrays (``step`` as int64), all of length n.
 
-    Attributes are named as in :data:`HEADER`; ``truncated`` tells whether a cut-short last line
+    Attributes are named as in :data:`HEADER` (``lost`` as bool); ``truncated`` tells whether a cut-short last line
     was dropped.
     """
 
@@ -144,7 +150,12 @@ class ErrorLog:
     heading_error: np.ndarray
     n_eff: np.ndarray
     update_s: np.ndarray
+    lost: np.ndarray | None = None
     truncated: bool = False
+
+    def __post_init__(self) -> None:
+        if self.lost is None:  # built without the column: never lost
+            object.__setattr__(self, "lost", np.zeros(self.step.shape[0], dtype=np.bool_))
 
     def __len__(self) -> int:
         return int(self.step.shape[0])
@@ -176,10 +187,11 @@ def _row_blocks(path: Path) -> Iterator[list[list[str]] | None]:
         raise ValueError(f"error log {path} not found") from None
     with f:
         first = f.readline()
-        if first.strip() != _HEADER_LINE:
+        if first.strip() not in (_HEADER_LINE, _OLD_HEADER_LINE):
             raise ValueError(
                 f"error log {path}: first line {first[:200]!r} is not the header {_HEADER_LINE!r}"
             )
+        width = len(first.strip().split(","))
         block: list[list[str]] = []
         n = 0
         for line in f:
@@ -192,11 +204,11 @@ def _row_blocks(path: Path) -> Iterator[list[list[str]] | None]:
                 continue
             row = line[:-1].split(",")
             n += 1
-            if len(row) != len(HEADER):
+            if len(row) != width:
                 raise ValueError(
-                    f"error log {path}: data row {n} has {len(row)} fields, expected {len(HEADER)}"
+                    f"error log {path}: data row {n} has {len(row)} fields, expected {width}"
                 )
-            block.append(row)
+            block.append(row if width == len(HEADER) else [*row, "0"])
             if len(block) == _BLOCK_ROWS:
                 yield block
                 block = []
@@ -208,7 +220,7 @@ def read_error_log(path: str | os.PathLike[str]) -> ErrorLog:
     """Read a log written by :class:`ErrorLogWriter`; a last line cut short (killed run) is dropped.
 
     The file is parsed in blocks of rows, so reading it takes about twice the memory of its columns
-    (12 float64 values, 96 bytes, per row), not the ~1.2 KB per row of its text split into fields.
+    (13 float64 values, 104 bytes, per row), not the ~1.2 KB per row of its text split into fields.
 
     Raises:
         ValueError: the file is missing, its header differs from :data:`HEADER`, or a complete
@@ -232,6 +244,7 @@ def read_error_log(path: str | os.PathLike[str]) -> ErrorLog:
     del parts
     columns = {name: data[:, i] for i, name in enumerate(HEADER)}
     columns["step"] = columns["step"].astype(np.int64)
+    columns["lost"] = columns["lost"] > 0.5
     return ErrorLog(**columns, truncated=truncated)
 
 

@@ -21,6 +21,7 @@ from gymnasium import spaces
 from mcl.adaptive import AdaptiveParams
 from mcl.angles import wrap_angle
 from mcl.filter_bounds import MAX_CASTS, check_filter
+from mcl.lost import LostDetector, LostParams
 from mcl.motion_model import MotionModel, MotionModelParams
 from mcl.particle_filter import ParticleFilter, ParticleFilterParams
 from mcl.sensor_model import SensorModel, SensorModelParams
@@ -73,6 +74,8 @@ class LocalizationConfig:
             stride through them, no randomness).
         adaptive: when given, the filter is a :class:`~mcl.adaptive.AdaptiveParticleFilter`
             with these settings (searching, then tracking), unless a ``filter_factory`` is given.
+        lost: the ``lost`` flag's thresholds and the recovery it triggers
+            ([LostParams][mcl.lost.LostParams]).
     """
 
     init: str = "pose"
@@ -83,6 +86,7 @@ class LocalizationConfig:
     )
     render_particles: int = 2000
     adaptive: AdaptiveParams | None = None
+    lost: LostParams = field(default_factory=LostParams)
 
     def __post_init__(self) -> None:
         if self.init not in INIT_MODES:
@@ -98,6 +102,7 @@ class LocalizationConfig:
         object.__setattr__(
             self, "filter", nested(self.filter, ParticleFilterParams, "LocalizationConfig.filter")
         )
+        object.__setattr__(self, "lost", nested(self.lost, LostParams, "LocalizationConfig.lost"))
         if self.adaptive is not None:
             object.__setattr__(
                 self,
@@ -151,17 +156,26 @@ def filter_rng(seed: int | None) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence(seed).spawn(_FILTER_STREAM + 1)[-1])
 
 
-def correct_with_scan(pf: ParticleFilter, scan: np.ndarray, lidar_max_range: float) -> float:
+def correct_with_scan(
+    pf: ParticleFilter,
+    scan: np.ndarray,
+    lidar_max_range: float,
+    detector: LostDetector | None = None,
+) -> float:
     """Weigh ``pf`` by ``scan`` (metres) and resample when needed; the effective sample size
     before resampling (or the current one when the filter waits for more motion).
 
     Beams at the lidar's max range (no return) are passed on at the sensor model's max range,
-    so that they meet its max-range component whatever the map's resolution.
+    so that they meet its max-range component whatever the map's resolution. With a
+    ``detector``, the scan's fit at the new estimate updates the lost flag, which may ask the
+    filter for recovery ([LostDetector.observe][mcl.lost.LostDetector.observe]).
     """
     z = np.asarray(scan, dtype=np.float64)
     z = np.where(z >= lidar_max_range, pf.sensor_model.max_range, z)
     skipped = pf.n_skipped
     pf.correct(z)  # inject (augmented MCL), weigh, resample (KLD count) when needed
+    if detector is not None:
+        detector.observe(pf, z)
     if pf.n_skipped != skipped:  # the filter waits for more motion (update_min_distance)
         return pf.effective_sample_size
     return pf.last_effective_sample_size
@@ -247,8 +261,10 @@ def localization_report(
     n_eff: float,
     update_s: float,
     fresh: bool,
+    lost: bool = False,
 ) -> dict[str, Any]:
-    """``info["localization"]`` of one car (keys in :class:`~mcl.wrapper.LocalizationWrapper`'s docstring)."""
+    """``info["localization"]`` of one car (keys in :class:`~mcl.wrapper.LocalizationWrapper`'s
+    docstring); ``lost`` is the car's [LostDetector][mcl.lost.LostDetector] flag."""
     unc = pf.uncertainty()
     position_error, heading_error = pose_error(estimate, truth)
     return {
@@ -265,4 +281,5 @@ def localization_report(
         "n_clusters": unc.n_clusters,
         "top_weight": unc.top_weight,
         "ambiguous": unc.ambiguous,
+        "lost": bool(lost),
     }

@@ -90,6 +90,8 @@ class ParticleFilter:
             the next correction (augmented MCL).
         n_injected: random particles injected by augmented MCL so far; last_injected: by the last
             correction. n_skipped: scans :meth:`correct` skipped (``update_min_distance``).
+        recovery_share: the least share of each resampling's draws that are uniform poses, as
+            the lost flag's recovery asked (:meth:`request_recovery`; 0 when not lost).
     """
 
     def __init__(
@@ -125,6 +127,9 @@ class ParticleFilter:
         self.last_injected = 0
         self.pending_random = 0
         self.n_skipped = 0
+        self.recovery_share = 0.0
+        self._shrink_to: int | None = None  # the count to resample back to after a burst
+        self._before_burst: tuple[np.ndarray, np.ndarray, int] | None = None  # for undo_burst
         self._moved = [math.inf, math.inf]  # metres, radians of odometry since the last used scan
         self._global_count: int | None = None
         self.odometry_scale = OdometryScale(params.odometry_scale)
@@ -257,6 +262,7 @@ class ParticleFilter:
         """A new initial belief: forget the likelihood history; the next scan is always used."""
         self.averages.reset()
         self.pending_random = 0
+        self.recovery_share, self._shrink_to, self._before_burst = 0.0, None, None
         self._moved = [math.inf, math.inf]
         self.odometry_scale.restart()
         self.searching = False
@@ -333,7 +339,7 @@ class ParticleFilter:
     def needs_resampling(self) -> bool:
         """Whether the effective sample size is at most ``resample_threshold`` x N, or augmented
         MCL wants to inject random particles (its injection probability is above 0)."""
-        if self.averages.injection_probability > 0.0:
+        if self.averages.injection_probability > 0.0 or self.recovery_share > 0.0:
             return True
         return self.effective_sample_size <= self.params.resample_threshold * self.n_particles
 
@@ -349,7 +355,7 @@ class ParticleFilter:
         Returns the chosen indexes of the old particles (the drawn, non-random ones).
         """
         particles, weights = self._require()
-        p_random = self.averages.injection_probability
+        p_random = max(self.averages.injection_probability, self.recovery_share)
         if n is None and self.params.kld.enabled:
             n, n_random = self.kld_count(p_random)
         else:
@@ -403,6 +409,43 @@ class ParticleFilter:
         params = self.sensor_model.params
         return spread > (params.search_spread if self.searching else params.search_start_spread)
 
+    def request_recovery(self, share: float, burst: int = 0) -> None:
+        """Recovery asked for by the lost flag ([LostDetector][mcl.lost.LostDetector]).
+
+        Args:
+            share: from now on (until asked again) each resampling replaces at least this
+                fraction of its draws by uniform free-space poses (as augmented MCL's injection),
+                and every correction resamples; 0 stops it.
+            burst: uniform free-space poses that join the cloud at the next correction, are
+                weighed by its scan with the cloud, after which the cloud is resampled back to
+                its present count (KLD-sampling's count when it is on).
+        """
+        self.recovery_share = float(share)
+        if burst > 0:
+            if self._shrink_to is None:  # the count the next correction would have had
+                self._shrink_to = self.n_particles + self.pending_random
+            self.pending_random += int(burst)
+
+    @property
+    def burst_prior(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(particles, weights) as they were before the last correction's recovery burst joined
+        them, or None when that correction had no burst (read-only views)."""
+        if self._before_burst is None:
+            return None
+        p, w = self._before_burst[0].view(), self._before_burst[1].view()
+        p.flags.writeable = w.flags.writeable = False
+        return p, w
+
+    def undo_burst(self) -> None:
+        """Go back to the cloud of :attr:`burst_prior` (moved and weighed as it was before the
+        burst), resampled to the count the burst's correction resampled to."""
+        if self._before_burst is None:
+            raise RuntimeError("undo_burst: the last correction had no recovery burst")
+        particles, weights, count = self._before_burst
+        self._before_burst = None
+        self.set_particles(particles, weights)
+        self.resample(None if self.params.kld.enabled else count)
+
     def should_correct(self) -> bool:
         """Whether the car moved ``update_min_distance`` or turned ``update_min_angle`` since the
         last used scan (always True when both are 0)."""
@@ -432,6 +475,8 @@ class ParticleFilter:
         n_beams = self.sensor_model.observe(scan)[1].size  # checks the scan before any change
         self._moved = [0.0, 0.0]
         self.last_injected = 0
+        shrink_to, self._shrink_to = self._shrink_to, None
+        self._before_burst = None if shrink_to is None else (*self._require(), shrink_to)
         self._join_pending_random()
         log_likelihood = self.sensor_model.log_evaluate(self.particles, scan)
         self.searching = self.is_searching()
@@ -445,6 +490,9 @@ class ParticleFilter:
                 )
         else:
             self.update_weights(log_likelihood)
+        if shrink_to is not None:  # a recovery burst: back to the cloud's count (or KLD's)
+            self.resample(None if self.params.kld.enabled else shrink_to)
+            return True
         squash = float(self.sensor_model.params.squash_exponent)
         self.averages.update(self.last_log_mean_likelihood, int(n_beams), squash)
         if self.needs_resampling():

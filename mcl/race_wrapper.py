@@ -14,7 +14,8 @@ for car ``i``, the race's own seeding) as the single wrapper derives its own
 Observation (per agent): the race's dict plus ``pose_estimate`` [x m, y m, theta rad] (world).
 Info (per agent): the race's plus ``localization``, the single wrapper's report
 (:func:`~mcl.localization.localization_report`: estimate, position and heading error against
-the car's true ``pose``, n_eff, update_s, corrected, uncertainty).
+the car's true ``pose``, n_eff, update_s, corrected, uncertainty, ``lost``: the car's
+[LostDetector][mcl.lost.LostDetector] flag).
 
 Reset options (the others go to the race): ``init`` (``"pose"`` or ``"global"``), ``init_spread``
 (standard deviations x m, y m, theta rad, or one number), ``init_pose`` (an (N, 3) array of
@@ -44,6 +45,7 @@ from mcl.localization import (
     shared_models,
     start_filter,
 )
+from mcl.lost import LostDetector
 from mcl.particle_filter import ParticleFilter
 from mcl.wrapper_checks import check_wrapped, filter_start
 from racecar_sim.validation import short
@@ -106,6 +108,8 @@ class LocalizedRaceEnv(BaseParallelWrapper):
         self._clock = clock
         self._started = False  # whether a reset went through
         self.filters: dict[str, ParticleFilter] = {}
+        self.lost_detectors: dict[str, LostDetector] = {}
+        """The lost flag of each localized agent's filter."""
         self._rngs: dict[str, np.random.Generator] = {}
         self._spaces = {
             agent: spaces.Dict(
@@ -144,7 +148,8 @@ class LocalizedRaceEnv(BaseParallelWrapper):
                 start.init, truth if start.centres is None else start.centres[i], start.spread,
             )  # fmt: skip
             self.filters[agent] = pf
-            n_eff = correct_with_scan(pf, obs[agent]["scan"], self._lidar_max_range)
+            detector = self.lost_detectors[agent] = LostDetector(self.config.lost)
+            n_eff = correct_with_scan(pf, obs[agent]["scan"], self._lidar_max_range, detector)
             out_obs[agent], out_infos[agent] = self._report(
                 agent, obs[agent], infos[agent], n_eff, self._clock() - t0, True
             )
@@ -163,9 +168,11 @@ class LocalizedRaceEnv(BaseParallelWrapper):
                 continue
             t0 = self._clock()
             pf.predict(np.asarray(o["odom"], dtype=np.float64), self.dt)
+            detector = self.lost_detectors[agent]
+            detector.advance(self.dt)
             fresh = bool(infos[agent].get("new_scan", True))
             n_eff = (
-                correct_with_scan(pf, o["scan"], self._lidar_max_range)
+                correct_with_scan(pf, o["scan"], self._lidar_max_range, detector)
                 if fresh
                 else pf.effective_sample_size
             )
@@ -186,5 +193,6 @@ class LocalizedRaceEnv(BaseParallelWrapper):
         pf = self.filters[agent]
         estimate = pf.estimate()
         truth = np.asarray(info["pose"], dtype=np.float64)
-        loc = localization_report(pf, estimate, truth, n_eff, update_s, fresh)
+        lost = self.lost_detectors[agent].lost
+        loc = localization_report(pf, estimate, truth, n_eff, update_s, fresh, lost)
         return {**obs, "pose_estimate": estimate.copy()}, {**info, "localization": loc}

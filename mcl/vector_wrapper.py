@@ -16,8 +16,9 @@ Frames and units as the single wrapper: world frame, [x, y, theta] in metres and
 Observation: the vector env's dict plus ``pose_estimate`` (N, 3). Info: the vector env's plus
 ``localization``, a dict of (N, ...) arrays (each with its ``_key`` mask, as Gymnasium's vector
 infos): ``estimate``, ``position_error``, ``heading_error``, ``n_eff``, ``update_s`` (seconds of
-that car's filter update), ``corrected``, ``n_particles`` and, with ``uncertainty=True``, the
-single wrapper's uncertainty keys.
+that car's filter update), ``corrected``, ``n_particles``, ``lost`` (bool: the car's lost flag,
+[LostDetector][mcl.lost.LostDetector]) and, with ``uncertainty=True``, the single wrapper's
+uncertainty keys.
 
 The cars' filters run one after another on the calling thread; each update is vectorised over its
 particles (and its ray casts use numba's threads), so a step costs about N single updates.
@@ -45,6 +46,7 @@ from mcl.localization import (
     shared_models,
     start_filter,
 )
+from mcl.lost import LostDetector
 from mcl.particle_filter import ParticleFilter
 from mcl.wrapper_checks import check_wrapped, filter_start
 from racecar_sim.validation import short
@@ -102,6 +104,8 @@ class LocalizedVectorEnv(VectorWrapper):
         self._clock = clock
         n = self.num_envs
         self.filters: list[ParticleFilter | None] = [None] * n
+        self.lost_detectors = [LostDetector(self.config.lost) for _ in range(n)]
+        """The lost flag of each car's filter."""
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._ended = np.zeros(n, dtype=np.bool_)
         single = spaces.Dict(
@@ -168,6 +172,7 @@ class LocalizedVectorEnv(VectorWrapper):
             else:
                 pf = self._pf(i)
                 pf.predict(odom[i], self.dt)
+                self.lost_detectors[i].advance(self.dt)
                 corrected = bool(fresh[i])
                 n_eff = self._correct(i, obs["scan"][i]) if corrected else pf.effective_sample_size
             estimates[i] = self._pf(i).estimate()
@@ -190,9 +195,10 @@ class LocalizedVectorEnv(VectorWrapper):
         self.filters[i] = start_filter(
             self.map, self.config, self.sensor_model, self.motion_model, rng, init, centre, spread
         )
+        self.lost_detectors[i].restart()
 
     def _correct(self, i: int, scan: np.ndarray) -> float:
-        return correct_with_scan(self._pf(i), scan, self._lidar_max_range)
+        return correct_with_scan(self._pf(i), scan, self._lidar_max_range, self.lost_detectors[i])
 
     def _estimates(self) -> np.ndarray:
         """The current estimates (N, 3); rows of cars without a filter are NaN."""
@@ -212,6 +218,7 @@ class LocalizedVectorEnv(VectorWrapper):
             "update_s": np.zeros(n),
             "corrected": np.zeros(n, dtype=np.bool_),
             "n_particles": np.zeros(n, dtype=np.int64),
+            "lost": np.zeros(n, dtype=np.bool_),
         }
         if self.uncertainty:
             report.update(
@@ -241,6 +248,7 @@ class LocalizedVectorEnv(VectorWrapper):
         report["update_s"][i] = update_s
         report["corrected"][i] = corrected
         report["n_particles"][i] = pf.n_particles
+        report["lost"][i] = self.lost_detectors[i].lost
         if self.uncertainty:
             unc = pf.uncertainty()
             report["covariance"][i] = unc.covariance

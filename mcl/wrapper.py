@@ -41,6 +41,7 @@ from mcl.localization import (
     pose_estimate_space,
     sensor_model_for_lidar,
 )
+from mcl.lost import LostDetector
 from mcl.motion_model import MotionModel
 from mcl.particle_filter import ParticleFilter
 from mcl.sensor_model import SensorModel
@@ -111,7 +112,10 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     ``n_particles``, ``covariance`` (3, 3) (metres, radians), ``position_sd`` (m, largest axis),
     ``heading_sd`` (rad), ``n_clusters`` (clusters of the cloud with a noticeable weight),
     ``top_weight`` (weight of the heaviest cluster) and ``ambiguous`` (True when the cloud does not
-    pin down one pose: two heavy clusters or a large spread, e.g. in a featureless corridor).
+    pin down one pose: two heavy clusters or a large spread, e.g. in a featureless corridor),
+    and ``lost`` (True when the estimate should not be trusted: the scan no longer fits the map
+    from it, or the cloud is spread; [LostDetector][mcl.lost.LostDetector], settings
+    ``config.lost``; while it is up the filter searches the map for the car).
 
     Reset options (the others go to the env): ``init`` (``"pose"`` or ``"global"``, this episode),
     ``init_spread`` (standard deviations x m, y m, theta rad around the start, or one number),
@@ -172,6 +176,8 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self._filter_factory = filter_factory
         self._clock = clock
         self.filter: ParticleFilter | None = None
+        self.lost_detector = LostDetector(config.lost)
+        """The lost flag of the filter ([LostDetector][mcl.lost.LostDetector])."""
         self._rng: np.random.Generator | None = None
         self._renderer: MapRenderer | None = None
 
@@ -211,6 +217,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         else:
             pf.initialize(truth if start.centres is None else start.centres, start.spread)
         self.filter = pf
+        self.lost_detector.restart()
         n_eff = self._correct(obs["scan"])  # the reset observation carries a fresh scan
         estimate = self.filter.estimate()
         self._step = 0
@@ -225,6 +232,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         pf = self.filter
         t0 = self._clock()
         pf.predict(np.asarray(obs["odom"], dtype=np.float64), self.dt)
+        self.lost_detector.advance(self.dt)
         fresh = bool(info.get("new_scan", True))
         n_eff = self._correct(obs["scan"]) if fresh else pf.effective_sample_size
         estimate = pf.estimate()
@@ -242,6 +250,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 loc["heading_error"],
                 n_eff,
                 update_s,
+                loc["lost"],
             )
         obs, info = self._streamed(self._observe(obs, estimate), {**info, "localization": loc})
         return obs, reward, terminated, truncated, info
@@ -281,13 +290,15 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def _correct(self, scan: np.ndarray) -> float:
         """Weigh by ``scan`` and resample when needed (:func:`correct_with_scan`)."""
         assert self.filter is not None
-        return correct_with_scan(self.filter, scan, self._lidar_max_range)
+        return correct_with_scan(self.filter, scan, self._lidar_max_range, self.lost_detector)
 
     def _localization(
         self, estimate: np.ndarray, truth: np.ndarray, n_eff: float, update_s: float, fresh: bool
     ) -> dict[str, Any]:
         assert self.filter is not None
-        loc = localization_report(self.filter, estimate, truth, n_eff, update_s, fresh)
+        loc = localization_report(
+            self.filter, estimate, truth, n_eff, update_s, fresh, self.lost_detector.lost
+        )
         self.last_localization = loc
         return loc
 

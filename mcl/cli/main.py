@@ -1,7 +1,7 @@
 """``racecar-sim``: the console command, dispatching to one subcommand module each.
 
 Subcommands: ``drive`` (a headless localized drive), ``experiment`` (noise sweep, global
-localization, kidnapping), ``ablation`` (the recovery ablation), ``opponents`` (MCL among opponents), ``bench`` (benchmarks),
+localization, kidnapping), ``ablation`` (the recovery ablation), ``opponents`` (MCL among opponents), ``lost-flag`` (the lost flag judged against the truth), ``bench`` (benchmarks),
 ``race`` (N cars on a track, each with its driver), ``replay`` (a ROS bag through the filter), ``make-maps`` (draw the bundled maps), ``train-agent`` (PPO on the localized pose),
 ``calibrate-noise`` (a noise profile from real bags).
 """
@@ -24,6 +24,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "opponents": (
         "mcl.cli.opponents",
         "MCL error alone and among opponents, plain and beam skipping",
+    ),
+    "lost-flag": (
+        "mcl.cli.lost_flag",
+        "how right the lost flag is; recovery after kidnaps (table)",
     ),
     "replay": ("mcl.cli.replay", "replay a ROS 1 / ROS 2 bag through the filter on a map"),
     "bench": ("mcl.cli.bench", "benchmarks (racecar-sim bench lists them)"),

@@ -16,6 +16,7 @@ from mcl.experiments.convergence import ConvergenceCriteria, RecoveryStats
 from mcl.experiments.runs import DRIVERS, RunResult, RunSpec
 from mcl.kld import KLDParams
 from mcl.localization import LocalizationConfig
+from mcl.lost import LostParams
 from mcl.particle_filter import ParticleFilterParams
 from mcl.sensor_model import SensorModelParams
 from racecar_sim.maps import DEFAULT_MAP
@@ -42,6 +43,9 @@ def recovery_localization(
 ) -> LocalizationConfig:
     """Filter settings for finding the car (module docstring); the defaults are the measured ones.
 
+    The lost flag ([LostParams][mcl.lost.LostParams]) is reported but triggers no recovery of
+    its own here: augmented MCL and KLD-sampling do the searching, as measured.
+
     Args:
         global_density: particles per m² of free floor at a global start (capped at 300 000).
         global_particles: an explicit count for the global start instead.
@@ -54,6 +58,7 @@ def recovery_localization(
         update_min_angle: radians of rotation between two scans the filter uses.
     """
     return LocalizationConfig(
+        lost=LostParams(recover=False),  # the flag is reported; augmented MCL does the recovery
         sensor=SensorModelParams(squash_exponent=squash_exponent, parallel=False),
         filter=ParticleFilterParams(
             n_particles=min_particles,

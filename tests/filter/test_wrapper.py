@@ -245,7 +245,7 @@ def test_log_has_the_header_and_one_row_per_step(room, tmp_path) -> None:
     lines = path.read_text().splitlines()
     assert lines[0] == (
         "step,time,x_true,y_true,theta_true,x_est,y_est,theta_est,position_error,"
-        "heading_error,n_eff,update_s"
+        "heading_error,n_eff,update_s,lost"
     )
     assert len(lines) == 1 + 25
     log = read_error_log(path)

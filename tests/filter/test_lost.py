@@ -1,0 +1,183 @@
+"""The lost flag ([mcl.lost][]): its settings, the scan fit, the flag after a kidnap and on a
+clean drive, recovery by the default filter, and the flag in every wrapper's info and the CSV."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
+from mcl.error_log import read_error_log
+from mcl.experiments.lost_flag import kidnap_times
+from mcl.experiments.scenarios import KidnapScenario
+from mcl.localization import LocalizationConfig, as_localization_config
+from mcl.lost import LostParams, scan_agreement
+from mcl.vector_wrapper import LocalizedVectorEnv
+from mcl.wrapper import LocalizationWrapper
+from racecar_sim.drivers import WallFollower
+from racecar_sim.env import RacecarEnv
+
+DT = 0.025  # the env's default step
+
+
+# ---------------------------------------------------------------------- settings
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("fit_tolerance", 0.0),
+        ("fit_tolerance", -0.1),
+        ("window_s", 0.0),
+        ("raise_below", 1.5),
+        ("clear_above", -0.1),
+        ("inject_share", 0.6),
+        ("beams", 0),
+        ("beams", 2.5),
+        ("burst_max", -1),
+        ("max_position_sd", 0.0),
+        ("enabled", "yes"),
+        ("window_s", math.nan),
+    ],
+)
+def test_lost_params_refuse_bad_values_naming_the_field(field: str, value: object) -> None:
+    with pytest.raises(ValueError, match=rf"LostParams\.{field}"):
+        LostParams(**{field: value})
+
+
+def test_lost_params_need_hysteresis_and_load_from_a_mapping() -> None:
+    with pytest.raises(ValueError, match="clear_above"):
+        LostParams(raise_below=0.6, clear_above=0.5)
+    config = as_localization_config({"lost": {"window_s": 2.0, "recover": False}})
+    assert config.lost == LostParams(window_s=2.0, recover=False)
+    with pytest.raises(ValueError, match=r"LostParams\.window_s"):
+        as_localization_config({"lost": {"window_s": -1}})
+
+
+# ---------------------------------------------------------------------- the fit
+ranges = st.lists(st.floats(0.1, 9.0), min_size=1, max_size=60)
+
+
+@given(ranges, st.floats(0.05, 0.5))
+def test_a_scan_agrees_with_itself_and_not_with_walls_beyond_the_tolerance(
+    z: list[float], tol: float
+) -> None:
+    z_arr = np.array(z)
+    assert scan_agreement(z_arr, z_arr, tol, 10.0) == 1.0
+    assert scan_agreement(z_arr + 2 * tol, z_arr, tol, 10.0) == 0.0  # the walls farther: all short
+    assert math.isnan(scan_agreement(z_arr + 2 * tol, z_arr, tol, 10.0, skip_short=True))
+    assert scan_agreement(z_arr - 2 * tol, z_arr, tol, 10.0, skip_short=True) == 0.0  # long
+
+
+def test_short_returns_are_left_out_and_no_returns_agree_with_open_space() -> None:
+    expected = np.array([2.0, 2.0, 2.0, 2.0, 12.0])
+    measured = np.array([2.05, 1.0, 3.0, np.nan, 10.0])  # agree, short, long, no beam, max range
+    assert scan_agreement(expected, measured, 0.2, 10.0) == pytest.approx(2 / 4)
+    assert scan_agreement(expected, measured, 0.2, 10.0, skip_short=True) == pytest.approx(2 / 3)
+
+
+# ---------------------------------------------------------------------- drives
+def _drive(seconds: float, kidnap_at: float | None, seed: int, log_path=None):
+    """(times, position errors, lost flags) of a wall-following drive on basement_loop with the
+    default filter, kidnapped at ``kidnap_at`` seconds."""
+    env = RacecarEnv("basement_loop", terminate_on_collision=False)
+    driver = WallFollower.for_env(env)
+    wrapper = LocalizationWrapper(env, log_path=log_path)
+    kidnap = KidnapScenario(kidnap_time=kidnap_at) if kidnap_at is not None else None
+    rng = np.random.default_rng(seed)
+    obs, info = wrapper.reset(seed=seed)
+    rows = []
+    for k in range(1, round(seconds / DT) + 1):
+        if kidnap is not None:
+            kidnap.before_step(wrapper, k, (k - 1) * DT, rng)
+        obs, _, _, _, info = wrapper.step(driver(obs))
+        loc = info["localization"]
+        rows.append((k * DT, loc["position_error"], loc["lost"]))
+    wrapper.close()
+    t, err, lost = (np.array(c) for c in zip(*rows, strict=True))
+    return t, err, lost.astype(bool), kidnap
+
+
+def test_the_default_filter_flags_a_kidnap_within_2_s_and_finds_the_car_within_15_s() -> None:
+    at = 21.0  # after the flag's record of the usual fit has formed (LostParams.reference_s)
+    t, err, lost, kidnap = _drive(at + 15.0, at, seed=2)
+    assert kidnap.kidnap_to is not None
+    assert not lost[t <= at].any()  # tracking: no false alarm before the kidnap
+    after = t > at + 1e-9
+    assert err[after][0] > 1.0  # the kidnap moved the car away from the estimate
+    flagged = t[after & lost]
+    assert flagged.size and flagged[0] - at <= 2.0
+    found = t[after & (err < 0.5)]
+    assert found.size and found[0] - at <= 15.0
+    assert (err[t >= t[-1] - 1.0] < 0.5).all()  # and keeps it
+    assert not lost[-1]
+
+
+def test_lost_stays_down_on_a_clean_ideal_drive(tmp_path) -> None:
+    t, err, lost, _ = _drive(10.0, None, seed=0, log_path=tmp_path / "log.csv")
+    assert (err < 0.3).all()
+    assert not lost.any()
+    log = read_error_log(tmp_path / "log.csv")
+    assert log.lost.dtype == np.bool_ and len(log) == t.size and not log.lost.any()
+
+
+def test_kidnap_times_from_a_log_made_by_hand(tmp_path) -> None:
+    from mcl.error_log import ErrorLogWriter
+
+    path = tmp_path / "log.csv"
+    with ErrorLogWriter(path) as w:
+        for k in range(1, 201):  # 0.1 s steps; kidnap at 5 s; lost from 6 s; found at 9 s
+            time = k * 0.1
+            err = 0.05 if time <= 5.0 or time >= 9.0 - 1e-9 else 3.0
+            w.write(k, time, np.zeros(3), np.zeros(3), err, 0.0, 1.0, 0.0, 6.0 <= time < 10.0)
+    to_flag, to_recover = kidnap_times(read_error_log(path), 5.0, hold_s=2.0)
+    assert to_flag == pytest.approx(1.0)
+    assert to_recover == pytest.approx(4.0)
+
+
+# ---------------------------------------------------------------------- the wrappers
+def test_the_flag_is_in_the_single_and_the_vector_wrappers_info() -> None:
+    config = LocalizationConfig().with_particles(300)
+    single = LocalizationWrapper(gym.make("RacecarSim-v0", map="basement_loop"), config)
+    _, info = single.reset(seed=0)
+    assert info["localization"]["lost"] is False
+    _, _, _, _, info = single.step(np.array([0.0, 1.0]))
+    assert isinstance(info["localization"]["lost"], bool)
+    vec = LocalizedVectorEnv(
+        gym.make_vec("RacecarSim-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                     map="basement_loop"),
+        config,
+    )  # fmt: skip
+    _, infos = vec.reset(seed=0)
+    for _ in range(3):
+        _, _, _, _, infos = vec.step(np.tile([0.0, 1.0], (2, 1)))
+    lost = infos["localization"]["lost"]
+    assert lost.shape == (2,) and lost.dtype == np.bool_ and not lost.any()
+    assert infos["localization"]["_lost"].all()
+
+
+def test_the_flag_is_in_the_race_wrappers_info() -> None:
+    pytest.importorskip("pettingzoo", reason="the race env needs the [race] extra (pettingzoo)")
+    from mcl.race_wrapper import LocalizedRaceEnv
+    from racecar_sim import RaceEnv
+
+    race = LocalizedRaceEnv(RaceEnv("basement_loop", n_cars=2), {"filter": {"n_particles": 300}})
+    _, infos = race.reset(seed=0)
+    for _ in range(3):
+        _, _, _, _, infos = race.step({a: np.array([0.0, 1.0]) for a in race.agents})
+    assert {a: infos[a]["localization"]["lost"] for a in race.agents} == {
+        "car_0": False,
+        "car_1": False,
+    }
+
+
+def test_a_log_written_before_the_lost_column_reads_as_never_lost(tmp_path) -> None:
+    from mcl.error_log import HEADER
+
+    path = tmp_path / "old.csv"
+    path.write_text(",".join(HEADER[:-1]) + "\n1,0.025,0,0,0,0,0,0,0,0,1500,0.001\n")
+    log = read_error_log(path)
+    assert len(log) == 1 and log.lost.tolist() == [False]
