@@ -80,12 +80,12 @@ def test_short_returns_are_left_out_and_no_returns_agree_with_open_space() -> No
 
 
 # ---------------------------------------------------------------------- drives
-def _drive(seconds: float, kidnap_at: float | None, seed: int, log_path=None):
+def _drive(seconds: float, kidnap_at: float | None, seed: int, log_path=None, config=None):
     """(times, position errors, lost flags) of a wall-following drive on basement_loop with the
-    default filter, kidnapped at ``kidnap_at`` seconds."""
+    default filter (or ``config``), kidnapped at ``kidnap_at`` seconds."""
     env = RacecarEnv("basement_loop", terminate_on_collision=False)
     driver = WallFollower.for_env(env)
-    wrapper = LocalizationWrapper(env, log_path=log_path)
+    wrapper = LocalizationWrapper(env, config, log_path=log_path)
     kidnap = KidnapScenario(kidnap_time=kidnap_at) if kidnap_at is not None else None
     rng = np.random.default_rng(seed)
     obs, info = wrapper.reset(seed=seed)
@@ -101,9 +101,9 @@ def _drive(seconds: float, kidnap_at: float | None, seed: int, log_path=None):
     return t, err, lost.astype(bool), kidnap
 
 
-def test_the_default_filter_flags_a_kidnap_within_2_s_and_finds_the_car_within_15_s() -> None:
+def test_with_recovery_the_filter_flags_a_kidnap_within_2_s_and_finds_the_car_within_15_s() -> None:
     at = 21.0  # after the flag's record of the usual fit has formed (LostParams.reference_s)
-    t, err, lost, kidnap = _drive(at + 15.0, at, seed=2)
+    t, err, lost, kidnap = _drive(at + 15.0, at, seed=2, config={"lost": {"recover": True}})
     assert kidnap.kidnap_to is not None
     assert not lost[t <= at].any()  # tracking: no false alarm before the kidnap
     after = t > at + 1e-9
