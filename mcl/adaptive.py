@@ -3,8 +3,8 @@
 A global start needs a filter that is slow to make up its mind: a soft (strongly tempered) beam
 model, scans spaced out in distance travelled, wide motion noise so that hypotheses near the car
 can climb to it, and many particles kept alive. Tracking needs the opposite: the lab's squash,
-every scan, the odometry's own noise and 1-2 k particles. :class:`AdaptiveParticleFilter` is a
-:class:`~mcl.particle_filter.ParticleFilter` that does both, in one of two modes decided before
+every scan, the odometry's own noise and 1-2 k particles. `AdaptiveParticleFilter` is a
+[`ParticleFilter`][mcl.particle_filter.ParticleFilter] that does both, in one of two modes decided before
 each scan from the cloud itself:
 
 - **searching** (after a global start, or when the cloud spreads out again): squash
@@ -99,8 +99,8 @@ class AdaptiveParams:
 class AdaptiveParticleFilter(ParticleFilter):
     """A particle filter that searches, then tracks (module docstring).
 
-    Takes the arguments of :class:`~mcl.particle_filter.ParticleFilter` plus ``adaptive``
-    (:class:`AdaptiveParams`). The given ``params`` describe the tracking filter's resampling,
+    Takes the arguments of [`ParticleFilter`][mcl.particle_filter.ParticleFilter] plus ``adaptive``
+    (`AdaptiveParams`). The given ``params`` describe the tracking filter's resampling,
     KLD-sampling (its ``max_particles`` bounds the search too) and augmented MCL; the sensor
     model's ``squash_exponent`` is the tracking squash.
 
@@ -186,7 +186,7 @@ class AdaptiveParticleFilter(ParticleFilter):
 
     # ------------------------------------------------------------------ update
     def correct(self, scan: np.ndarray) -> bool:
-        """:meth:`ParticleFilter.correct` with the current mode's squash and scan spacing."""
+        """`ParticleFilter.correct()` with the current mode's squash and scan spacing."""
         self._require()
         if self.n_updates > 0:
             self._update_mode()

@@ -18,9 +18,9 @@ are taken modulo pi to the nearer of 0 and pi). The noisy displacement is
 ``[t cos r1, t sin r1, r1 + r2]`` from the noisy parts, plus a constant Gaussian floor per update
 (``floor``, metres, metres, radians) so that a car at rest keeps some spread. Per update at a fixed
 rate, ``trans`` is speed x dt and the rotations are turn rate x dt: the noise grows with speed and
-turn rate, which is where a sliding car's odometry is wrong (:mod:`racecar_sim.vesc`).
+turn rate, which is where a sliding car's odometry is wrong ([`racecar_sim.vesc`][racecar_sim.vesc]).
 
-Draws: six standard normals per particle from one :mod:`racecar_sim.rand` stream, in the order
+Draws: six standard normals per particle from one `racecar_sim.rand` stream, in the order
 particle 0 (rot1, trans, rot2, floor dx, floor dy, floor dtheta), particle 1, ...
 """
 
@@ -67,7 +67,7 @@ def alpha_sd(odometry, alphas):
 def alpha_odometry_into(odometry, alphas, floor, seed, out):
     """``out`` (N, 3): one noisy car-frame displacement per particle for ``odometry`` (3,), the
     coefficients ``alphas`` (4,) and the constant ``floor`` (3,) standard deviations, from the
-    :mod:`racecar_sim.rand` stream ``seed`` (draw order in the module docstring)."""
+    `racecar_sim.rand` stream ``seed`` (draw order in the module docstring)."""
     rot1, trans, rot2, sd_rot1, sd_trans, sd_rot2 = alpha_sd(odometry, alphas)
     f0, f1, f2 = floor[0], floor[1], floor[2]
     state = np.uint64(seed)

@@ -25,7 +25,7 @@ mean likelihood before the squash*
 which lies in (0, 1) (about 0.03 when the scan fits with the lab's table, 0.02 after a kidnap)
 and compares scans with different numbers of usable beams fairly. Undoing the squash keeps the
 injection rate independent of how much the likelihood is tempered. The log of the mean likelihood is
-computed in log space (:attr:`mcl.particle_filter.ParticleFilter.last_log_mean_likelihood`), so
+computed in log space (`mcl.particle_filter.ParticleFilter.last_log_mean_likelihood`), so
 nothing underflows; a correction in which every particle was impossible gives w_avg = 0.
 
 With both alphas at 0 augmented MCL is off: the injection probability is 0 and the filter draws
@@ -76,7 +76,7 @@ class LikelihoodAverages:
     """The slow and fast averages of the per-beam likelihood and the injection probability.
 
     Args:
-        params: :class:`AugmentedParams`.
+        params: `AugmentedParams`.
 
     Attributes:
         w_slow, w_fast: the averages (NaN before the first update). Each is the plain mean of the

@@ -26,7 +26,7 @@ in the beam model:
 
 A skipped beam's log-likelihood row is set to 0 for every particle, so it is left out of the sum
 exactly (adding 0.0 changes no float); with no beam skipped the scores are those of
-:meth:`mcl.sensor_model.SensorModel.score` bit for bit.
+[`mcl.sensor_model.SensorModel.score()`][mcl.sensor_model.SensorModel.score] bit for bit.
 
 Frames and units: particles world [x, y, theta] (metres, radians); ranges in table pixels.
 """

@@ -1,6 +1,6 @@
 """Per-step localization error log: a CSV written row by row and flushed, and its reader.
 
-Columns (:data:`HEADER`), one row per env step:
+Columns (`HEADER`), one row per env step:
 
 ``step`` (1, 2, ... since reset), ``time`` (seconds since reset), ``x_true, y_true, theta_true``
 (true world pose of the rear axle, metres, radians), ``x_est, y_est, theta_est`` (the filter's
@@ -114,7 +114,7 @@ class ErrorLogWriter:
 
     @property
     def closed(self) -> bool:
-        """Whether :meth:`close` was called."""
+        """Whether `close()` was called."""
         return self._file is None
 
     def close(self) -> None:
@@ -134,7 +134,7 @@ class ErrorLogWriter:
 class ErrorLog:
     """The columns of an error log as float64 arrays (``step`` as int64), all of length n.
 
-    Attributes are named as in :data:`HEADER` (``lost`` as bool); ``truncated`` tells whether a cut-short last line
+    Attributes are named as in `HEADER` (``lost`` as bool); ``truncated`` tells whether a cut-short last line
     was dropped.
     """
 
@@ -176,7 +176,7 @@ _BLOCK_ROWS = 1024
 
 
 def _row_blocks(path: Path) -> Iterator[list[list[str]] | None]:
-    """Blocks of at most :data:`_BLOCK_ROWS` data rows of a log, as lists of fields, read as the
+    """Blocks of at most `_BLOCK_ROWS` data rows of a log, as lists of fields, read as the
     file streams by. The last item is None when a cut-short last line was dropped.
 
     A complete row ends with ``"\\n"``, so a last line without one was cut short (killed run).
@@ -217,13 +217,13 @@ def _row_blocks(path: Path) -> Iterator[list[list[str]] | None]:
 
 
 def read_error_log(path: str | os.PathLike[str]) -> ErrorLog:
-    """Read a log written by :class:`ErrorLogWriter`; a last line cut short (killed run) is dropped.
+    """Read a log written by `ErrorLogWriter`; a last line cut short (killed run) is dropped.
 
     The file is parsed in blocks of rows, so reading it takes about twice the memory of its columns
     (13 float64 values, 104 bytes, per row), not the ~1.2 KB per row of its text split into fields.
 
     Raises:
-        ValueError: the file is missing, its header differs from :data:`HEADER`, or a complete
+        ValueError: the file is missing, its header differs from `HEADER`, or a complete
             row has the wrong number of fields or a field that is not a number (named).
     """
     path = Path(path)

@@ -1,6 +1,6 @@
 """The bounds of the filter's number settings, with the reason for each (the table that
-:class:`~mcl.filter_params.ParticleFilterParams`, :class:`~mcl.sensor_params.SensorModelParams`,
-:class:`~mcl.motion_model.MotionModelParams` and :class:`~mcl.localization.LocalizationConfig`
+[`ParticleFilterParams`][mcl.filter_params.ParticleFilterParams], [`SensorModelParams`][mcl.sensor_params.SensorModelParams],
+[`MotionModelParams`][mcl.motion_model.MotionModelParams] and [`LocalizationConfig`][mcl.localization.LocalizationConfig]
 check against; docs/settings.md shows it)."""
 
 from __future__ import annotations

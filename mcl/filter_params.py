@@ -1,4 +1,4 @@
-"""The particle filter's settings (:class:`ParticleFilterParams`): counts, resampling, recovery, KLD.
+"""The particle filter's settings (`ParticleFilterParams`): counts, resampling, recovery, KLD.
 
 Validated once when built; nested settings (``augmented``, ``kld``, ``clusters``) may be given as
 mappings (e.g. from YAML).
@@ -43,20 +43,20 @@ class ParticleFilterParams:
             ``"never"`` (= 0.0) never does.
         on_degenerate: what to do when every weight is zero or not finite: ``"keep"`` the particles
             with uniform weights, or re-spread them over free space (``"global"``).
-        init_spread: default standard deviations (metres, metres, radians) of :meth:`initialize`.
-        global_clearance: metres; :meth:`initialize_global` and augmented MCL draw positions at
+        init_spread: default standard deviations (metres, metres, radians) of `initialize()`.
+        global_clearance: metres; `initialize_global()` and augmented MCL draw positions at
             least this far from any occupied cell (0 allows every free cell).
-        global_particles: particles of :meth:`initialize_global`; None sizes the count from the
+        global_particles: particles of `initialize_global()`; None sizes the count from the
             map's free area (see ``global_density``).
         global_density: particles per square metre of free floor for a global start.
         global_max_particles: cap on the count sized from the free area.
         update_min_distance: metres the odometry must have moved (or ``update_min_angle``
-            radians turned) since the last used scan before :meth:`correct` uses another one;
+            radians turned) since the last used scan before `correct()` uses another one;
             0 for both uses every scan.
         update_min_angle: radians, see ``update_min_distance``.
-        augmented: :class:`~mcl.augmented.AugmentedParams` (alphas 0: off).
-        kld: :class:`~mcl.kld.KLDParams` (``enabled=False``: fixed count).
-        clusters: :class:`~mcl.uncertainty.ClusterParams` of :meth:`uncertainty`.
+        augmented: [`AugmentedParams`][mcl.augmented.AugmentedParams] (alphas 0: off).
+        kld: [`KLDParams`][mcl.kld.KLDParams] (``enabled=False``: fixed count).
+        clusters: [`ClusterParams`][mcl.uncertainty.ClusterParams] of `uncertainty()`.
         odometry_scale: [OdometryScaleParams][mcl.odometry_scale.OdometryScaleParams]: the forward
             speed scale learned online from where the scan pins the car (on by default).
     """

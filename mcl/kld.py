@@ -9,7 +9,7 @@ with probability ``1 - delta`` (Wilson-Hilferty approximation of the chi-square 
     n(k) = (k - 1) / (2 epsilon) * (1 - 2 / (9 (k - 1)) + sqrt(2 / (9 (k - 1))) z_{1-delta})^3
 
 Fox draws samples one at a time, counting the bins they fall in, and stops once the sample count
-reaches n(k) for the bins seen so far. :func:`kld_stop` does the same on a batch of independent
+reaches n(k) for the bins seen so far. `kld_stop()` does the same on a batch of independent
 draws without a Python loop: the number of distinct bins among the first m draws is a cumulative
 sum of first-occurrence flags, and the answer is the first m with m >= n(k(m)). (The caller draws
 batches of growing size until the rule stops or the maximum is reached.) With augmented MCL some
@@ -57,7 +57,7 @@ class KLDParams:
         min_particles: never fewer particles than this (a converged cloud still needs some spread
             to follow the odometry's errors).
         max_particles: never more than this; None = the filter's global particle count (see
-            :meth:`mcl.particle_filter.ParticleFilter.global_particle_count`).
+            [`mcl.particle_filter.ParticleFilter.global_particle_count()`][mcl.particle_filter.ParticleFilter.global_particle_count]).
     """
 
     enabled: bool = False
@@ -157,7 +157,7 @@ def kld_count(
 
     Draws batches of the weighted particles (N, 3) (multinomial, independent), each draw replaced
     with probability ``p_random`` by a random pose that counts as a bin of its own, doubling the
-    batch until Fox's rule (:func:`kld_stop`) stops or ``n_max`` draws are made.
+    batch until Fox's rule (`kld_stop()`) stops or ``n_max`` draws are made.
     """
     keys = np.empty(0, dtype=np.int64)
     random = np.empty(0, dtype=bool)

@@ -6,13 +6,13 @@ is looked up in a per-cell table of
     log p(z) = log(z_hit * exp(-d^2 / (2 sigma^2)) + z_rand / max_range),
 
 ``d`` the distance (metres) from the cell's centre to the nearest occupied cell's centre
-(:attr:`racecar_sim.maps.OccupancyMap.distance`, unknown cells count as occupied), clipped to
+(`racecar_sim.maps.OccupancyMap.distance`, unknown cells count as occupied), clipped to
 ``max_distance``; end points off the map score as ``d = max_distance``. Beams at or beyond
 ``max_range`` (no return) and non-finite beams are skipped, as amcl does. A particle's log-likelihood
 is ``squash_exponent`` times the sum over beams (the product of the beam likelihoods, softened like
 the beam model's).
 
-The table holds uint16 codes in the pad frame of :mod:`racecar_sim.raycast.kernels` (a one-cell
+The table holds uint16 codes in the pad frame of `racecar_sim.raycast.kernels` (a one-cell
 ring of the off-map code around the map, row 1 = the image's bottom row), so an end point at
 map-frame ``(u, v)`` metres reads ``codes[int(v / res + 1), int(u / res + 1)]``: one 2-byte read
 per beam (4.5 MB for the Stata basement; a float32 table, twice the size, was 13 % slower), summed
@@ -69,7 +69,7 @@ def likelihood_table(
     when they leave the map, so the kernel's loop has no branch (LLVM vectorises it: 2.2x faster
     than a bounds test per beam, measured).
 
-    Args: see :class:`mcl.sensor_model.SensorModelParams` (``likelihood_*``), metres.
+    Args: see [`mcl.sensor_model.SensorModelParams`][mcl.sensor_model.SensorModelParams] (``likelihood_*``), metres.
     """
     d = np.minimum(grid.distance[::-1], max_distance)
     floor = z_rand / max_range
@@ -115,8 +115,8 @@ def _score_span(codes, lo, step, off_map, gu, gv, c, s, bx, by, squash, out, i0,
 
 @nb.njit(cache=True, nogil=True)
 def _score_shared(codes, lo, step, off_map, gu, gv, c, s, bx, by, squash, out, counter):
-    """:func:`_score_span` over blocks of 64 particles taken from ``counter`` (shared work,
-    :mod:`racecar_sim.raycast.shared_work`)."""
+    """`_score_span()` over blocks of 64 particles taken from ``counter`` (shared work,
+    `racecar_sim.raycast.shared_work`)."""
     n = gu.shape[0]
     blk = 64
     while True:

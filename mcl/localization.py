@@ -1,6 +1,6 @@
 """The localization settings and the pieces both wrappers share (the single env's
-:class:`~mcl.wrapper.LocalizationWrapper` and the vector env's
-:class:`~mcl.vector_wrapper.LocalizedVectorEnv`): the config, the filter's generator and sensor
+[`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] and the vector env's
+[`LocalizedVectorEnv`][mcl.vector_wrapper.LocalizedVectorEnv]): the config, the filter's generator and sensor
 model, a correction by one scan, the pose-estimate space, the error against the truth and the
 run report.
 
@@ -54,13 +54,13 @@ RESET_OPTIONS = ("init", "init_spread", "init_pose")
 
 FilterFactory = Callable[..., ParticleFilter]
 """Builds the filter: called as ``factory(occupancy_map, motion_model=..., sensor_model=...,
-params=..., rng=...)`` (the signature of :class:`~mcl.particle_filter.ParticleFilter`); a variant
+params=..., rng=...)`` (the signature of [`ParticleFilter`][mcl.particle_filter.ParticleFilter]); a variant
 such as augmented MCL passes its own class."""
 
 
 @dataclass(frozen=True)
 class LocalizationConfig:
-    """Settings of :class:`~mcl.wrapper.LocalizationWrapper` (loadable with ``racecar_sim.config.from_mapping``).
+    """Settings of [`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] (loadable with ``racecar_sim.config.from_mapping``).
 
     Attributes:
         init: ``"pose"`` (Gaussian around the true start pose, standard deviations
@@ -70,9 +70,9 @@ class LocalizationConfig:
         sensor: beam sensor model; its ``mount_offset`` is replaced by the env lidar's, and the
             beam angles are the env lidar's.
         filter: particle count, resampling and initial spread of the particle filter.
-        render_particles: most particles drawn by :meth:`~mcl.wrapper.LocalizationWrapper.render` (an even
+        render_particles: most particles drawn by [`render()`][mcl.wrapper.LocalizationWrapper.render] (an even
             stride through them, no randomness).
-        adaptive: when given, the filter is a :class:`~mcl.adaptive.AdaptiveParticleFilter`
+        adaptive: when given, the filter is a [`AdaptiveParticleFilter`][mcl.adaptive.AdaptiveParticleFilter]
             with these settings (searching, then tracking), unless a ``filter_factory`` is given.
         lost: the ``lost`` flag's thresholds and the recovery it triggers
             ([LostParams][mcl.lost.LostParams]).
@@ -132,7 +132,7 @@ class LocalizationConfig:
 def as_localization_config(
     config: LocalizationConfig | Mapping[str, Any] | None,
 ) -> LocalizationConfig:
-    """``config`` as a :class:`LocalizationConfig`: the defaults for None, a mapping of its
+    """``config`` as a `LocalizationConfig`: the defaults for None, a mapping of its
     fields loaded and checked (``racecar_sim.config.from_mapping``).
 
     Raises:
@@ -263,7 +263,7 @@ def localization_report(
     fresh: bool,
     lost: bool = False,
 ) -> dict[str, Any]:
-    """``info["localization"]`` of one car (keys in :class:`~mcl.wrapper.LocalizationWrapper`'s
+    """``info["localization"]`` of one car (keys in [`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper]'s
     docstring); ``lost`` is the car's [LostDetector][mcl.lost.LostDetector] flag."""
     unc = pf.uncertainty()
     position_error, heading_error = pose_error(estimate, truth)

@@ -11,7 +11,7 @@ Noise is added to each particle's copy of the odometry before composing (the MIT
 ``"uniform"`` draws each component from [-c, c], ``"gaussian"`` from N(0, sigma^2), ``"none"`` adds
 nothing. The coefficients are per update, not per second. ``"alpha"`` is the odometry model of
 Probabilistic Robotics (table 5.6, ROS amcl's ``alpha1..alpha4``): noise on a turn, a translation
-and a turn that grows with the motion of the update (:mod:`mcl.alpha_motion`), plus the
+and a turn that grows with the motion of the update (`mcl.alpha_motion`), plus the
 coefficients as a constant floor.
 """
 
@@ -39,7 +39,7 @@ __all__ = [
 ]
 
 SCHEMES: tuple[str, ...] = ("uniform", "gaussian", "none", "alpha")
-"""Noise schemes accepted by :class:`MotionModelParams`."""
+"""Noise schemes accepted by `MotionModelParams`."""
 
 _SQRT3 = math.sqrt(3.0)
 
@@ -93,7 +93,7 @@ class MotionModelParams:
             so that a spread cloud keeps exploring even while the car stands; None: ``coefficients``.
         alphas: ``"alpha"`` only: a1 (rad² of rotation noise variance per rad² of rotation), a2
             (rad² per m² of translation), a3 (m² of translation variance per m²), a4 (m² per rad²);
-            amcl's ``odom_alpha1..4`` (:mod:`mcl.alpha_motion`).
+            amcl's ``odom_alpha1..4`` (`mcl.alpha_motion`).
     """
 
     scheme: str = "gaussian"
@@ -140,7 +140,7 @@ class MotionModelParams:
 def compose(particles: np.ndarray, odometry: np.ndarray) -> np.ndarray:
     """Poses (N, 3) world frame moved by car-frame displacements (3,) or (N, 3); new array.
 
-    Theta of the result is wrapped to [-pi, pi). One numba pass (:func:`mcl.step_kernels.compose_into`).
+    Theta of the result is wrapped to [-pi, pi). One numba pass (`mcl.step_kernels.compose_into()`).
     """
     particles = np.asarray(particles, dtype=np.float64)
     odo = np.asarray(odometry, dtype=np.float64)
@@ -174,7 +174,7 @@ class MotionModel:
     """Samples particle motion from odometry (see the module docstring for frames and schemes).
 
     Args:
-        params: noise scheme and coefficients; defaults to :class:`MotionModelParams`.
+        params: noise scheme and coefficients; defaults to `MotionModelParams`.
     """
 
     def __init__(self, params: MotionModelParams | None = None) -> None:
@@ -198,7 +198,7 @@ class MotionModel:
 
     def noisy_odometry(self, n: int, odometry: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """(n, 3) noisy car-frame displacements (metres, metres, radians) of ``odometry`` (3,), one
-        per particle, as :meth:`evaluate` composes them (every scheme; one raw draw of ``rng``)."""
+        per particle, as `evaluate()` composes them (every scheme; one raw draw of ``rng``)."""
         odo = np.asarray(odometry, dtype=np.float64).reshape(3)
         if self.params.scheme != "alpha":
             return odo + self.sample_noise(n, rng)
@@ -210,9 +210,9 @@ class MotionModel:
     def sample_noise(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """(n, 3) car-frame odometry perturbations (metres, metres, radians) for ``n`` particles.
 
-        Drawn inside numba from a :mod:`racecar_sim.rand` stream seeded by one raw draw of
+        Drawn inside numba from a `racecar_sim.rand` stream seeded by one raw draw of
         ``rng`` (three times faster than ``rng.standard_normal`` at 4000 particles): the same
-        ``rng`` state gives the same noise, and :meth:`evaluate` adds exactly these draws.
+        ``rng`` state gives the same noise, and `evaluate()` adds exactly these draws.
         """
         if self.params.scheme == "alpha":
             raise ValueError(

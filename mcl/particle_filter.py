@@ -21,20 +21,20 @@ weights (``"keep"``) or re-spreads as many uniformly over free space (``"global"
 Global localization and recovery (KLD-sampling, augmented MCL and scan spacing are off by default,
 so the plain filter's draws are unchanged):
 
-- :meth:`ParticleFilter.initialize_global` spreads :meth:`~ParticleFilter.global_particle_count`
+- [`ParticleFilter.initialize_global()`][ParticleFilter.initialize_global] spreads [`global_particle_count()`][ParticleFilter.global_particle_count]
   particles over free space, by default ``global_density`` per square metre of free floor
   (at least ``n_particles``, at most ``global_max_particles``).
-- KLD-sampling (:mod:`mcl.kld`, ``params.kld``) picks the particle count at every resampling, so the
+- KLD-sampling ([`mcl.kld`][mcl.kld], ``params.kld``) picks the particle count at every resampling, so the
   many particles of a global start shrink to a few hundred once the cloud has converged.
-- Augmented MCL (:mod:`mcl.augmented`, ``params.augmented``) follows the slow and fast averages of
+- Augmented MCL ([`mcl.augmented`][mcl.augmented], ``params.augmented``) follows the slow and fast averages of
   the scan likelihood; while ``p = max(0, 1 - w_fast / w_slow)`` is above 0 the filter resamples,
   and each draw of the resampling is a random free-space pose with probability p (Table 8.3). With
   KLD-sampling on, each random draw counts as a bin of its own, so a lost filter grows its set (as
   ROS amcl). The random poses join the particles at the start of the next correction instead of
   right away, so that a scan weighs them before any estimate sees them (a fraction p of uniformly
   weighted random poses would otherwise drag the mean pose across the map).
-- :meth:`ParticleFilter.uncertainty` gives the covariance, the clusters of the cloud and an
-  ambiguity flag (:mod:`mcl.uncertainty`).
+- [`ParticleFilter.uncertainty()`][ParticleFilter.uncertainty] gives the covariance, the clusters of the cloud and an
+  ambiguity flag ([`mcl.uncertainty`][mcl.uncertainty]).
 - ``update_min_distance`` / ``update_min_angle`` skip scans until the car has moved so far (as
   ROS amcl's ``update_min_d`` / ``update_min_a``): scans taken at 40 Hz from almost the same pose
   are far from independent, and weighing them all makes the filter overconfident before the car
@@ -69,12 +69,12 @@ class ParticleFilter:
     Args:
         occupancy_map: the map (world frame).
         n_particles: overrides ``params.n_particles`` when given.
-        motion_model: defaults to :class:`~mcl.motion_model.MotionModel` with default parameters.
-        sensor_model: defaults to :class:`~mcl.sensor_model.SensorModel` on ``occupancy_map``.
-        params: :class:`ParticleFilterParams`.
+        motion_model: defaults to [`MotionModel`][mcl.motion_model.MotionModel] with default parameters.
+        sensor_model: defaults to [`SensorModel`][mcl.sensor_model.SensorModel] on ``occupancy_map``.
+        params: `ParticleFilterParams`.
         rng: the filter's only source of randomness (a Generator, or a seed for one).
 
-    The filter starts empty: call :meth:`initialize` or :meth:`initialize_global` first.
+    The filter starts empty: call `initialize()` or `initialize_global()` first.
 
     Attributes:
         n_updates: corrections applied.
@@ -85,13 +85,13 @@ class ParticleFilter:
             ``log sum_i w_i p(z | x_i)`` with the weights before the correction (for augmented MCL).
         last_effective_sample_size: Kish's effective sample size right after the last weight
             update, before any resampling (NaN before the first).
-        averages: the :class:`~mcl.augmented.LikelihoodAverages` of augmented MCL.
+        averages: the [`LikelihoodAverages`][mcl.augmented.LikelihoodAverages] of augmented MCL.
         pending_random: random particles drawn by the last resampling that join the particles at
             the next correction (augmented MCL).
         n_injected: random particles injected by augmented MCL so far; last_injected: by the last
-            correction. n_skipped: scans :meth:`correct` skipped (``update_min_distance``).
+            correction. n_skipped: scans `correct()` skipped (``update_min_distance``).
         recovery_share: the least share of each resampling's draws that are uniform poses, as
-            the lost flag's recovery asked (:meth:`request_recovery`; 0 when not lost).
+            the lost flag's recovery asked (`request_recovery()`; 0 when not lost).
     """
 
     def __init__(
@@ -246,7 +246,7 @@ class ParticleFilter:
         """Particles uniform over the map's free space, headings uniform in [-pi, pi).
 
         Args:
-            n_particles: how many; None for :meth:`global_particle_count`.
+            n_particles: how many; None for `global_particle_count()`.
         """
         n = self.global_particle_count() if n_particles is None else n_particles
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
@@ -347,10 +347,10 @@ class ParticleFilter:
         """Draw ``n`` particles by ``params.resampling``; the weights become uniform.
 
         The default count is the current one, or with ``params.kld.enabled`` the count
-        KLD-sampling asks for (:meth:`kld_count`). With augmented MCL on, each of the ``n`` draws
+        KLD-sampling asks for (`kld_count()`). With augmented MCL on, each of the ``n`` draws
         is a random free-space pose with the injection probability p instead: those are kept
-        aside in :attr:`pending_random` and join the particles at the start of the next
-        :meth:`correct`, so that its scan weighs them before any estimate sees them.
+        aside in `pending_random` and join the particles at the start of the next
+        `correct()`, so that its scan weighs them before any estimate sees them.
 
         Returns the chosen indexes of the old particles (the drawn, non-random ones).
         """
@@ -372,11 +372,11 @@ class ParticleFilter:
         return idx
 
     def kld_count(self, p_random: float = 0.0) -> tuple[int, int]:
-        """(particles, of which random) that KLD-sampling asks for (:mod:`mcl.kld`).
+        """(particles, of which random) that KLD-sampling asks for ([`mcl.kld`][mcl.kld]).
 
         Draws batches of the weighted particles (multinomial, independent), each draw replaced with
         probability ``p_random`` by a random pose that counts as a bin of its own, doubling the
-        batch until Fox's rule stops or :attr:`max_particles` draws are made.
+        batch until Fox's rule stops or `max_particles` draws are made.
         """
         particles, weights = self._require()
         return kld_count(
@@ -384,7 +384,7 @@ class ParticleFilter:
         )
 
     def _join_pending_random(self) -> None:
-        """Add the random particles kept aside by :meth:`resample`, each with the mean weight."""
+        """Add the random particles kept aside by `resample()`, each with the mean weight."""
         k = self.pending_random
         if k <= 0:
             return
@@ -437,7 +437,7 @@ class ParticleFilter:
         return p, w
 
     def undo_burst(self) -> None:
-        """Go back to the cloud of :attr:`burst_prior` (moved and weighed as it was before the
+        """Go back to the cloud of `burst_prior` (moved and weighed as it was before the
         burst), resampled to the count the burst's correction resampled to."""
         if self._before_burst is None:
             raise RuntimeError("undo_burst: the last correction had no recovery burst")
@@ -460,12 +460,12 @@ class ParticleFilter:
     def correct(self, scan: np.ndarray) -> bool:
         """Weigh the particles by a scan (metres) and resample if needed; returns whether it did.
 
-        The steps: skip the scan unless :meth:`should_correct`; add the random particles of
-        augmented MCL drawn at the last resampling; :meth:`update_weights` with the sensor model's
-        log-likelihoods; fold the scan's per-beam likelihood into :attr:`averages`;
-        :meth:`resample` when :meth:`needs_resampling`.
+        The steps: skip the scan unless `should_correct()`; add the random particles of
+        augmented MCL drawn at the last resampling; `update_weights()` with the sensor model's
+        log-likelihoods; fold the scan's per-beam likelihood into `averages`;
+        `resample()` when `needs_resampling()`.
 
-        See :class:`~mcl.sensor_model.SensorModel` for the scan's treatment (NaN/inf beams
+        See [`SensorModel`][mcl.sensor_model.SensorModel] for the scan's treatment (NaN/inf beams
         dropped, wrong length or negative ranges rejected with ``ValueError``).
         """
         self._require()
@@ -513,7 +513,7 @@ class ParticleFilter:
         return self._mean().copy()
 
     def covariance(self) -> np.ndarray:
-        """(3, 3) weighted covariance of the particles about :meth:`estimate` (metres, radians).
+        """(3, 3) weighted covariance of the particles about `estimate()` (metres, radians).
 
         Heading deviations are wrapped to [-pi, pi) around the circular mean, so a cloud straddling
         +-pi has a small theta variance. Normalised by sum(w) = 1 (the maximum-likelihood form).
@@ -532,6 +532,6 @@ class ParticleFilter:
         return memo[2]
 
     def uncertainty(self) -> Uncertainty:
-        """Covariance, clusters and ambiguity flag of the cloud (:func:`mcl.uncertainty.assess`)."""
+        """Covariance, clusters and ambiguity flag of the cloud ([`mcl.uncertainty.assess()`][mcl.uncertainty.assess])."""
         p, w = self._require()
         return assess(p, w, self.covariance(), self.params.clusters)

@@ -1,19 +1,19 @@
 """LocalizedRaceEnv: one particle filter per car of a race (a PettingZoo ``ParallelEnv``).
 
 ``LocalizedRaceEnv(racecar_sim.RaceEnv(map=..., n_cars=N), config)`` runs, for every agent, what
-:class:`~mcl.wrapper.LocalizationWrapper` runs for one car: predict with the car's odometry each
+[`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] runs for one car: predict with the car's odometry each
 step, weigh and resample with its scan when it is fresh, and put the estimate into its
 observation. The other cars are in every scan and never in the filter's map, so each filter
 localizes among opponents (beam skipping, ``SensorModelParams.beam_skip``, is what keeps it
-locked on; :mod:`mcl.beam_skip`). The filters share one sensor model (its tables built once for
-the map and lidar) and one motion model, as :class:`~mcl.vector_wrapper.LocalizedVectorEnv`'s do;
+locked on; `mcl.beam_skip`). The filters share one sensor model (its tables built once for
+the map and lidar) and one motion model, as [`LocalizedVectorEnv`][mcl.vector_wrapper.LocalizedVectorEnv]'s do;
 each car has its own particles and its own generator, derived from the car's reset seed (``s + i``
 for car ``i``, the race's own seeding) as the single wrapper derives its own
-(:func:`~mcl.localization.filter_rng`).
+([`filter_rng()`][mcl.localization.filter_rng]).
 
 Observation (per agent): the race's dict plus ``pose_estimate`` [x m, y m, theta rad] (world).
 Info (per agent): the race's plus ``localization``, the single wrapper's report
-(:func:`~mcl.localization.localization_report`: estimate, position and heading error against
+([`localization_report()`][mcl.localization.localization_report]: estimate, position and heading error against
 the car's true ``pose``, n_eff, update_s, corrected, uncertainty, ``lost``: the car's
 [LostDetector][mcl.lost.LostDetector] flag).
 
@@ -58,8 +58,8 @@ class LocalizedRaceEnv(BaseParallelWrapper):
     """A particle filter per agent of a race (see the module docstring).
 
     Args:
-        env: a :class:`racecar_sim.RaceEnv` (or a wrapper of one that keeps its observations).
-        config: :class:`~mcl.localization.LocalizationConfig` or a mapping of its fields (the
+        env: a [`racecar_sim.RaceEnv`][racecar_sim.RaceEnv] (or a wrapper of one that keeps its observations).
+        config: [`LocalizationConfig`][mcl.localization.LocalizationConfig] or a mapping of its fields (the
             adaptive filter is not supported here).
         agents: the agents to localize (default: every one; an empty list localizes none); the
             others' observations and infos pass through unchanged.

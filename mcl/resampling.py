@@ -14,7 +14,7 @@ Each resampler draws ``n`` indexes (default: as many as there are weights) with
 
 Multinomial and stratified are O(n log n) with ``np.searchsorted`` on the cumulative weights,
 systematic one merge of its ascending pointers with them (numba). The particle filter draws through
-:func:`resample_particles`, whose systematic path also copies the drawn particles in that kernel.
+`resample_particles()`, whose systematic path also copies the drawn particles in that kernel.
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ RESAMPLERS: dict[str, Callable[..., np.ndarray]] = {
 def resample(
     method: str, weights: np.ndarray, rng: np.random.Generator, n: int | None = None
 ) -> np.ndarray:
-    """Indexes from the resampler named ``method`` (one of :data:`RESAMPLERS`)."""
+    """Indexes from the resampler named ``method`` (one of `RESAMPLERS`)."""
     try:
         fn = RESAMPLERS[method]
     except KeyError:
@@ -126,11 +126,11 @@ def resample_particles(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(idx, particles[idx])`` for ``idx = resample(method, weights, rng, n)``: the particle
     filter's step, for its own valid weights (not checked) and (N, 3) float64 particles; ``n``
-    is checked as :func:`resample` checks it.
+    is checked as `resample()` checks it.
 
-    ``"systematic"`` runs as one numba kernel (:func:`mcl.step_kernels.systematic_resample`: the
+    ``"systematic"`` runs as one numba kernel (`mcl.step_kernels.systematic_resample()`: the
     same draw of ``rng`` and the same indexes up to the rounding of the weights' sum, which is a
-    running sum there and numpy's pairwise one in :func:`systematic`).
+    running sum there and numpy's pairwise one in `systematic()`).
     """
     n = _count(weights, n)
     if method == "systematic":

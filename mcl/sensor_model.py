@@ -87,7 +87,7 @@ def _score_row(ranges, z_obs, log_table, px_per_m, z_max, out, i):
 @nb.njit(cache=True, nogil=True)
 def _score_shared(ranges, z_obs, log_table, px_per_m, z_max, out, counter):
     """Log-likelihood sums for blocks of 256 particles (rows of ``ranges``) taken from
-    ``counter``: one of the threads sharing the particles (:mod:`racecar_sim.raycast.shared_work`)."""
+    ``counter``: one of the threads sharing the particles (`racecar_sim.raycast.shared_work`)."""
     n = ranges.shape[0]
     while True:
         i0 = fetch_add(counter, 1) * 256
@@ -99,7 +99,7 @@ def _score_shared(ranges, z_obs, log_table, px_per_m, z_max, out, counter):
 
 @nb.njit(cache=True)
 def _score_serial(ranges, z_obs, log_table, px_per_m, z_max, out):
-    """Same as :func:`_score_shared` on one thread, all the particles."""
+    """Same as `_score_shared()` on one thread, all the particles."""
     for i in range(ranges.shape[0]):
         _score_row(ranges, z_obs, log_table, px_per_m, z_max, out, i)
 
@@ -116,15 +116,15 @@ class SensorModel:
 
     Args:
         occupancy_map: the map the expected ranges are cast on.
-        params: :class:`SensorModelParams` (defaults: the MIT RSS lab).
+        params: `SensorModelParams` (defaults: the MIT RSS lab).
         beam_angles: (L,) car-frame angles (radians) of the scan's beams; None spreads any scan's
             beams evenly over ``params.fov`` (first beam at -fov/2, last at +fov/2).
 
     Attributes:
-        table: the (W, W) beam-model table (see :func:`beam_table`), read-only.
+        table: the (W, W) beam-model table (see `beam_table()`), read-only.
         last_beam_skip: what beam skipping decided on the last scored scan
-            (:class:`mcl.beam_skip.BeamSkip`; at its defaults while beam skipping is off).
-        caster: the :class:`~racecar_sim.raycast.RayCaster` for the expected ranges (None for
+            (`mcl.beam_skip.BeamSkip`; at its defaults while beam skipping is off).
+        caster: the [`RayCaster`][racecar_sim.raycast.RayCaster] for the expected ranges (None for
             the likelihood field, which casts nothing).
         max_range: metres, z_max pixels x resolution x lidar_scale_to_map_scale for the beam
             model; ``likelihood_max_range`` for the likelihood field (a beam there is skipped).
@@ -208,7 +208,7 @@ class SensorModel:
         return out
 
     def _validated(self, scan: np.ndarray) -> np.ndarray:
-        """``scan`` as float64 after the checks :meth:`observe` documents."""
+        """``scan`` as float64 after the checks `observe()` documents."""
         scan = np.asarray(scan, dtype=np.float64)
         if scan.ndim != 1 or scan.size == 0:
             raise ValueError(
@@ -296,7 +296,7 @@ class SensorModel:
         return out
 
     def _score_skipping(self, particles: np.ndarray, angles: np.ndarray, z_px: np.ndarray):
-        """The log-likelihoods with beam skipping (:mod:`mcl.beam_skip`), or None when the
+        """The log-likelihoods with beam skipping (`mcl.beam_skip`), or None when the
         cloud has not converged (then the plain model scores every beam)."""
         p = self.params
         skip = BeamSkip()
@@ -366,7 +366,7 @@ class SensorModel:
         )
 
     def _log_evaluate_field(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
-        """The likelihood-field model's log-likelihoods (see :mod:`mcl.likelihood_field`)."""
+        """The likelihood-field model's log-likelihoods (see [`mcl.likelihood_field`][mcl.likelihood_field])."""
         scan = self._validated(scan)
         idx, all_angles = self.beams_used(scan.size)
         ranges = scan[idx]
@@ -386,5 +386,5 @@ class SensorModel:
 
     def evaluate(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
         """(N,) unnormalised likelihoods ``prod_b table[z_b, d_b] ** squash`` (may underflow to 0;
-        use :meth:`log_evaluate` to compare very unlikely particles)."""
+        use `log_evaluate()` to compare very unlikely particles)."""
         return np.exp(self.log_evaluate(particles, scan))

@@ -1,7 +1,7 @@
-"""The sensor model's settings (:class:`SensorModelParams`): which model, the beam table's mixture,
+"""The sensor model's settings (`SensorModelParams`): which model, the beam table's mixture,
 the beams used per particle, the caster and the range (metres), validated once.
 
-See :mod:`mcl.sensor_model` for what each setting does to the likelihood.
+See `mcl.sensor_model` for what each setting does to the likelihood.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ __all__ = ["MODELS", "SensorModelParams"]
 _LIDAR = LidarParams()
 
 MODELS: tuple[str, ...] = ("beam", "likelihood_field")
-"""Names accepted by :attr:`SensorModelParams.model`."""
+"""Names accepted by `SensorModelParams.model`."""
 
 
 @dataclass(frozen=True)
@@ -52,7 +52,7 @@ class SensorModelParams:
         lidar_scale_to_map_scale: lidar metres per map metre (ranges are divided by it, with the
             resolution, to get pixels).
         num_beams_per_particle: beams used per particle, evenly spaced over the scan.
-        raycast_method: :class:`racecar_sim.raycast.RayCaster` method for the expected ranges
+        raycast_method: [`racecar_sim.raycast.RayCaster`][racecar_sim.raycast.RayCaster] method for the expected ranges
             (an approximate one is fine: the simulated lidar stays exact).
         lut_sort_extent: metres; with the ``"lut"`` caster, a cloud whose bounding box is at
             least this wide (on either axis) is cast in Z-order of its cells and the scores
@@ -61,11 +61,11 @@ class SensorModelParams:
         mount_offset: metres from the rear axle (the particle pose) forward to the lidar.
         fov: radians spanned by the scan when the beam angles are not given (first beam at -fov/2).
         parallel: numba threads for casting and scoring: None decides by size (the caster's
-            ``PARALLEL_MIN_RAYS``, :data:`PARALLEL_MIN_LOOKUPS`); False keeps one thread, which is
+            ``PARALLEL_MIN_RAYS``, `PARALLEL_MIN_LOOKUPS`); False keeps one thread, which is
             faster when other processes keep the cores busy (e.g. a pool of experiment workers);
             True always uses every thread.
         model: ``"beam"`` (the table above, with ray casting) or ``"likelihood_field"`` (beam end
-            points scored on the map's distance field, no casting; :mod:`mcl.likelihood_field`).
+            points scored on the map's distance field, no casting; [`mcl.likelihood_field`][mcl.likelihood_field]).
             The ``likelihood_*`` fields are the latter's (amcl's defaults); it reads as many beams
             as ``num_beams_per_particle`` allows, so set that to the scan's length for all beams.
         likelihood_sigma: metres, standard deviation of the end point's distance to a wall.
@@ -74,7 +74,7 @@ class SensorModelParams:
         likelihood_max_distance: metres; distances to a wall are clipped to it.
         likelihood_max_range: metres; beams at or beyond it (no return) are skipped.
         beam_skip: leave out, once the cloud has converged, the beams most particles cannot
-            explain (ROS amcl's ``do_beamskip``, here in the beam model; :mod:`mcl.beam_skip`).
+            explain (ROS amcl's ``do_beamskip``, here in the beam model; `mcl.beam_skip`).
             Off by default; the beam model only.
         beam_skip_distance: metres; a particle explains a beam whose expected range lies this
             close to the measured one (amcl's default 0.5).

@@ -4,12 +4,12 @@ A few passes over the particles each, without numpy temporaries: at 4 000 partic
 versions spent more time allocating arrays and in per-call overhead than computing (issue 14's
 update profile: predict 0.31 ms, resample 0.19 ms, estimate + covariance 0.27 ms; these kernels
 do the same arithmetic in about a quarter of that). What remained was mostly libm: ``np.mod``'s
-float remainder in every wrap (:func:`wrap_near` shifts instead, bit for bit the same) and a call
-to ``sin`` and ``cos`` per heading (:func:`sincos_into` evaluates fdlibm's polynomials in a loop
+float remainder in every wrap (`wrap_near()` shifts instead, bit for bit the same) and a call
+to ``sin`` and ``cos`` per heading (`sincos_into()` evaluates fdlibm's polynomials in a loop
 that vectorises, within one ulp of libm); and the resampling merge's branch mispredictions
-(:func:`systematic_resample` counts instead). Frames and units as in
-:mod:`mcl.motion_model` and :mod:`mcl.particle_filter`: world poses ``[x, y, theta]`` in metres
-and radians, theta wrapped to [-pi, pi) as :func:`mcl.angles.wrap_angle` does.
+(`systematic_resample()` counts instead). Frames and units as in
+[`mcl.motion_model`][mcl.motion_model] and [`mcl.particle_filter`][mcl.particle_filter]: world poses ``[x, y, theta]`` in metres
+and radians, theta wrapped to [-pi, pi) as [`mcl.angles.wrap_angle()`][mcl.angles.wrap_angle] does.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ _TWO_PI = 2.0 * math.pi
 
 @nb.njit(cache=True, inline="always")
 def wrap(a):
-    """One angle (radians) wrapped to [-pi, pi), the arithmetic of :func:`mcl.angles.wrap_angle`."""
+    """One angle (radians) wrapped to [-pi, pi), the arithmetic of [`mcl.angles.wrap_angle()`][mcl.angles.wrap_angle]."""
     out = np.mod(a + math.pi, _TWO_PI) - math.pi
     return out - _TWO_PI if out >= math.pi else out
 
@@ -41,10 +41,10 @@ def wrap(a):
 @nb.njit(cache=True, inline="always")
 def wrap_near(a):
     """``(wrap(a), ok)`` for an angle within about one turn of [-pi, pi) (radians): a shift by
-    2 pi or none, bit for bit :func:`wrap`, without its float remainder (a library call the
+    2 pi or none, bit for bit `wrap()`, without its float remainder (a library call the
     compiler evaluates on every iteration of a loop, even when a branch skips it: ~7 ns). ``ok``
     is False when ``a + pi`` is outside [-2 pi, 4 pi) or NaN; the value is then not wrapped and
-    the caller redoes it with :func:`wrap`.
+    the caller redoes it with `wrap()`.
 
     In range the remainder is exact: ``mod(x, 2 pi)`` is ``x`` on [0, 2 pi), ``x - 2 pi`` on
     [2 pi, 4 pi) (exact by Sterbenz's lemma) and the rounded ``x + 2 pi`` on [-2 pi, 0), which is
@@ -71,7 +71,7 @@ _INV_PIO2 = 6.36619772367581382433e-01
 _PIO2_1 = 1.57079632673412561417e00
 _PIO2_2, _PIO2_2T = 6.07710050630396597660e-11, 2.02226624879595063154e-21
 SINCOS_LIMIT = 1e5
-"""Largest ``|angle|`` (radians) :func:`sincos_near` reduces; beyond it the kernels use libm."""
+"""Largest ``|angle|`` (radians) `sincos_near()` reduces; beyond it the kernels use libm."""
 
 
 @nb.njit(cache=True, inline="always")
@@ -104,7 +104,7 @@ def sincos_near(x):
 
 @nb.njit(cache=True)
 def sincos_into(theta, sin_out, cos_out):
-    """``sin_out[i], cos_out[i]``: :func:`sincos_near` of ``theta[i]`` (contiguous 1-D arrays),
+    """``sin_out[i], cos_out[i]``: `sincos_near()` of ``theta[i]`` (contiguous 1-D arrays),
     libm's where it is out of range."""
     ok = True
     for i in range(theta.shape[0]):
@@ -121,7 +121,7 @@ def sincos_into(theta, sin_out, cos_out):
 
 @nb.njit(cache=True)
 def heading_sincos(particles):
-    """``(sin, cos)`` (N,) of the headings ``particles[:, 2]`` by :func:`sincos_into`."""
+    """``(sin, cos)`` (N,) of the headings ``particles[:, 2]`` by `sincos_into()`."""
     n = particles.shape[0]
     theta = np.empty(n)
     for i in range(n):
@@ -167,7 +167,7 @@ def _draw(state, gaussian):
 @nb.njit(cache=True)
 def noise_into(coefficients, gaussian, seed, out):
     """``out`` (N, 3): per-particle odometry noise, ``coefficients[k]`` times a standard normal
-    (``gaussian``) or a uniform on [-1, 1), drawn from the :mod:`racecar_sim.rand` stream
+    (``gaussian``) or a uniform on [-1, 1), drawn from the `racecar_sim.rand` stream
     ``seed`` in the order particle 0 (dx, dy, dtheta), particle 1, ..."""
     state = np.uint64(seed)
     for i in range(out.shape[0]):
@@ -178,7 +178,7 @@ def noise_into(coefficients, gaussian, seed, out):
 
 @nb.njit(cache=True)
 def move_noisy_into(particles, odometry, coefficients, gaussian, seed, out):
-    """``out[i]``: ``particles[i]`` moved by ``odometry`` (3,) plus the noise :func:`noise_into`
+    """``out[i]``: ``particles[i]`` moved by ``odometry`` (3,) plus the noise `noise_into()`
     draws for particle ``i`` with the same seed (the same doubles), in one pass without
     temporaries. Car-frame displacement, world poses, theta wrapped."""
     state = np.uint64(seed)
@@ -207,7 +207,7 @@ def move_noisy_into(particles, odometry, coefficients, gaussian, seed, out):
 
 @nb.njit(cache=True)
 def move_noisy(particles, odometry, coefficients, gaussian, seed):
-    """:func:`move_noisy_into` into a new (N, 3) array, returned (one call from Python)."""
+    """`move_noisy_into()` into a new (N, 3) array, returned (one call from Python)."""
     out = np.empty(particles.shape)
     move_noisy_into(particles, odometry, coefficients, gaussian, seed, out)
     return out
@@ -215,7 +215,7 @@ def move_noisy(particles, odometry, coefficients, gaussian, seed):
 
 @nb.njit(cache=True)
 def bayes_step(log_weights, log_likelihood):
-    """:func:`bayes_update` into new arrays: ``(new_log_weights, new_weights, top, total,
+    """`bayes_update()` into new arrays: ``(new_log_weights, new_weights, top, total,
     sum_w2)`` (one call from Python)."""
     new_log_weights = np.empty(log_weights.shape[0])
     new_weights = np.empty(log_weights.shape[0])
@@ -362,8 +362,8 @@ def covariance_about(particles, weights, mean):
 
 @nb.njit(cache=True, inline="always")
 def _covariance(particles, weights, mean, near):
-    """:func:`covariance_about` with the heading deviations wrapped by :func:`wrap_near` when
-    ``near`` (then ``ok`` says whether every deviation was in its range), else by :func:`wrap`."""
+    """`covariance_about()` with the heading deviations wrapped by `wrap_near()` when
+    ``near`` (then ``ok`` says whether every deviation was in its range), else by `wrap()`."""
     cov = np.zeros((3, 3))
     ok = True
     for i in range(particles.shape[0]):
@@ -390,10 +390,10 @@ def _covariance(particles, weights, mean, near):
 @nb.njit(cache=True, error_model="numpy")
 def systematic_resample(particles, weights, offset, n):
     """Systematic resampling of ``particles`` (N, 3) by ``weights`` (N,): ``(idx, drawn)`` with
-    ``idx`` the (n,) int64 indexes :func:`systematic_pick` gives for pointers
+    ``idx`` the (n,) int64 indexes `systematic_pick()` gives for pointers
     ``(offset + k) / n`` on the normalised cumulative weights (``cumsum(w / sum(w))``, then
     divided by its last element so that it ends at exactly 1, as
-    :func:`mcl.resampling.systematic` does; the sum here is a plain running one), and
+    [`mcl.resampling.systematic()`][mcl.resampling.systematic] does; the sum here is a plain running one), and
     ``drawn = particles[idx]``. The weights must be non-negative and finite with a positive sum
     (the filter's always are).
 

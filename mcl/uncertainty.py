@@ -206,7 +206,7 @@ def assess(
     covariance: np.ndarray,
     params: ClusterParams,
 ) -> Uncertainty:
-    """The :class:`Uncertainty` of a weighted cloud with covariance ``covariance`` (3, 3)."""
+    """The `Uncertainty` of a weighted cloud with covariance ``covariance`` (3, 3)."""
     cov = np.asarray(covariance, dtype=np.float64)
     clusters = cluster_particles(particles, weights, params.bin_size)
     xy = cov[:2, :2]

@@ -2,12 +2,12 @@
 
 ``LocalizedVectorEnv(gymnasium.make_vec("RacecarSim-v0", num_envs=N,
 vectorization_mode="vector_entry_point", ...), config)`` runs, for every car, what
-:class:`~mcl.wrapper.LocalizationWrapper` runs for one: predict with the car's odometry each step,
+[`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] runs for one: predict with the car's odometry each step,
 weigh and resample with its scan when it is fresh, and put the estimate into the observation, so an
 agent trained on N cars acts on localized poses. The filters share one sensor model (its tables
 are built once for the map and lidar) and one motion model; each car has its own particles and
 its own random generator, derived from the car's reset seed exactly as the single wrapper derives
-its own (:func:`~mcl.localization.filter_rng`). So car ``i`` localizes exactly as
+its own ([`filter_rng()`][mcl.localization.filter_rng]). So car ``i`` localizes exactly as
 ``LocalizationWrapper(gymnasium.make("RacecarSim-v0", ...), config)`` reset with seed ``s + i``
 (tested against Gymnasium's ``SyncVectorEnv`` over such wrappers, autoresets included).
 
@@ -62,8 +62,8 @@ class LocalizedVectorEnv(VectorWrapper):
 
     Args:
         env: the vector env (``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``,
-            i.e. :class:`racecar_sim.vector_env.RacecarVectorEnv`), in next-step autoreset mode.
-        config: :class:`~mcl.localization.LocalizationConfig` or a mapping of its fields (the adaptive
+            i.e. [`racecar_sim.vector_env.RacecarVectorEnv`][racecar_sim.vector_env.RacecarVectorEnv]), in next-step autoreset mode.
+        config: [`LocalizationConfig`][mcl.localization.LocalizationConfig] or a mapping of its fields (the adaptive
             filter is not supported here).
         uncertainty: also report each car's uncertainty (covariance summary, clusters,
             ``ambiguous``); costs about a millisecond per car and step at 1500 particles.

@@ -4,7 +4,7 @@ Each episode the wrapper starts a particle filter (around the true start pose, o
 whole map), then on every step moves the particles by the step's odometry and, when the step
 carries a fresh scan (``info["new_scan"]``), weighs and resamples them by that scan. The estimate
 goes into the observation so an agent can drive on it, the error against the truth into ``info``
-and, optionally, into a CSV log (:mod:`mcl.error_log`).
+and, optionally, into a CSV log (`mcl.error_log`).
 
 Frames and units: world frame of the map; poses [x, y, theta] of the rear axle in metres and
 radians (theta in [-pi, pi)); times in seconds.
@@ -79,14 +79,14 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """Runs a particle filter on a ``RacecarSim-v0`` env's odometry and scans (module docstring).
 
     Args:
-        env: a ``RacecarSim-v0`` env (``gymnasium.make`` or :class:`racecar_sim.env.RacecarEnv`,
+        env: a ``RacecarSim-v0`` env (``gymnasium.make`` or [`racecar_sim.env.RacecarEnv`][racecar_sim.env.RacecarEnv],
             with any wrappers that keep its observations), or ``RacecarRace-v0`` (the filter
-            localizes car 0 among the opponents; :func:`car_of`).
-        config: :class:`LocalizationConfig` or a mapping of its fields.
-        log_path: when given, a CSV error log (:mod:`mcl.error_log`) is written there, one row per
+            localizes car 0 among the opponents; `car_of()`).
+        config: `LocalizationConfig` or a mapping of its fields.
+        log_path: when given, a CSV error log (`mcl.error_log`) is written there, one row per
             step, flushed as it goes; episodes follow one another in the same file, ``step``
             restarting at 1.
-        filter_factory: builds the filter (default :class:`ParticleFilter`).
+        filter_factory: builds the filter (default `ParticleFilter`).
         sensor_model: a ready sensor model to share between wrappers on the same map and lidar
             (it must use the env's beam angles and mount offset); built from ``config`` when None.
         clock: seconds, the timer of ``update_s``. Wall time differs from run to run; a fixed
@@ -98,8 +98,8 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             ([MIN_FILTER_MAP_COVER][mcl.wrapper_checks.MIN_FILTER_MAP_COVER]).
         live: ``"[HOST:]PORT"`` (or a port number): stream the drive to Foxglove as it runs, on
             a WebSocket server bound to 127.0.0.1 unless a host is given, with the topics of
-            ``drive --bag`` (:mod:`mcl.io.live`; extra ``[live]``); or a server from
-            :func:`mcl.io.start_live`. ``close()`` stops a server the wrapper started.
+            ``drive --bag`` ([`mcl.io.live`][mcl.io.live]; extra ``[live]``); or a server from
+            [`mcl.io.start_live()`][mcl.io.start_live]. ``close()`` stops a server the wrapper started.
 
     Observation: the env's dict plus ``pose_estimate``, ``Box(-inf, inf, (3,), float64)``, the
     estimate [x, y, theta] (world, metres, radians in [-pi, pi)).
@@ -108,7 +108,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     ``heading_error`` (rad, estimate minus truth wrapped to [-pi, pi)), ``n_eff`` (effective
     sample size after this step's weight update, before resampling), ``update_s`` (s of wall time
     of this step's filter update), ``corrected`` (whether the step carried a fresh scan), and how
-    far to trust the estimate (:meth:`mcl.particle_filter.ParticleFilter.uncertainty`):
+    far to trust the estimate ([`mcl.particle_filter.ParticleFilter.uncertainty()`][mcl.particle_filter.ParticleFilter.uncertainty]):
     ``n_particles``, ``covariance`` (3, 3) (metres, radians), ``position_sd`` (m, largest axis),
     ``heading_sd`` (rad), ``n_clusters`` (clusters of the cloud with a noticeable weight),
     ``top_weight`` (weight of the heaviest cluster) and ``ambiguous`` (True when the cloud does not
@@ -288,7 +288,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return obs, info
 
     def _correct(self, scan: np.ndarray) -> float:
-        """Weigh by ``scan`` and resample when needed (:func:`correct_with_scan`)."""
+        """Weigh by ``scan`` and resample when needed (`correct_with_scan()`)."""
         assert self.filter is not None
         return correct_with_scan(self.filter, scan, self._lidar_max_range, self.lost_detector)
 

@@ -157,7 +157,7 @@ def check_on_free_space(what: str, poses: np.ndarray, occupancy_map: OccupancyMa
 
 
 def check_filter_map(owner: str, filter_map: OccupancyMap, world: OccupancyMap) -> None:
-    """Refuse a filter map on which less than :data:`MIN_FILTER_MAP_COVER` of the world map's
+    """Refuse a filter map on which less than `MIN_FILTER_MAP_COVER` of the world map's
     free space is free (measured on an even sub-grid of at most 250 000 world cells).
 
     Raises:

@@ -8,13 +8,13 @@ __all__ = ["DEFAULT_MAP", "ENV_ID", "RACE_ENV_ID", "MapError", "OccupancyMap", "
 __version__ = "0.2.0"
 
 ENV_ID = "RacecarSim-v0"
-"""Gymnasium id of :class:`racecar_sim.env.RacecarEnv`: ``gymnasium.make(ENV_ID, map=...)``; many
+"""Gymnasium id of [`racecar_sim.env.RacecarEnv`][racecar_sim.env.RacecarEnv]: ``gymnasium.make(ENV_ID, map=...)``; many
 cars in one process: ``gymnasium.make_vec(ENV_ID, num_envs=N, vectorization_mode="vector_entry_point")``
-(:class:`racecar_sim.vector_env.RacecarVectorEnv`)."""
+([`racecar_sim.vector_env.RacecarVectorEnv`][racecar_sim.vector_env.RacecarVectorEnv])."""
 
 RACE_ENV_ID = "RacecarRace-v0"
-"""Gymnasium id of :class:`racecar_sim.race.single.RacecarRaceEnv`: one agent (car 0) against
-``opponents`` scripted cars; the multi-agent race is :class:`racecar_sim.RaceEnv` (PettingZoo)."""
+"""Gymnasium id of [`racecar_sim.race.single.RacecarRaceEnv`][racecar_sim.race.single.RacecarRaceEnv]: one agent (car 0) against
+``opponents`` scripted cars; the multi-agent race is [`racecar_sim.RaceEnv`][racecar_sim.RaceEnv] (PettingZoo)."""
 
 if RACE_ENV_ID not in registry:
     register(id=RACE_ENV_ID, entry_point="racecar_sim.race.single:RacecarRaceEnv")

@@ -1,10 +1,10 @@
 """The physical bounds of every number setting, with the reason for each: one table that the
-parameter dataclasses check against (:func:`check`) and docs/settings.md shows.
+parameter dataclasses check against (`check()`) and docs/settings.md shows.
 
 A bound keeps a setting where the simulator's work stays bounded (no setting makes a step, a scan
 or a reset take minutes or gigabytes) and where its physics still means something. Settings that
 depend on each other (``dt`` and ``substep``, ``mount_offset`` and the car) are checked together
-by the dataclass that holds both; those rules are in :data:`RULES`.
+by the dataclass that holds both; those rules are in `RULES`.
 """
 
 from __future__ import annotations
@@ -148,7 +148,7 @@ def check(
     key: str | None = None,
     table: dict[str, Bound] | None = None,
 ) -> float | int:
-    """``value`` checked against ``table[key or name]`` (default table :data:`BOUNDS`); the
+    """``value`` checked against ``table[key or name]`` (default table `BOUNDS`); the
     message names ``owner.name``.
 
     Raises:

@@ -31,14 +31,14 @@ def footprint_corners(car: CarParams) -> np.ndarray:
 
 @dataclass
 class CarBody:
-    """The pymunk parts of one car (see :func:`make_car_body`).
+    """The pymunk parts of one car (see `make_car_body()`).
 
     Attributes:
         body: the dynamic body, origin at the rear axle.
-        shape: its footprint polygon (collision type :data:`CAR_COLLISION_TYPE`).
-        query_body: a kinematic body carrying :attr:`query_shape`, never added to a space.
+        shape: its footprint polygon (collision type `CAR_COLLISION_TYPE`).
+        query_body: a kinematic body carrying `query_shape`, never added to a space.
         query_shape: the same footprint, seeing the walls but not the car itself.
-        corners: (4, 2) car-frame corners (:func:`footprint_corners`).
+        corners: (4, 2) car-frame corners (`footprint_corners()`).
         extent: metres from the rear axle to the farthest corner, plus a margin.
     """
 

@@ -1,12 +1,12 @@
-"""Every setting of the simulator in one place: :class:`EnvConfig`, the env's keywords (see
-:class:`racecar_sim.env.RacecarEnv`), in SI units, with the YAML settings file and the merge of
+"""Every setting of the simulator in one place: `EnvConfig`, the env's keywords (see
+[`racecar_sim.env.RacecarEnv`][racecar_sim.env.RacecarEnv]), in SI units, with the YAML settings file and the merge of
 settings, profile and scene.
 
 Frozen dataclasses validated once when built. Every class can be built from a mapping or a YAML file
-with :func:`from_mapping` / :func:`from_yaml` (:mod:`racecar_sim.params`); unknown keys raise a
+with `from_mapping()` / `from_yaml()` ([`racecar_sim.params`][racecar_sim.params]); unknown keys raise a
 ``ValueError`` naming them. The parts live by job and are re-exported here: the car
-(:mod:`racecar_sim.vehicle.params`), the lidar and the odometry noise
-(:mod:`racecar_sim.sensor_params`).
+([`racecar_sim.vehicle.params`][racecar_sim.vehicle.params]), the lidar and the odometry noise
+([`racecar_sim.sensor_params`][racecar_sim.sensor_params]).
 """
 
 from __future__ import annotations
@@ -52,16 +52,16 @@ _ODOM = OdometryNoise()
 
 @dataclass(frozen=True)
 class EnvConfig:
-    """Every setting of :class:`RacecarEnv` (SI units), with defaults.
+    """Every setting of `RacecarEnv` (SI units), with defaults.
 
     Attributes:
-        map: bundled map name, map YAML path or :class:`OccupancyMap`; None = the default map.
+        map: bundled map name, map YAML path or `OccupancyMap`; None = the default map.
         n_beams: lidar beams per scan.
         fov: radians covered by the scan, centred on the heading.
         max_range: metres, longest lidar range (and the value of a drop-out).
         mount_offset: metres from the rear axle forwards to the lidar.
         lidar_rate: scans per second.
-        dt: seconds of control per :meth:`RacecarEnv.step`.
+        dt: seconds of control per `RacecarEnv.step()`.
         substep: longest physics substep, seconds.
         terminate_on_collision: end the episode when the car touches a wall.
         collision_penalty: reward subtracted on a step with wall contact.
@@ -73,28 +73,28 @@ class EnvConfig:
         p_rand: probability per beam of a uniformly random return.
         odom_proportional: odometry (vx, vy, omega) noise as a fraction of the true value.
         odom_additive: odometry (vx, vy, omega) additive noise, m/s, m/s, rad/s.
-        car: the car's geometry and limits, a :class:`CarParams` or a mapping of its fields.
-        noise_profile: a named set of these settings (:mod:`racecar_sim.noise_profiles`, e.g.
+        car: the car's geometry and limits, a `CarParams` or a mapping of its fields.
+        noise_profile: a named set of these settings ([`racecar_sim.noise_profiles`][racecar_sim.noise_profiles], e.g.
             ``"mit_racecar"``) applied under the explicit ones; None = none.
         scan_effects: correlated lidar failures replacing the four-part noise
-            (:class:`racecar_sim.scan_effects.ScanEffects` or a mapping of its fields); None = off.
-        odom_bias: systematic odometry error (:class:`racecar_sim.scan_effects.OdometryBias` or a
+            ([`racecar_sim.scan_effects.ScanEffects`][racecar_sim.scan_effects.ScanEffects] or a mapping of its fields); None = off.
+        odom_bias: systematic odometry error ([`racecar_sim.scan_effects.OdometryBias`][racecar_sim.scan_effects.OdometryBias] or a
             mapping ``{scale, offset}``); None = none.
-        obstacles: unmapped boxes and walking people (:class:`racecar_sim.obstacles.ObstacleParams`
+        obstacles: unmapped boxes and walking people ([`racecar_sim.obstacles.ObstacleParams`][racecar_sim.obstacles.ObstacleParams]
             or a mapping of its fields); None = none.
         odom_lead: seconds by which the wheel odometry leads the body's motion (the body gets each
-            command this much later, rounded to whole steps; :mod:`racecar_sim.vesc`); 0 = none.
-        imu: a yaw-rate gyro in ``obs["imu"]`` (:class:`racecar_sim.vesc.ImuParams`, a mapping
+            command this much later, rounded to whole steps; [`racecar_sim.vesc`][racecar_sim.vesc]); 0 = none.
+        imu: a yaw-rate gyro in ``obs["imu"]`` ([`racecar_sim.vesc.ImuParams`][racecar_sim.vesc.ImuParams], a mapping
             ``{sigma, bias}`` or True for its defaults); None = no IMU.
         track: the race track for progress, laps, lap times and rank in the info
-            (:func:`racecar_sim.race.track.resolve_track`): a centerline CSV in f1tenth's format,
+            (`racecar_sim.race.track.resolve_track()`): a centerline CSV in f1tenth's format,
             ``"auto"`` (derived from a loop map) or a ``Track``; None = no track.
         car_model: ``"kinematic"`` (the kinematic bicycle) or ``"single_track"`` (tire slip, a
-            friction limit): :mod:`racecar_sim.vehicle`.
+            friction limit): `racecar_sim.vehicle`.
         max_map_cells: the most cells (width x height) a map may have; None = the default
-            (:func:`racecar_sim.maps.limits.max_map_cells`, 4 million). Checked before the map's
+            (`racecar_sim.maps.limits.max_map_cells()`, 4 million). Checked before the map's
             image is decoded.
-        scene: what the room adds to the map (:mod:`racecar_sim.scenes`): ``"clean"`` (openings
+        scene: what the room adds to the map (`racecar_sim.scenes`): ``"clean"`` (openings
             in the walls: glass, open doors), ``"cluttered"`` (also furniture and people) or
             ``"none"``; its obstacle settings go under ``obstacles``. None = none.
     """
@@ -179,7 +179,7 @@ class EnvConfig:
         self.odometry_noise()
 
     def lidar_params(self) -> LidarParams:
-        """The lidar settings as :class:`LidarParams`."""
+        """The lidar settings as `LidarParams`."""
         try:
             return LidarParams(
                 n_beams=self.n_beams,
@@ -200,7 +200,7 @@ class EnvConfig:
             ) from exc
 
     def odometry_noise(self) -> OdometryNoise:
-        """The odometry settings as :class:`OdometryNoise`."""
+        """The odometry settings as `OdometryNoise`."""
         try:
             return OdometryNoise(
                 proportional=tuple(self.odom_proportional),  # type: ignore[arg-type]
@@ -216,7 +216,7 @@ _SETTINGS = frozenset(f.name for f in dataclasses.fields(EnvConfig))
 
 
 def load_config(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read env settings from a YAML mapping whose keys are :class:`EnvConfig` field names.
+    """Read env settings from a YAML mapping whose keys are `EnvConfig` field names.
 
     A relative ``map`` path is taken relative to the YAML file when such a file exists there.
 

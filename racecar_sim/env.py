@@ -49,12 +49,12 @@ class RacecarEnv(gym.Env):
     ## Description
     A headless simulator of an F1TENTH / MIT RSS style racecar. The car is a kinematic bicycle
     about its rear axle (``car_model="kinematic"``, the default) or a single-track model with tire
-    slip and a friction limit (``car_model="single_track"``, :mod:`racecar_sim.vehicle`), with
+    slip and a friction limit (``car_model="single_track"``, `racecar_sim.vehicle`), with
     steering-rate and acceleration limits, driving in a pymunk world
     whose walls are the map's occupied-cell edges, so it cannot pass through walls and every wall
     contact is reported. A lidar ``mount_offset`` ahead of the rear axle casts exact rays on the
     grid and adds beam-model noise; the odometry reports what a VESC measures (wheel speed and
-    the steering angle through the bicycle formula, :mod:`racecar_sim.vesc`) with Gaussian noise.
+    the steering angle through the bicycle formula, [`racecar_sim.vesc`][racecar_sim.vesc]) with Gaussian noise.
     Frames: ``world`` (the map's frame), ``car`` (x forward, y left, origin at the rear axle).
 
     ## Action Space
@@ -62,7 +62,7 @@ class RacecarEnv(gym.Env):
     wheel angle to steer to (radians, positive turns left) and the speed to reach (m/s, negative
     reverses). Actions outside the box are clipped to it; an action with NaN or infinity raises
     ``ValueError``. The car follows the command within ``max_steer_rate``, ``max_accel`` and
-    ``max_decel`` of its :class:`~racecar_sim.config.CarParams`.
+    ``max_decel`` of its [`CarParams`][racecar_sim.config.CarParams].
 
     ## Observation Space
     ``Dict``:
@@ -74,7 +74,7 @@ class RacecarEnv(gym.Env):
       (``info["new_scan"]`` tells which steps carry a fresh one).
     * ``odom``: ``Box(-inf, inf, (3,), float32)``, the VESC's noisy car-frame twist ``[vx, vy,
       omega]`` (m/s, m/s, rad/s) at the end of the step, new every step: ``[wheel_speed, 0,
-      wheel_speed * tan(steer) / wheelbase]`` (:func:`racecar_sim.vesc.wheel_twist`), so a sliding
+      wheel_speed * tan(steer) / wheelbase]`` ([`racecar_sim.vesc.wheel_twist()`][racecar_sim.vesc.wheel_twist]), so a sliding
       car's odometry disagrees with its true twist (``info["twist"]``) as a real car's does.
     * ``imu`` (only with the ``imu`` setting): ``Box(-inf, inf, (1,), float32)``, a gyro's yaw
       rate (rad/s): the true yaw rate over the step plus bias and noise.
@@ -101,22 +101,22 @@ class RacecarEnv(gym.Env):
     ``new_scan`` (bool); ``rewards`` (dict of named terms). With a ``track`` setting also
     ``progress`` (m along its centerline since the start), ``lap`` (completed laps, counted when
     crossing the start line forwards), ``lap_times`` (s) and ``rank`` (1), as in a race
-    (:mod:`racecar_sim.race.laps`).
+    (`racecar_sim.race.laps`).
 
     ## Arguments
     ``gymnasium.make("RacecarSim-v0", map=..., render_mode="rgb_array", **settings)`` where
     ``map`` is a bundled map name (``racecar_sim.maps.bundled_names()``), a map YAML path or an
-    :class:`~racecar_sim.maps.OccupancyMap`, and ``settings`` are the fields of
-    :class:`EnvConfig`: ``n_beams``, ``fov``, ``max_range``, ``mount_offset``, ``lidar_rate``,
+    [`OccupancyMap`][racecar_sim.maps.OccupancyMap], and ``settings`` are the fields of
+    `EnvConfig`: ``n_beams``, ``fov``, ``max_range``, ``mount_offset``, ``lidar_rate``,
     ``dt``, ``substep``, ``terminate_on_collision``, ``collision_penalty``, ``start_clearance``,
     ``range_sigma``, ``p_short``, ``short_lambda``, ``p_max``, ``p_rand``,
     ``odom_proportional``, ``odom_additive``, ``odom_lead``, ``imu``, ``car`` (a ``CarParams``
     or a mapping of its fields), ``car_model``. ``config`` names a YAML file (or is a mapping /
-    :class:`EnvConfig`) with the same keys; keyword arguments override it. Unknown keys raise
+    `EnvConfig`) with the same keys; keyword arguments override it. Unknown keys raise
     ``ValueError`` naming them.
-    ``render_mode="rgb_array"`` makes :meth:`render` return an RGB ``uint8`` frame (H, W, 3) of
+    ``render_mode="rgb_array"`` makes `render()` return an RGB ``uint8`` frame (H, W, 3) of
     the map, the car and the last scan's hits, plus whatever hooks added with
-    :meth:`add_render_hook` draw.
+    `add_render_hook()` draw.
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 40}  # noqa: RUF012
@@ -280,7 +280,7 @@ class RacecarEnv(gym.Env):
         Raises:
             ValueError: the action is not two finite numbers (a numeric array of shape (2,), or a
                 list / tuple of two ints or floats; strings, bools and mappings are refused).
-            gymnasium.error.ResetNeeded: :meth:`reset` was never called.
+            gymnasium.error.ResetNeeded: `reset()` was never called.
         """
         if self._needs_reset:
             raise ResetNeeded("call reset() before step(): the env has no state yet")
@@ -344,19 +344,19 @@ class RacecarEnv(gym.Env):
     # ------------------------------------------------------------------ rendering hooks
     @property
     def renderer(self) -> MapRenderer:
-        """The :class:`MapRenderer` of this env's map (made on first use)."""
+        """The `MapRenderer` of this env's map (made on first use)."""
         if self._renderer is None:
             self._renderer = MapRenderer(self.map)
         return self._renderer
 
     def add_render_hook(self, fn: RenderHook) -> None:
-        """Call ``fn(img, renderer)`` at the end of every :meth:`render` to draw overlays."""
+        """Call ``fn(img, renderer)`` at the end of every `render()` to draw overlays."""
         if not callable(fn):
             raise TypeError(f"render hook must be callable fn(img, renderer), got {fn!r}")
         self._render_hooks.append(fn)
 
     def remove_render_hook(self, fn: RenderHook) -> None:
-        """Stop calling a hook added with :meth:`add_render_hook`."""
+        """Stop calling a hook added with `add_render_hook()`."""
         self._render_hooks.remove(fn)
 
     # ------------------------------------------------------------------ internals

@@ -1,11 +1,11 @@
 """Free steps of many cars in one numba call, for the vector env.
 
-Each car keeps its own :class:`~racecar_sim.physics.RacecarPhysics`; here their free-step state
-(:data:`~racecar_sim.free_steps.STATE_FIELDS`) and twist arrays become rows of two shared arrays,
+Each car keeps its own [`RacecarPhysics`][racecar_sim.physics.RacecarPhysics]; here their free-step state
+([`STATE_FIELDS`][racecar_sim.free_steps.STATE_FIELDS]) and twist arrays become rows of two shared arrays,
 so that one kernel call steps every car that may step without pymunk (far from walls, no contact
-cached) exactly as :meth:`RacecarPhysics.step` would: the same checks, the same
-:func:`~racecar_sim.free_steps.free_step`, the same bookkeeping. A car the kernel declines (a wall
-within reach) and a car that may not step freely take :meth:`RacecarPhysics.step` as usual.
+cached) exactly as [`RacecarPhysics.step()`][RacecarPhysics.step] would: the same checks, the same
+[`free_step()`][racecar_sim.free_steps.free_step], the same bookkeeping. A car the kernel declines (a wall
+within reach) and a car that may not step freely take [`RacecarPhysics.step()`][RacecarPhysics.step] as usual.
 """
 
 from __future__ import annotations
@@ -59,7 +59,7 @@ class FreeStepBatch:
 
         Returns:
             (collided per car of ``cars``, the cars that stepped freely: their pose is in
-            :attr:`states`, see :meth:`poses`).
+            `states`, see `poses()`).
         """
         physics = self.physics
         free: list[int] = []
@@ -92,7 +92,7 @@ class FreeStepBatch:
 
     def poses(self, cars: list[int]) -> np.ndarray:
         """(len(cars), 3) rear-axle world poses of cars that stepped freely (as
-        :attr:`RacecarPhysics.pose`: the heading wrapped to [-pi, pi))."""
+        [`RacecarPhysics.pose`][RacecarPhysics.pose]: the heading wrapped to [-pi, pi))."""
         rows = self.states[cars, :3]
         rows[:, 2] = np.remainder(rows[:, 2] + math.pi, _TWO_PI) - math.pi
         return rows

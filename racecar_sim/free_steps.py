@@ -1,7 +1,7 @@
-"""numba kernel of the physics' free steps (see :mod:`racecar_sim.physics`, "Free steps").
+"""numba kernel of the physics' free steps (see [`racecar_sim.physics`][racecar_sim.physics], "Free steps").
 
 Far from every wall a pymunk substep only moves the car's body by the velocity set at the previous
-substep and then calls the velocity function. :func:`free_step` performs the same floating-point
+substep and then calls the velocity function. `free_step()` performs the same floating-point
 operations in the same order (``p + (v + 0) * h``, ``a + (w + 0) * h``, then the bicycle velocity
 at the mid-substep heading), so the result is bit for bit pymunk's; it first checks on the map's
 distance field that no wall is within reach during the step.
@@ -34,8 +34,8 @@ CONSTANT_FIELDS = ("max_steer_rate", "max_accel", "max_decel", "wheelbase", "ahe
 """Layout of the float64 constants array: car limits (rad/s, m/s², m/s², m); rear axle to the
 footprint's centre (m); the footprint's half diagonal plus one cell diagonal (m); the bound on the
 centre's speed per unit wheel speed; the map's origin, yaw, 1 / resolution and size (cells); the
-margin kept from the walls (m); the car model's index (:data:`racecar_sim.vehicle.MODEL_INDEX`),
-followed by its parameters (:func:`racecar_sim.vehicle.model_params`)."""
+margin kept from the walls (m); the car model's index ([`racecar_sim.vehicle.MODEL_INDEX`][racecar_sim.vehicle.MODEL_INDEX]),
+followed by its parameters ([`racecar_sim.vehicle.model_params()`][racecar_sim.vehicle.model_params])."""
 
 _MODEL = len(CONSTANT_FIELDS) - 1  # index of the model; its parameters follow
 
@@ -59,8 +59,8 @@ def free_step(distance, const, state, target_steer, target_speed, n_sub, h, dt, 
 
     Args:
         distance: (H, W) the map's distance field, metres between cell centres.
-        const: float64 laid out as :data:`CONSTANT_FIELDS`.
-        state: float64 laid out as :data:`STATE_FIELDS`, updated in place.
+        const: float64 laid out as `CONSTANT_FIELDS`.
+        state: float64 laid out as `STATE_FIELDS`, updated in place.
         target_steer, target_speed: the command, already clipped to the car's limits.
         twist: (3,) output, the step's car-frame twist (SE(2) logarithm over ``dt``).
 
@@ -90,7 +90,7 @@ def free_step(distance, const, state, target_steer, target_speed, n_sub, h, dt, 
 
 @nb.njit(cache=True)
 def advance(const, state, target_steer, target_speed, n_sub, h, dt, twist) -> None:
-    """:func:`free_step`'s motion without its wall check: ``n_sub`` substeps of ``h`` seconds of
+    """`free_step()`'s motion without its wall check: ``n_sub`` substeps of ``h`` seconds of
     the car model ``const`` names, in free space (the same doubles as pymunk far from walls)."""
     if const[_MODEL] != 0.0:
         _free_single_track(const[_MODEL + 1 :], state, target_steer, target_speed, n_sub, h, dt,
@@ -125,7 +125,7 @@ def advance(const, state, target_steer, target_speed, n_sub, h, dt, twist) -> No
 
 @nb.njit(cache=True)
 def _free_single_track(p, state, target_steer, target_speed, n_sub, h, dt, twist) -> None:
-    """:func:`free_step`'s substeps for the single-track car (no wall within reach)."""
+    """`free_step()`'s substeps for the single-track car (no wall within reach)."""
     x, y, a = state[0], state[1], state[2]
     vx, vy, w = state[3], state[4], state[5]
     half_h = 0.5 * h
@@ -154,8 +154,8 @@ def body_velocity(angle, omega, half_h, ux, uy):
 
 
 def free_constants(car, occupancy_map, margin: float, car_model: str = "kinematic") -> np.ndarray:
-    """The constants array (:data:`CONSTANT_FIELDS`) for a :class:`CarParams`, a map (None: no
-    map, for :func:`advance` only) and a car model name."""
+    """The constants array (`CONSTANT_FIELDS`) for a `CarParams`, a map (None: no
+    map, for `advance()` only) and a car model name."""
     ahead = car.length / 2 - car.rear_overhang
     if occupancy_map is None:  # advance never reads the map's fields
         from racecar_sim.maps import OccupancyMap

@@ -1,8 +1,8 @@
-"""The simulated gyro's settings (:class:`ImuParams`, ``RacecarEnv(imu=...)``; the gyro itself is
-described in :mod:`racecar_sim.vesc`).
+"""The simulated gyro's settings (`ImuParams`, ``RacecarEnv(imu=...)``; the gyro itself is
+described in [`racecar_sim.vesc`][racecar_sim.vesc]).
 
-Below both :mod:`racecar_sim.config` (whose ``EnvConfig.imu`` holds it) and
-:mod:`racecar_sim.vesc`.
+Below both [`racecar_sim.config`][racecar_sim.config] (whose ``EnvConfig.imu`` holds it) and
+[`racecar_sim.vesc`][racecar_sim.vesc].
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ class ImuParams:
 
     @classmethod
     def from_setting(cls, value: Any) -> ImuParams | None:
-        """None, ``True`` (the defaults), an :class:`ImuParams` or a mapping of its fields."""
+        """None, ``True`` (the defaults), an `ImuParams` or a mapping of its fields."""
         if value is None or value is False:
             return None
         if value is True:

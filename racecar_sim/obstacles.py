@@ -7,7 +7,7 @@ and stop while the car is close to them. The lidar, at knee height on a 1/10 car
 as two legs (circles) that swing with the gait. Both take part in the car's collisions like
 walls (contact is reported, and ends the episode when the env terminates on collision).
 
-Placement draws only from the generator given to :meth:`Obstacles.spawn` (the env derives it
+Placement draws only from the generator given to `Obstacles.spawn()` (the env derives it
 from its seed), so the same seed gives the same obstacles; nothing is placed within
 ``keep_out`` metres of the car's start. Frames: world (metres, radians).
 """
@@ -49,7 +49,7 @@ class ObstacleParams:
         keep_out: nothing is placed closer than this to the car's start.
         crowd: more people, this many per 100 m² of the map's free floor (added to ``people``).
         furniture: fraction of the map's wall length lined with furniture (boxes with their back
-            against a wall, :mod:`racecar_sim.wall_features`).
+            against a wall, `racecar_sim.wall_features`).
         furniture_width: (smallest, largest) width along the wall, metres.
         furniture_depth: (smallest, largest) depth out of the wall, metres.
         openings: fraction of the wall length that is glass or an open door: the lidar sees
@@ -356,7 +356,7 @@ class Obstacles:
     # ------------------------------------------------------------------ drawing
     def draw(self, img: np.ndarray, renderer: Any) -> None:
         """Draw boxes (brown), openings (cyan lines) and people (purple discs) on a
-        :class:`MapRenderer` frame in place."""
+        `MapRenderer` frame in place."""
         import cv2
 
         for seg in self.openings:

@@ -9,11 +9,11 @@ Walls
     segment. The map border counts as a wall (cells beyond the image are occupied), so the walls
     are exactly where the grid says, with no thickness added. Static shapes are kept in pymunk's
     spatial hash, so a step only looks at the segments near the car; and the space only holds the
-    walls within a few metres of where pymunk is used (:mod:`racecar_sim.walls`: computed once per
+    walls within a few metres of where pymunk is used ([`racecar_sim.walls`][racecar_sim.walls]: computed once per
     map, made into pymunk shapes per car when first needed), so a car is built in milliseconds.
 
 Car
-    The pymunk body and footprint of :mod:`racecar_sim.car_body`. A command [steer, speed] first
+    The pymunk body and footprint of [`racecar_sim.car_body`][racecar_sim.car_body]. A command [steer, speed] first
     goes through the steering-rate and acceleration / braking limits, then through the angle and
     speed limits. Each substep the body's velocity is set from the kinematic bicycle model about
     the rear axle: speed along the heading, ``omega = speed * tan(steer) / wheelbase``.
@@ -27,7 +27,7 @@ Car
     what it actually makes along its heading (the wheels do not spin), so backing away from a
     wall starts at once.
 
-    With ``car_model="single_track"`` (:mod:`racecar_sim.vehicle.single_track`: tire slip, a
+    With ``car_model="single_track"`` ([`racecar_sim.vehicle.single_track`][racecar_sim.vehicle.single_track]: tire slip, a
     friction limit) each substep first advances the model, then sets the body's velocity to the
     model's rear-axle velocity for the substep *before* ``space.step`` (so a command acts at once,
     not a substep late), unless the previous substep touched a wall: then the solver's velocity
@@ -36,7 +36,7 @@ Car
 
 Free steps
     Far from every wall pymunk has nothing to solve: a substep only moves the body by its velocity
-    (``p += v h``, ``a += w h``) and then calls the velocity function. :meth:`RacecarPhysics.step`
+    (``p += v h``, ``a += w h``) and then calls the velocity function. [`RacecarPhysics.step()`][RacecarPhysics.step]
     does exactly these floating-point operations itself, without pymunk, when the car cannot
     reach a wall within the step: the distance field at the footprint's centre exceeds its half
     diagonal, the farthest it can move in ``dt`` and a margin; and no contact is cached (pymunk
@@ -96,14 +96,14 @@ class RacecarPhysics:
     Args:
         occupancy_map: the map; its free/occupied cell edges become the walls.
         car: the car's geometry and limits.
-        substep: longest physics substep in seconds; :meth:`step` splits ``dt`` into equal
+        substep: longest physics substep in seconds; `step()` splits ``dt`` into equal
             substeps no longer than this. At the default 5 ms a car at 7 m/s moves 3.5 cm (less
             than a typical 5 cm cell) per substep, which bounds how far it can overlap a wall.
         car_model: ``"kinematic"`` (the bicycle above) or ``"single_track"`` (tire slip and a
-            friction limit, :mod:`racecar_sim.vehicle.single_track`): the velocity each substep
+            friction limit, [`racecar_sim.vehicle.single_track`][racecar_sim.vehicle.single_track]): the velocity each substep
             sets is then the single-track model's rear-axle velocity, walls act the same way.
 
-    The car starts at rest at the first free cell with room for it; call :meth:`reset`.
+    The car starts at rest at the first free cell with room for it; call `reset()`.
     """
 
     def __init__(
@@ -208,11 +208,11 @@ class RacecarPhysics:
     def twist(self) -> np.ndarray:
         """(3,) true car-frame [vx, vy, omega] (m/s, m/s, rad/s) of the rear axle.
 
-        Over the last :meth:`step`: the constant car-frame twist that takes the pose before the
+        Over the last `step()`: the constant car-frame twist that takes the pose before the
         step to the pose after it in ``dt`` (the SE(2) logarithm of the relative pose over
         ``dt``), so integrating it as an arc reproduces the step's motion exactly. Driving freely on
         a constant command it equals ``[speed, 0, speed * tan(steer) / wheelbase]``; against a
-        wall it is the motion that actually happened. After :meth:`reset` it is the commanded
+        wall it is the motion that actually happened. After `reset()` it is the commanded
         bicycle twist.
         """
         return self._twist.copy()
@@ -237,7 +237,7 @@ class RacecarPhysics:
         """Rolling speed of the driven (rear) wheels, m/s, forward positive: what a VESC measures.
 
         Both car models' wheels roll at the car-frame forward velocity of the rear axle, so this
-        is :attr:`speed`; a sliding single-track car's true speed over the ground is higher.
+        is `speed`; a sliding single-track car's true speed over the ground is higher.
         """
         return self._speed
 
@@ -367,7 +367,7 @@ class RacecarPhysics:
         """Move the car to ``pose`` at rest (speed 0, wheels straight), keeping no old motion.
 
         Raises:
-            ValueError: as :meth:`reset`.
+            ValueError: as `reset()`.
         """
         self.reset(pose, 0.0, 0.0)
 

@@ -1,23 +1,23 @@
 """A fast seeded random stream inside numba kernels: the lidar's beam noise (seeded once per scan
 from the env's generator) and the particle filter's motion noise (seeded once per predict from the
-filter's generator, :mod:`mcl.step_kernels`).
+filter's generator, [`mcl.step_kernels`][mcl.step_kernels]).
 
 A scan needs one uniform and (for most beams) one standard normal per beam. Drawn through numpy's
 ``Generator`` that is two calls and ~14 us per 1080-beam scan, most of it the normals; here the
 kernel draws them itself from a stream seeded once per scan from the env's generator (so the same
 env seed still gives the same scans), ~2.5 us per 1080 beams with
-:func:`uniforms_and_normals`, whose beam ``i`` takes the SplitMix64 outputs of counters
+`uniforms_and_normals()`, whose beam ``i`` takes the SplitMix64 outputs of counters
 ``2i + 1`` and ``2i + 2`` so that the beams are drawn in vectorised loops:
 
-* :func:`next_u64`: SplitMix64 (Steele, Lea and Flood, "Fast splittable pseudorandom number
+* `next_u64()`: SplitMix64 (Steele, Lea and Flood, "Fast splittable pseudorandom number
   generators", OOPSLA 2014): a 64-bit counter stepped by the golden-ratio increment and mixed;
   the state is one ``uint64`` passed in and returned.
-* :func:`uniform`: a double in [0, 1) from the top 53 bits.
-* :func:`normal`: a standard normal by Marsaglia and Tsang's ziggurat ("The Ziggurat Method for
+* `uniform()`: a double in [0, 1) from the top 53 bits.
+* `normal()`: a standard normal by Marsaglia and Tsang's ziggurat ("The Ziggurat Method for
   Generating Random Variables", J. Stat. Softw. 5(8), 2000) with 128 layers on 32 random bits,
   the tail beyond ``r`` by Marsaglia's exponential method. About 98.8 % of the draws take the
   fast path (one 64-bit draw, a table look-up, a multiply). The tables are computed here at import
-  from the layer area and tail start (:data:`ZIGGURAT_R`, :data:`ZIGGURAT_V`).
+  from the layer area and tail start (`ZIGGURAT_R`, `ZIGGURAT_V`).
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 some beams return from *behind* the mapped wall (open doors, glass, changes since the map was
 drawn), and the range has a bias.
 
-:class:`ScanEffects` replaces the beam noise of :class:`~racecar_sim.sensors.Lidar` when a noise
+`ScanEffects` replaces the beam noise of [`Lidar`][racecar_sim.sensors.Lidar] when a noise
 profile asks for it (the lidar then casts noise-free). Along the scan (beam index), a Markov chain
 is in one of four states: a *hit* (true range + ``hit_bias`` + an error of standard deviation
 ``hit_sigma``, correlated ``hit_corr`` with the previous beam's: an AR(1) along the scan), or inside a

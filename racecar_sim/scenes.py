@@ -1,5 +1,5 @@
 """Named scenes: what the room puts in front of (and behind) the map's walls, as geometry the
-filter's map does not have (:class:`racecar_sim.obstacles.ObstacleParams` settings).
+filter's map does not have ([`racecar_sim.obstacles.ObstacleParams`][racecar_sim.obstacles.ObstacleParams] settings).
 
 * ``"none"``: the map and nothing else (the ideal world; also what ``scene=None`` means).
 * ``"clean"``: a clean corridor, like the clean stretches of the shared recordings: no people and
@@ -11,7 +11,7 @@ filter's map does not have (:class:`racecar_sim.obstacles.ObstacleParams` settin
 The numbers are measured on the shared bags (``mcl.calibration.room_stats``; the docs page
 "Honest noise"): the fraction of beams on a mapped wall that belong to wide runs of long returns
 (openings) or of short returns (furniture, people), and the sizes of those runs. A scene's
-obstacles are placed per reset from the env's seed (:mod:`racecar_sim.obstacles`).
+obstacles are placed per reset from the env's seed ([`racecar_sim.obstacles`][racecar_sim.obstacles]).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ SCENES: dict[str, dict[str, Any]] = {
         "crowd": 1.5,
     },
 }
-"""Scene name -> obstacle settings (fields of :class:`racecar_sim.obstacles.ObstacleParams`)."""
+"""Scene name -> obstacle settings (fields of [`racecar_sim.obstacles.ObstacleParams`][racecar_sim.obstacles.ObstacleParams])."""
 
 
 def scene_obstacles(scene: str | None, obstacles: Any) -> Any:

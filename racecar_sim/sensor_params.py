@@ -1,5 +1,5 @@
-"""The sensors' parameters: the lidar (:class:`LidarParams`) and the wheel odometry's noise
-(:class:`OdometryNoise`), in SI units."""
+"""The sensors' parameters: the lidar (`LidarParams`) and the wheel odometry's noise
+(`OdometryNoise`), in SI units."""
 
 from __future__ import annotations
 

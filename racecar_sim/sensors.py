@@ -1,10 +1,10 @@
 """Simulated sensors: a planar lidar and wheel odometry. Truth in, noisy measurement out.
 
-Both sensors draw their random numbers from a :class:`numpy.random.Generator` passed to the call
-(the lidar one 64-bit seed per scan, for a fast stream inside its kernel: :mod:`racecar_sim.rand`),
+Both sensors draw their random numbers from a `numpy.random.Generator` passed to the call
+(the lidar one 64-bit seed per scan, for a fast stream inside its kernel: `racecar_sim.rand`),
 so the same seed gives the same measurements.
 
-Lidar beam noise (the four-part beam model of :class:`~racecar_sim.config.LidarParams`). One uniform
+Lidar beam noise (the four-part beam model of [`LidarParams`][racecar_sim.config.LidarParams]). One uniform
 draw per beam chooses its part:
 
 * ``u < p_rand``: a random return, uniform in [0, max_range];
@@ -77,7 +77,7 @@ class Lidar:
         params: beam geometry, rate and noise.
 
     Attributes:
-        params: the :class:`LidarParams`.
+        params: the `LidarParams`.
         angles: (n_beams,) beam angles in the car frame, radians (= ``params.angles``).
         period: seconds between two scans (``1 / params.rate``).
     """
@@ -130,7 +130,7 @@ class Lidar:
         """(n_beams,) float32 noisy scan in metres from a car at rear-axle world ``pose`` (3,).
 
         The same as ``add_noise(true_ranges(pose), rng)`` (same draws, same floats), in one
-        kernel call; :attr:`last_ranges` holds the exact ranges it cast.
+        kernel call; `last_ranges` holds the exact ranges it cast.
         """
         arr = np.asarray(pose, dtype=np.float64)
         if arr.shape != (3,):
@@ -148,7 +148,7 @@ class Lidar:
 
     @property
     def last_ranges(self) -> np.ndarray:
-        """(n_beams,) float64 exact ranges (metres) of the last :meth:`measure` (a copy)."""
+        """(n_beams,) float64 exact ranges (metres) of the last `measure()` (a copy)."""
         return self._ranges.copy()
 
     def add_noise(self, ranges: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -156,7 +156,7 @@ class Lidar:
 
         See the module docstring for the model. Draws one 64-bit seed from ``rng``; beam ``i``
         then takes one uniform and one standard normal from counters ``2i + 1`` and ``2i + 2`` of
-        that seed's :mod:`racecar_sim.rand` stream (:func:`~racecar_sim.rand.uniforms_and_normals`;
+        that seed's `racecar_sim.rand` stream (`uniforms_and_normals()`;
         the normal is used by Gaussian beams only). The uniform both picks the beam's part and,
         rescaled to [0, 1) within that part's interval, gives the random return's or the short
         return's distance, so no further draws are needed.
@@ -177,7 +177,7 @@ class Odometry:
     """Wheel odometry: the car-frame twist with proportional and additive Gaussian noise.
 
     Args:
-        noise: standard deviations per component, see :class:`OdometryNoise`.
+        noise: standard deviations per component, see `OdometryNoise`.
     """
 
     def __init__(self, noise: OdometryNoise = _DEFAULT_ODOMETRY) -> None:
@@ -217,7 +217,7 @@ class Odometry:
         return self.noisy(vx, vy, om, rng)
 
     def noisy(self, vx: float, vy: float, om: float, rng: np.random.Generator) -> np.ndarray:
-        """:meth:`measure` of a twist already known to be finite floats (m/s, m/s, rad/s)."""
+        """`measure()` of a twist already known to be finite floats (m/s, m/s, rad/s)."""
         # Six standard normals, the first three proportional, the last three additive (the same
         # draws and the same double operations as the array expression, in plain floats).
         z = rng.standard_normal(6).tolist()

@@ -82,10 +82,10 @@ def random_start(
     physics: RacecarPhysics, cells: np.ndarray, rng: np.random.Generator
 ) -> np.ndarray:
     """A rear-axle world pose [x, y, theta] whose footprint is free, its box centre in one of
-    ``cells`` (from :func:`start_cells`), the heading uniform; drawn from ``rng``.
+    ``cells`` (from `start_cells()`), the heading uniform; drawn from ``rng``.
 
     Raises:
-        MapError: no free pose in :data:`START_TRIES` tries.
+        MapError: no free pose in `START_TRIES` tries.
     """
     car = physics.car
     occupancy_map = physics.map

@@ -1,7 +1,7 @@
 """Validation written once: numbers in ranges and YAML files of settings, with messages that name the
 field (``Owner.field``) and, for files, the file.
 
-Every parameter dataclass of the project checks its fields with :func:`check_number` in
+Every parameter dataclass of the project checks its fields with `check_number()` in
 ``__post_init__``, so a bad value fails once, where it is given, with one clear line.
 """
 
@@ -80,10 +80,10 @@ _Loader.add_implicit_resolver("tag:yaml.org,2002:float", _EXP_FLOAT, list("-+012
 
 def load_yaml(text: str) -> Any:
     """The value of a YAML text read safely and in bounded work: no anchors or aliases, at most
-    :data:`MAX_YAML_BYTES`, nesting no deeper than Python's recursion allows; ``1e12`` is a float.
+    `MAX_YAML_BYTES`, nesting no deeper than Python's recursion allows; ``1e12`` is a float.
 
     Raises:
-        yaml.YAMLError: not valid YAML, or refused (:class:`YAMLRefused`, one line).
+        yaml.YAMLError: not valid YAML, or refused (`YAMLRefused`, one line).
     """
     if len(text) > MAX_YAML_BYTES:
         raise YAMLRefused(f"{len(text)} characters, more than the {MAX_YAML_BYTES} read")
@@ -157,7 +157,7 @@ def check_number(
 
 
 def read_text(path: Path, limit: int = MAX_YAML_BYTES) -> str:
-    """The text of a small file, refusing (:class:`YAMLRefused`) one longer than ``limit`` bytes
+    """The text of a small file, refusing (`YAMLRefused`) one longer than ``limit`` bytes
     before reading it; bytes that are not UTF-8 are replaced."""
     size = path.stat().st_size
     if size > limit:

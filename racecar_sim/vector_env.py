@@ -1,9 +1,9 @@
 """Many cars in one process: ``gymnasium.make_vec("RacecarSim-v0", num_envs=N,
 vectorization_mode="vector_entry_point", **settings)``.
 
-:class:`RacecarVectorEnv` steps N independent cars on one map (they do not see or touch each other)
+`RacecarVectorEnv` steps N independent cars on one map (they do not see or touch each other)
 and casts all the lidar scans due in a step with one numba call spread over the cores. Each car is a
-:class:`~racecar_sim.env.RacecarEnv` with its own physics and its own random generator, so car ``i``
+[`RacecarEnv`][racecar_sim.env.RacecarEnv] with its own physics and its own random generator, so car ``i``
 gives exactly what a single env gives for the same seed and actions: observations, rewards,
 terminations, truncations and infos equal those of Gymnasium's ``SyncVectorEnv`` over N single envs
 (tested), only faster.
@@ -80,17 +80,17 @@ class RacecarVectorEnv(VectorEnv):
 
     Args:
         num_envs: number of cars.
-        map: as :class:`~racecar_sim.env.RacecarEnv` (one map, loaded once, shared by the cars).
-        config: as :class:`~racecar_sim.env.RacecarEnv`; keyword ``settings`` override it.
+        map: as [`RacecarEnv`][racecar_sim.env.RacecarEnv] (one map, loaded once, shared by the cars).
+        config: as [`RacecarEnv`][racecar_sim.env.RacecarEnv]; keyword ``settings`` override it.
         max_episode_steps: truncate each car's episode after this many steps (None: never).
         parallel: cast the scans on ``workers`` threads (True) or on the calling thread (False).
-            None (default): from :data:`~racecar_sim.raycast.kernels.PARALLEL_MIN_RAYS` rays per
+            None (default): from `PARALLEL_MIN_RAYS` rays per
             step, whichever of the two has cast faster by the wall clock lately: both are timed
-            and the other one is tried again every :data:`PROBE_EVERY` casts, because on a
+            and the other one is tried again every `PROBE_EVERY` casts, because on a
             machine whose cores are busy with other programs a worker thread can wait
             milliseconds to run, and then threads make every step slower.
         workers: casting threads (default: the number of CPUs): this one and pool threads of
-            :mod:`racecar_sim.raycast.shared_work`, each casting chunks of cars in a numba kernel
+            `racecar_sim.raycast.shared_work`, each casting chunks of cars in a numba kernel
             that releases the GIL: no thread spins while waiting, and none waits for another to
             wake, so a busy machine slows the cast but does not stall it.
         render_mode: only None (no rendering).
@@ -312,9 +312,9 @@ class RacecarVectorEnv(VectorEnv):
         and store them in the cars.
 
         Each car draws its scan's seed from its own generator, as its
-        :meth:`~racecar_sim.sensors.Lidar.measure` would. In parallel, this thread and
+        [`measure()`][racecar_sim.sensors.Lidar.measure] would. In parallel, this thread and
         ``workers - 1`` pool threads take chunks of cars from one atomic counter
-        (:mod:`racecar_sim.raycast.shared_work`): a thread that the OS runs late takes fewer
+        (`racecar_sim.raycast.shared_work`): a thread that the OS runs late takes fewer
         chunks, and one that has not started when they run out is not waited for.
         """
         if not due:

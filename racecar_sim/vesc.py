@@ -8,25 +8,25 @@ Wheel odometry (``obs["odom"]``)
 
         vx = wheel_speed,   vy = 0,   omega = wheel_speed * tan(steer) / wheelbase
 
-    (:func:`wheel_twist`). It never sees the body slide: in a slide the true yaw rate and lateral
+    (`wheel_twist()`). It never sees the body slide: in a slide the true yaw rate and lateral
     speed differ from these, exactly as on the real car. The reading is instantaneous, taken at the
     end of each env step.
 
 Lead (``odom_lead`` seconds)
     On the real car ``/vesc/odom`` leads the motion that the scans see by about 0.13 s
-    (:func:`mcl.calibration.odometry_fit.best_lag`): the motor and the servo act on a command at
+    (`mcl.calibration.odometry_fit.best_lag()`): the motor and the servo act on a command at
     once and the VESC reports them, but the body follows later (drivetrain and tire compliance,
     servo linkage). Simulated causally: the *body* (the physics) receives each command ``n =
-    round(odom_lead / dt)`` steps late (:class:`CommandDelay`), while the odometry reports the
+    round(odom_lead / dt)`` steps late (`CommandDelay`), while the odometry reports the
     wheel state the actuators already have, which is the state the physics will reach ``n`` steps
     later: the physics' current wheel speed and steering angle driven through the car's steering
-    rate and acceleration limits by the ``n`` commands still on their way (:func:`actuate`, the
-    same arithmetic as :meth:`racecar_sim.physics.RacecarPhysics.step`). Nothing is read from the
+    rate and acceleration limits by the ``n`` commands still on their way (`actuate()`, the
+    same arithmetic as `racecar_sim.physics.RacecarPhysics.step()`). Nothing is read from the
     future: the odometry is computed from commands already given.
 
 IMU (``obs["imu"]``, off unless ``imu`` is set)
     A gyro's yaw rate: the true yaw rate of the body over the step (``info["twist"][2]``) plus a
-    constant bias and white noise (:class:`ImuParams`). It sees the slide that the wheel odometry
+    constant bias and white noise (`ImuParams`). It sees the slide that the wheel odometry
     misses.
 """
 
@@ -61,8 +61,8 @@ def vesc_odometry(
     add: np.ndarray,
     out: np.ndarray,
 ) -> None:
-    """The noisy VESC odometry of K cars: :func:`wheel_twist` of each, then the noise of
-    :meth:`racecar_sim.sensors.Odometry.noisy` (the same double operations, so the same floats).
+    """The noisy VESC odometry of K cars: `wheel_twist()` of each, then the noise of
+    [`racecar_sim.sensors.Odometry.noisy()`][racecar_sim.sensors.Odometry.noisy] (the same double operations, so the same floats).
 
     Args:
         steer: (K,) front wheel angles, radians.
@@ -91,8 +91,8 @@ def actuate(
 ) -> tuple[float, float]:
     """The wheel angle (rad) and wheel speed (m/s) after ``dt`` seconds of a command already
     clipped to the car's limits, from ``steer``, ``speed``: the steering-rate, acceleration and
-    braking limits (:func:`racecar_sim.vehicle.kinematic.actuate`) substep by substep, as
-    :meth:`racecar_sim.physics.RacecarPhysics.step` applies them (no wall is known here). The
+    braking limits (`racecar_sim.vehicle.kinematic.actuate()`) substep by substep, as
+    `racecar_sim.physics.RacecarPhysics.step()` applies them (no wall is known here). The
     kinematic car's wheels follow exactly this; the single-track car's speed servo also meets the
     friction and motor-power limits, which this leaves out."""
     n_sub = max(1, math.ceil(dt / substep - 1e-9))
@@ -117,7 +117,7 @@ class CommandDelay:
 
     Args:
         n: steps of delay (0: every command goes through at once).
-        car: the car's limits (for :meth:`wheels_ahead`).
+        car: the car's limits (for `wheels_ahead()`).
         dt: seconds per env step; substep: the physics' longest substep, seconds.
     """
 

@@ -7,7 +7,7 @@ normal comes from the distance field, its surface lies the cell's distance behin
 
 * **Furniture**: a box of width ``furniture_width`` along the wall and depth ``furniture_depth``
   out of it, its back against the wall (a gap of 2 cm); static, it blocks the car and the lidar
-  like the other boxes of :mod:`racecar_sim.obstacles`.
+  like the other boxes of [`racecar_sim.obstacles`][racecar_sim.obstacles].
 * **Openings**: a segment of the wall's face, ``opening_width`` long. A beam whose mapped wall
   point lies within ``_FACE`` metres of the segment returns from behind it: true range plus the
   opening's depth (0.15 m plus an exponential of mean ``opening_depth``, one per opening, like the
@@ -90,7 +90,7 @@ def _count(cover: float, length: float, mean_width: float) -> int:
 
 def _on_segments(pts: np.ndarray, seg: np.ndarray) -> np.ndarray:
     """bool (N,): which points (N, 2) lie within ``_FACE`` of segment ``seg`` [x0, y0, x1, y1]
-    with their projection on it (the test of :func:`opening_ranges`)."""
+    with their projection on it (the test of `opening_ranges()`)."""
     a, d = seg[:2], seg[2:4] - seg[:2]
     rel = pts - a
     s = rel @ d / float(d @ d)
@@ -109,7 +109,7 @@ def place_openings(
     the wall's face points lie on one.
 
     Each opening is centred on a face point drawn uniformly, along the wall's tangent there, and
-    the share is counted on the face points that the beam test of :func:`opening_ranges`
+    the share is counted on the face points that the beam test of `opening_ranges()`
     passes (overlaps count once, a segment that leaves a bent wall counts only where it meets
     it). So every stretch of wall is an opening with about the same probability, ``cover``,
     and the expected share of *beams* whose mapped end point is an opening is ``cover`` on any
@@ -151,7 +151,7 @@ def place_furniture(
     keep_out: float,
 ) -> np.ndarray:
     """(K, 4, 2) world corners of boxes standing with their backs against walls until ``cover``
-    of the wall's face points lie behind one (as :func:`place_openings` counts them), none
+    of the wall's face points lie behind one (as `place_openings()` counts them), none
     within ``keep_out`` metres of ``car_xy``, none overlapping, each in free space."""
     n_pts = len(walls.xy)
     if cover <= 0.0 or n_pts == 0:

@@ -1,12 +1,12 @@
 """The map's walls as pymunk segments: computed once per map, put into a car's space only near it.
 
 Every edge between a free cell and an occupied (or unknown) cell is a wall segment lying exactly on
-that cell edge; collinear neighbouring edges are merged (:func:`wall_segments`). A large map has
+that cell edge; collinear neighbouring edges are merged (`wall_segments()`). A large map has
 thousands of them (Stata basement: 8 912), and making a pymunk shape costs ~10 us of Python, so a
 space holding all of them took ~0.1 s per car to build (seconds for a vector env of 32 cars).
 
-:class:`WallTiles` (one per map, shared by every car: :func:`tiles_for`) buckets the segments into
-square tiles of :data:`TILE` metres. :class:`WallLoader` (one per car) keeps in the car's space only
+`WallTiles` (one per map, shared by every car: `tiles_for()`) buckets the segments into
+square tiles of `TILE` metres. `WallLoader` (one per car) keeps in the car's space only
 the segments of the block of tiles around the place pymunk is about to look at, and swaps the block
 when that place moves into another tile. Shapes are made the first time a car needs them and kept.
 
@@ -152,7 +152,7 @@ _CACHE: dict[int, tuple[weakref.ref, WallTiles]] = {}
 
 
 def tiles_for(occupancy_map: OccupancyMap) -> WallTiles:
-    """The :class:`WallTiles` of a map object, built on first use and shared while it lives."""
+    """The `WallTiles` of a map object, built on first use and shared while it lives."""
     hit = _CACHE.get(id(occupancy_map))
     if hit is not None and hit[0]() is occupancy_map:
         return hit[1]
@@ -167,7 +167,7 @@ class WallLoader:
 
     Args:
         space: the car's space; walls go onto its static body.
-        tiles: the map's :class:`WallTiles`.
+        tiles: the map's `WallTiles`.
     """
 
     def __init__(self, space: pymunk.Space, tiles: WallTiles) -> None:
@@ -224,7 +224,7 @@ class WallLoader:
 
     def add_missing(self, x: float, y: float, reach: float) -> list[int]:
         """Add the walls within ``reach`` m of (x, y) that the space lacks (for a query away from
-        the car); returns their indices for :meth:`remove`. The walls already in stay untouched."""
+        the car); returns their indices for `remove()`. The walls already in stay untouched."""
         block, ids = self._block_ids(x, y, reach)
         if self._holds(block):
             return []
@@ -233,7 +233,7 @@ class WallLoader:
         return extra
 
     def remove(self, ids: list[int]) -> None:
-        """Take walls added by :meth:`add_missing` out again."""
+        """Take walls added by `add_missing()` out again."""
         if ids:
             self.space.remove(*[self._loaded.pop(k) for k in ids])
 

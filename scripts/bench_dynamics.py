@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench dynamics`` (see :mod:`mcl.bench.dynamics`)."""
+"""Thin wrapper: ``racecar-sim bench dynamics`` (see [`mcl.bench.dynamics`][mcl.bench.dynamics])."""
 
 import sys
 

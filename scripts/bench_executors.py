@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench executors`` (see :mod:`mcl.bench.executors`)."""
+"""Thin wrapper: ``racecar-sim bench executors`` (see [`mcl.bench.executors`][mcl.bench.executors])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench live`` (see :mod:`mcl.bench.live`)."""
+"""Thin wrapper: ``racecar-sim bench live`` (see [`mcl.bench.live`][mcl.bench.live])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench mcl`` (see :mod:`mcl.bench.mcl`)."""
+"""Thin wrapper: ``racecar-sim bench mcl`` (see [`mcl.bench.mcl`][mcl.bench.mcl])."""
 
 import sys
 

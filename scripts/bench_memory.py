@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench memory`` (see :mod:`mcl.bench.memory`)."""
+"""Thin wrapper: ``racecar-sim bench memory`` (see [`mcl.bench.memory`][mcl.bench.memory])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench peers`` (see :mod:`mcl.bench.peers`)."""
+"""Thin wrapper: ``racecar-sim bench peers`` (see [`mcl.bench.peers`][mcl.bench.peers])."""
 
 import sys
 

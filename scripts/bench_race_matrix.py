@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench race-matrix`` (see :mod:`mcl.bench.race_matrix`)."""
+"""Thin wrapper: ``racecar-sim bench race-matrix`` (see [`mcl.bench.race_matrix`][mcl.bench.race_matrix])."""
 
 import sys
 

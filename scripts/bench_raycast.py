@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench raycast`` (see :mod:`mcl.bench.raycast`)."""
+"""Thin wrapper: ``racecar-sim bench raycast`` (see [`mcl.bench.raycast`][mcl.bench.raycast])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench replay`` (see :mod:`mcl.bench.replay`)."""
+"""Thin wrapper: ``racecar-sim bench replay`` (see [`mcl.bench.replay`][mcl.bench.replay])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench sensor_models`` (see :mod:`mcl.bench.sensor_models`)."""
+"""Thin wrapper: ``racecar-sim bench sensor_models`` (see [`mcl.bench.sensor_models`][mcl.bench.sensor_models])."""
 
 import sys
 

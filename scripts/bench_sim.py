@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench sim`` (see :mod:`mcl.bench.sim`)."""
+"""Thin wrapper: ``racecar-sim bench sim`` (see [`mcl.bench.sim`][mcl.bench.sim])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench soak`` (see :mod:`mcl.bench.soak`)."""
+"""Thin wrapper: ``racecar-sim bench soak`` (see [`mcl.bench.soak`][mcl.bench.soak])."""
 
 import sys
 

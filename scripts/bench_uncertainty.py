@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim bench uncertainty`` (see :mod:`mcl.bench.uncertainty`)."""
+"""Thin wrapper: ``racecar-sim bench uncertainty`` (see [`mcl.bench.uncertainty`][mcl.bench.uncertainty])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: `racecar-sim calibrate-noise` (see :mod:`mcl.cli.calibrate_noise`)."""
+"""Thin wrapper: `racecar-sim calibrate-noise` (see [`mcl.cli.calibrate_noise`][mcl.cli.calibrate_noise])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: `racecar-sim drive` (see :mod:`mcl.cli.drive`)."""
+"""Thin wrapper: `racecar-sim drive` (see [`mcl.cli.drive`][mcl.cli.drive])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: `racecar-sim experiment` (see :mod:`mcl.cli.experiment`)."""
+"""Thin wrapper: `racecar-sim experiment` (see [`mcl.cli.experiment`][mcl.cli.experiment])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: `racecar-sim fast-laps` (see :mod:`mcl.cli.fast_laps`)."""
+"""Thin wrapper: `racecar-sim fast-laps` (see [`mcl.cli.fast_laps`][mcl.cli.fast_laps])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: ``racecar-sim make-maps`` (see :mod:`racecar_sim.maps.draw`)."""
+"""Thin wrapper: ``racecar-sim make-maps`` (see [`racecar_sim.maps.draw`][racecar_sim.maps.draw])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: `racecar-sim opponents` (see :mod:`mcl.cli.opponents`)."""
+"""Thin wrapper: `racecar-sim opponents` (see [`mcl.cli.opponents`][mcl.cli.opponents])."""
 
 import sys
 

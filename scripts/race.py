@@ -1,4 +1,4 @@
-"""Thin wrapper: `racecar-sim race` (see :mod:`mcl.cli.race`)."""
+"""Thin wrapper: `racecar-sim race` (see [`mcl.cli.race`][mcl.cli.race])."""
 
 import sys
 

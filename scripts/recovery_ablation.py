@@ -1,4 +1,4 @@
-"""Thin wrapper: `racecar-sim recovery-ablation` (see :mod:`mcl.cli.recovery_ablation`)."""
+"""Thin wrapper: `racecar-sim recovery-ablation` (see [`mcl.cli.recovery_ablation`][mcl.cli.recovery_ablation])."""
 
 import sys
 

@@ -1,4 +1,4 @@
-"""Thin wrapper: `racecar-sim replay` (see :mod:`mcl.cli.replay`)."""
+"""Thin wrapper: `racecar-sim replay` (see [`mcl.cli.replay`][mcl.cli.replay])."""
 
 import sys
 

@@ -6,7 +6,7 @@ adds"): the two bags' reference poses on ``stata_basement.yaml`` and the wall fo
 
 Prints a Markdown table: per scene and route, the shares of mapped beams (off the car's body) in
 wide runs of long returns (openings) and of short returns (furniture, people), and the openings'
-mean excess beyond 0.15 m, by the judge of :mod:`mcl.calibration.judge`.
+mean excess beyond 0.15 m, by the judge of [`mcl.calibration.judge`][mcl.calibration.judge].
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Thin wrapper: `racecar-sim train-agent` (see :mod:`mcl.cli.train_agent`)."""
+"""Thin wrapper: `racecar-sim train-agent` (see [`mcl.cli.train_agent`][mcl.cli.train_agent])."""
 
 import sys
 

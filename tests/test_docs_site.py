@@ -34,3 +34,21 @@ def test_mkdocs_build_strict(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr[-3000:]
     assert (tmp_path / "site" / "index.html").is_file()
     assert (tmp_path / "site" / "api" / "mcl" / "index.html").is_file()
+    raw = re.compile(r":(?:class|func|meth|mod|data|attr|exc|obj):(?:`|<code>)")
+    pages = sorted((tmp_path / "site").rglob("*.html"))
+    assert len(pages) > 20
+    shown = [p.relative_to(tmp_path / "site").as_posix() for p in pages if raw.search(p.read_text("utf-8"))]
+    assert shown == [], f"pages that show a raw Sphinx role instead of a link: {shown}"
+
+
+def test_docstrings_use_mkdocstrings_cross_references_not_sphinx_roles() -> None:
+    """The API pages render [Name][module.Name]; a Sphinx role would show as raw text."""
+    raw = re.compile(r":(?:class|func|meth|mod|data|attr|exc|obj):`")
+    found = [
+        f"{path.relative_to(ROOT)}:{n}"
+        for folder in ("mcl", "racecar_sim", "scripts")
+        for path in sorted((ROOT / folder).rglob("*.py"))
+        for n, line in enumerate(path.read_text("utf-8").splitlines(), 1)
+        if raw.search(line)
+    ]
+    assert found == [], found

@@ -1,7 +1,7 @@
 """The lap task on the simulator's batched env, as a stable-baselines3 ``VecEnv`` (extra ``[rl]``).
 
-:class:`BatchedLapVecEnv` steps N cars with one :class:`racecar_sim.vector_env.RacecarVectorEnv`
-(all lidar scans of a step in one cast) and runs one :class:`~mcl.agents.lap_env.LapTask` per car
+`BatchedLapVecEnv` steps N cars with one [`racecar_sim.vector_env.RacecarVectorEnv`][racecar_sim.vector_env.RacecarVectorEnv]
+(all lidar scans of a step in one cast) and runs one [`LapTask`][mcl.agents.lap_env.LapTask] per car
 for the start poses, observations, rewards and laps, so car ``i`` sees what a ``LapTask`` over a
 single env sees for the same seed. It has no MCL: pose sources ``truth`` and ``none`` only (the
 filters of the estimate would each step on their own anyway). Episodes end as stable-baselines3
@@ -48,7 +48,7 @@ class BatchedLapVecEnv(VecEnv):
 
     # ------------------------------------------------------------------ VecEnv API
     def reset(self) -> np.ndarray:
-        """Reset every car (seeds from :meth:`seed`, then fresh draws)."""
+        """Reset every car (seeds from `seed()`, then fresh draws)."""
         seeds = list(self._seeds) if self._seeds else [None] * self.num_envs
         obs = np.stack([self._reset_car(i, seeds[i]) for i in range(self.num_envs)])
         self._reset_seeds()

@@ -1,11 +1,11 @@
 """Test a lap policy: laps, lap times, wall contact and progress, with MCL in the loop, and
 against opponents: car contacts and overtakes.
 
-A policy is any ``policy(obs) -> action`` on :class:`~mcl.agents.lap_env.LapTask` observations
-(e.g. :func:`mcl.agents.ppo.load_policy`). Test episodes start at the loop's start (in a race: the
+A policy is any ``policy(obs) -> action`` on [`LapTask`][mcl.agents.lap_env.LapTask] observations
+(e.g. [`mcl.agents.ppo.load_policy()`][mcl.agents.ppo.load_policy]). Test episodes start at the loop's start (in a race: the
 agent last on the grid behind the start line), never end at a contact (the car stays in contact
 and every such step is counted) and last ``seconds``. A race's counts are
-:class:`~mcl.agents.race_tally.RaceTally`'s.
+[`RaceTally`][mcl.agents.race_tally.RaceTally]'s.
 """
 
 from __future__ import annotations
@@ -224,8 +224,8 @@ def race_table(results: Sequence[EpisodeResult]) -> str:
 
 
 def write_results(results: Sequence[EpisodeResult], out_dir: str | os.PathLike[str]) -> list[Path]:
-    """eval.csv (one row per episode) and eval.md (:func:`summary_table` of the tests alone,
-    :func:`race_table` of those with opponents) in ``out_dir``."""
+    """eval.csv (one row per episode) and eval.md (`summary_table()` of the tests alone,
+    `race_table()` of those with opponents) in ``out_dir``."""
     out = Path(out_dir)
     claim_folder(out)
     csv_path, md_path = out / "eval.csv", out / "eval.md"

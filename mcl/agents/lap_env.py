@@ -1,7 +1,7 @@
 """The lap task: drive round the default map's loop from the scan and a pose (true or estimated).
 
-:class:`LapTask` wraps a ``RacecarSim-v0`` env, usually inside an
-:class:`mcl.LocalizationWrapper`, into the flat observation / reward an RL library expects:
+`LapTask` wraps a ``RacecarSim-v0`` env, usually inside an
+[`mcl.LocalizationWrapper`][mcl.LocalizationWrapper], into the flat observation / reward an RL library expects:
 
 * **observation** (float32 vector, every entry roughly in [-1, 1]): the scan min-pooled into
   ``scan_bins`` sectors (divided by the lidar's max range); from the *pose source* (``"truth"``:
@@ -56,12 +56,12 @@ _TURN_SCALE = 3.0  # rad/s: turn rate is divided by this
 
 @dataclass(frozen=True)
 class LapTaskConfig:
-    """Settings of the lap task and of the env stack :func:`make_lap_env` builds.
+    """Settings of the lap task and of the env stack `make_lap_env()` builds.
 
     Attributes:
-        map: bundled map name (one with a known loop start, see :func:`track_for_map`).
+        map: bundled map name (one with a known loop start, see `track_for_map()`).
         pose_source: ``"truth"``, ``"estimate"`` or ``"none"``: the pose the observation is
-            built from (none: a scan-only baseline, see :data:`POSE_SOURCES`).
+            built from (none: a scan-only baseline, see `POSE_SOURCES`).
         localize: put MCL in the loop (None: only when the pose source is the estimate).
         n_particles: particles of the filter.
         filter_beams: beams per particle of the sensor model.
@@ -73,11 +73,11 @@ class LapTaskConfig:
         episode_seconds: simulated seconds before the episode is truncated.
         start_s: metres along the loop of the start (None: uniform along the loop).
         start_lateral_sd, start_heading_sd: m and rad, the start's Gaussian noise.
-        env: extra :class:`racecar_sim.env.EnvConfig` settings as (name, value) pairs, e.g.
+        env: extra [`racecar_sim.env.EnvConfig`][racecar_sim.env.EnvConfig] settings as (name, value) pairs, e.g.
             ``(("car_model", "single_track"),)``.
         opponents: scripted cars racing the agent (0: the agent drives alone in
             ``RacecarSim-v0``; more: ``RacecarRace-v0`` on the map's centerline, the agent
-            starting last on the grid, :mod:`mcl.agents.race_task`).
+            starting last on the grid, [`mcl.agents.race_task`][mcl.agents.race_task]).
         opponent_driver: their driver (``"racing"``: knows the other cars, follows, passes and
             gives way; ``"pure_pursuit"`` on the centerline blind to them; ``"wall_follower"``).
         opponent_speeds: m/s, one per opponent (None: ``RacecarRace-v0``'s 2.0, 2.4, 2.8, ...).
@@ -172,14 +172,14 @@ class LapTask(gym.Wrapper):
     """The lap task on a ``RacecarSim-v0`` env (see the module docstring).
 
     Args:
-        env: the env, with a :class:`~mcl.wrapper.LocalizationWrapper` inside when the pose
+        env: the env, with a [`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] inside when the pose
             source is ``"estimate"``.
         config: the task.
         track: the loop (default: the wall follower's loop of ``config.map``).
     """
 
     pose_option = "pose"
-    """The reset option :meth:`start_pose`'s value goes into (a race takes ``"poses"``)."""
+    """The reset option `start_pose()`'s value goes into (a race takes ``"poses"``)."""
 
     def __init__(self, env: gym.Env, config: LapTaskConfig, track: Track | None = None) -> None:
         super().__init__(env)
@@ -339,8 +339,8 @@ def make_lap_env(
     render_mode: str | None = None,
     log_path: str | None = None,
 ) -> gym.Env:
-    """``RacecarEnv`` -> [``LocalizationWrapper``] -> :class:`LapTask` -> ``TimeLimit``: the car
-    alone (with opponents: :func:`mcl.agents.task_env.make_task_env`)."""
+    """``RacecarEnv`` -> [``LocalizationWrapper``] -> `LapTask` -> ``TimeLimit``: the car
+    alone (with opponents: [`mcl.agents.task_env.make_task_env()`][mcl.agents.task_env.make_task_env])."""
     config = config if config is not None else LapTaskConfig()
     if config.opponents:
         raise ValueError(

@@ -1,6 +1,6 @@
 """PPO on the lap task with stable-baselines3 (the optional extra ``[rl]``).
 
-:func:`train` writes into its output folder::
+`train()` writes into its output folder::
 
     config.json      the task and the PPO settings
     learning.csv     one row per finished training episode: timesteps, wall_s, return (m of
@@ -10,7 +10,7 @@
     train.json       timesteps done, wall seconds, steps per second
 
 Without MCL (pose sources ``truth`` and ``none``) and without opponents the cars are stepped by
-the simulator's batched env (:mod:`mcl.agents.batched`); with MCL or opponents by
+the simulator's batched env ([`mcl.agents.batched`][mcl.agents.batched]); with MCL or opponents by
 stable-baselines3's ``DummyVecEnv`` (a sync vector env of single lap envs, one filter or one race
 each). A list of tasks gives env ``i`` the task ``i % len(tasks)``, e.g. races against 1, 2 and 3
 opponents side by side. Torch and numba use one thread each.
@@ -74,7 +74,7 @@ class PPOSettings:
 
 @dataclass(frozen=True)
 class TrainReport:
-    """What :func:`train` did: timesteps, wall seconds and the files written."""
+    """What `train()` did: timesteps, wall seconds and the files written."""
 
     timesteps: int
     wall_s: float
@@ -107,7 +107,7 @@ def train(
     ``task``: one task, or a list: env ``i`` runs ``task[i % len(task)]`` (all must share the
     observation: any mix of opponents and car models, one pose source).
     ``batched``: step the cars in the simulator's batched env
-    (:class:`~mcl.agents.batched.BatchedLapVecEnv`; None: whenever there is one task and it runs
+    ([`BatchedLapVecEnv`][mcl.agents.batched.BatchedLapVecEnv]; None: whenever there is one task and it runs
     no MCL and no race), else in stable-baselines3's sync ``DummyVecEnv`` of single lap envs (the
     same observations).
     ``max_minutes``: stop after this many wall-clock minutes even before ``timesteps`` (a time

@@ -1,11 +1,11 @@
 """Count what a race agent did in an episode: overtakes, being overtaken, wall and car contacts.
 
 The counts are read from the race's per-step info of the agent's car (``RacecarRace-v0``'s car 0,
-:class:`racecar_sim.race.env.RaceEnv`'s keys), so any driver can be scored the same way:
+[`racecar_sim.race.env.RaceEnv`][racecar_sim.race.env.RaceEnv]'s keys), so any driver can be scored the same way:
 
 * **overtakes**: the sum over steps of the agent's *rank gains*, ``max(0, rank_before -
   rank_after)``. ``rank`` is the race order by distance along the centerline since the start line,
-  unwrapped (:mod:`racecar_sim.race.laps`), so passing a car ahead in race order is one overtake,
+  unwrapped (`racecar_sim.race.laps`), so passing a car ahead in race order is one overtake,
   lapping a car that is already behind in race order is none, and passing a car that stopped
   (crashed) counts like any other. **overtaken** is the same for rank losses. Their difference is
   the rank gained over the episode (``start_rank - rank``). Two changes in one step (the agent
@@ -26,7 +26,7 @@ __all__ = ["RaceTally"]
 
 @dataclass
 class RaceTally:
-    """The running counts of one episode (see the module doc); :meth:`begin` then :meth:`update`
+    """The running counts of one episode (see the module doc); `begin()` then `update()`
     once per step with the agent's info."""
 
     start_rank: int = 0

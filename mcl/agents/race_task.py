@@ -1,7 +1,7 @@
-"""The lap task against scripted opponents: :class:`~mcl.agents.lap_env.LapTask` on ``RacecarRace-v0``.
+"""The lap task against scripted opponents: [`LapTask`][mcl.agents.lap_env.LapTask] on ``RacecarRace-v0``.
 
 ``LapTaskConfig(opponents=K)`` puts the agent's car (car 0) in a
-:class:`racecar_sim.race.single.RacecarRaceEnv` with ``K`` scripted opponents (by default racing
+[`racecar_sim.race.single.RacecarRaceEnv`][racecar_sim.race.single.RacecarRaceEnv] with ``K`` scripted opponents (by default racing
 drivers that know the other cars; pure pursuit on the centerline blind to them, or the wall
 follower; each at its own speed). The task is the lap task's, on the
 race's track (the map's centerline), with these differences:
@@ -12,7 +12,7 @@ race's track (the map's centerline), with these differences:
   behind the start line when ``start_s`` is 0 (the tests), or behind a uniformly drawn point of
   the track when ``start_s`` is None (training: every part of the track, with the pack ahead).
   Drawn points keep the grid off the half-lap point, where the race order
-  wraps (:mod:`racecar_sim.race.laps`), and a point where the track has no room for the
+  wraps (`racecar_sim.race.laps`), and a point where the track has no room for the
   grid is drawn again.
 * **reward**: progress minus the penalty on a step with *any* contact, wall or car (and in
   training the episode ends there, as at a wall).
@@ -20,7 +20,7 @@ race's track (the map's centerline), with these differences:
   other cars' boxes), nowhere else.
 * **info**: ``lap["laps"]`` and ``lap["lap_times"]`` are the race's (a lap is a forward crossing
   of the start line, the first timed from the start), and ``race`` holds the episode's counts
-  (:class:`~mcl.agents.race_tally.RaceTally`: rank, overtakes, overtaken, wall and car contacts).
+  ([`RaceTally`][mcl.agents.race_tally.RaceTally]: rank, overtakes, overtaken, wall and car contacts).
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ _GRID_DRAWS = 50  # random grid places tried before giving up
 
 
 class RaceLapTask(LapTask):
-    """The lap task on a :class:`RacecarRaceEnv` (see the module doc).
+    """The lap task on a `RacecarRaceEnv` (see the module doc).
 
     Raises:
         ValueError: the race has no track (a map with no known loop and no track given).
@@ -103,7 +103,7 @@ class RaceLapTask(LapTask):
 
 
 def make_race_lap_env(config: LapTaskConfig, *, render_mode: str | None = None) -> gym.Env:
-    """``RacecarRace-v0`` (``config.opponents`` scripted cars) -> :class:`RaceLapTask` ->
+    """``RacecarRace-v0`` (``config.opponents`` scripted cars) -> `RaceLapTask` ->
     ``TimeLimit``."""
     if config.opponents < 1:
         raise ValueError(

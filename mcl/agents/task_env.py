@@ -1,8 +1,8 @@
 """One factory for every lap task: alone on ``RacecarSim-v0`` or in a race on ``RacecarRace-v0``.
 
-:func:`make_task_env` is what training and tests build their envs with: the config's
-``opponents`` pick :func:`mcl.agents.race_task.make_race_lap_env` (one or more) or
-:func:`mcl.agents.lap_env.make_lap_env` (none).
+`make_task_env()` is what training and tests build their envs with: the config's
+``opponents`` pick [`mcl.agents.race_task.make_race_lap_env()`][mcl.agents.race_task.make_race_lap_env] (one or more) or
+[`mcl.agents.lap_env.make_lap_env()`][mcl.agents.lap_env.make_lap_env] (none).
 """
 
 from __future__ import annotations

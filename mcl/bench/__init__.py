@@ -1,7 +1,7 @@
 """Benchmarks behind ``racecar-sim bench`` and ``scripts/bench_*.py``: rates and ratios measured in one run.
 
 Each module has ``main(argv)``. The real Stata basement map and bags are read from ``../shared``
-(:func:`shared_dir`): beside the source checkout the package runs from, or, for an installed
+(`shared_dir()`): beside the source checkout the package runs from, or, for an installed
 package, beside the current working directory.
 """
 
@@ -14,7 +14,7 @@ _bundled = importlib.import_module(
 
 
 def checkout_maps_dir() -> Path | None:
-    """:func:`racecar_sim.maps.bundled.checkout_maps_dir`: the checkout's maps/, None if installed."""
+    """[`racecar_sim.maps.bundled.checkout_maps_dir()`][racecar_sim.maps.bundled.checkout_maps_dir]: the checkout's maps/, None if installed."""
     return _bundled.checkout_maps_dir()
 
 
@@ -23,7 +23,7 @@ __all__ = ["SHARED", "STATA", "missing_map", "shared_dir", "stata_map"]
 
 def shared_dir() -> Path:
     """``../shared``: the folder beside the source checkout this package runs from (found by
-    :func:`racecar_sim.maps.bundled.checkout_maps_dir`); for a package installed from a wheel,
+    [`racecar_sim.maps.bundled.checkout_maps_dir()`][racecar_sim.maps.bundled.checkout_maps_dir]); for a package installed from a wheel,
     beside the current working directory (run the benchmarks from a folder beside ``shared``'s)."""
     maps = checkout_maps_dir()
     top = maps.parent if maps is not None else Path.cwd()
@@ -31,7 +31,7 @@ def shared_dir() -> Path:
 
 
 def stata_map() -> Path:
-    """The MIT Stata basement map YAML in :func:`shared_dir` (it may be absent)."""
+    """The MIT Stata basement map YAML in `shared_dir()` (it may be absent)."""
     return shared_dir() / "maps" / "stata_basement.yaml"
 
 
@@ -45,6 +45,6 @@ def missing_map(flag: str, path: Path | str) -> str:
 
 
 SHARED = shared_dir()
-"""``../shared`` when the benchmarks were imported (see :func:`shared_dir`)."""
+"""``../shared`` when the benchmarks were imported (see `shared_dir()`)."""
 STATA = stata_map()
 """The MIT Stata basement map, when ``../shared`` is present."""

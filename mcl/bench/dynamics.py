@@ -4,8 +4,8 @@ Four parts (``--only`` picks one), each printing a Markdown table with its workl
 
 * ``skidpad``: steady circles at fixed steer (0.2 and 0.35 rad) for 1-7 m/s, 10 s from rest at
   dt 0.01 s (5 ms substeps): radius, yaw rate, lateral acceleration and slip angle of the centre
-  of gravity, ours (``single_track``, :meth:`CarParams.f1tenth`) against f1tenth_gym's model
-  (:mod:`mcl.bench.peer_dynamics`, its own venv), and the first speed where each car's radius
+  of gravity, ours (``single_track``, [`CarParams.f1tenth()`][CarParams.f1tenth]) against f1tenth_gym's model
+  ([`mcl.bench.peer_dynamics`][mcl.bench.peer_dynamics], its own venv), and the first speed where each car's radius
   departs by over 5 % from the kinematic one (``sqrt((L / tan(steer))^2 + lr^2)``).
 * ``openloop``: the same command sequences (steps and sines of steer and speed, up to 7 m/s, 5 s
   at dt 0.01 s) through both models: the state differences after 5 s and the largest lateral
@@ -13,7 +13,7 @@ Four parts (``--only`` picks one), each printing a Markdown table with its workl
 * ``stepsize``: the open-loop manoeuvres within the grip at substeps of 10, 5, 2.5 and 1.25 ms,
   each against the same at 0.156 ms: the largest differences in position, heading and slip angle.
 * ``speed``: steps per second of our single env and vector env (``--num-envs`` cars) with each
-  car model, on f1tenth_gym's workload (:data:`mcl.bench.peer_f1tenth.WORKLOAD`), rounds
+  car model, on f1tenth_gym's workload ([`mcl.bench.peer_f1tenth.WORKLOAD`][mcl.bench.peer_f1tenth.WORKLOAD]), rounds
   interleaved model by model; the cost is the median of the per-round ratios of time per step.
 
 Without ``--f1tenth-python`` / ``--f1tenth-path`` the skidpad and open-loop parts show ours only.
@@ -171,7 +171,7 @@ STEP_SIZES = (0.01, 0.005, 0.0025, 0.00125)
 
 def step_size_error(car: CarParams) -> dict[str, dict[float, tuple[float, float, float]]]:
     """Print the step-size table: the open-loop manoeuvres within the grip at each substep of
-    :data:`STEP_SIZES` against the same at a substep of 1/8 of the smallest (dt 0.02 s, 5 s);
+    `STEP_SIZES` against the same at a substep of 1/8 of the smallest (dt 0.02 s, 5 s);
     largest differences over the run in position (m), heading and slip angle (rad)."""
     reference_h = STEP_SIZES[-1] / 8
     print(f"step size: single_track, F1TENTH parameters, 5 s at dt 0.02 s; the largest difference "

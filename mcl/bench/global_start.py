@@ -2,17 +2,17 @@
 
 ``racecar-sim bench peers --only spread`` (after the spread clouds; ``--global-rounds 0`` skips
 it). A filter that starts without a pose spreads the replay's global start over the free floor
-(:func:`mcl.experiments.replay.unknown_start_localization`: 300 particles per m², at most 300 000;
+([`mcl.experiments.replay.unknown_start_localization()`][mcl.experiments.replay.unknown_start_localization]: 300 particles per m², at most 300 000;
 236 447 on the Stata basement) and weighs them all at the first scan; then the search keeps 5 000 to
 20 000 while it converges. Two figures, each on one numba thread, ours with the Z-order sort of the
 ``lut`` cast (``SensorModelParams.lut_sort_extent``, 10 m) and without it (``inf``), the two
 swapping places every round:
 
-* :func:`first_update`: the MCL update (predict, cast and score, weigh, resample, estimate) of the
+* `first_update()`: the MCL update (predict, cast and score, weigh, resample, estimate) of the
   global cloud, interleaved round by round with range_libc's GLT update of the same cloud when
   range_libc is installed;
-* :func:`bag_replays`: the wall time of a whole global-start replay of each bag
-  (:func:`mcl.experiments.replay.replay`, the command ``racecar-sim replay``), after a warm-up
+* `bag_replays()`: the wall time of a whole global-start replay of each bag
+  ([`mcl.experiments.replay.replay()`][mcl.experiments.replay.replay], the command ``racecar-sim replay``), after a warm-up
   replay; the sorted and unsorted replays must give the same trajectory (checked, printed).
 """
 
@@ -45,7 +45,7 @@ def _ratio(num: list[float], den: list[float]) -> str:
 
 def global_cloud(grid: OccupancyMap, seed: int) -> np.ndarray:
     """(N, 3) world poses: the replay filter's global start on ``grid``
-    (:meth:`~mcl.particle_filter.ParticleFilter.initialize_global` at its density and cap)."""
+    ([`initialize_global()`][mcl.particle_filter.ParticleFilter.initialize_global] at its density and cap)."""
     from mcl.experiments.replay import unknown_start_localization
     from mcl.particle_filter import ParticleFilter
 
@@ -58,7 +58,7 @@ def global_cloud(grid: OccupancyMap, seed: int) -> np.ndarray:
 def first_update(
     grid: OccupancyMap, n_beams: int = 100, rounds: int = 3, seed: int = 0, out=print
 ) -> dict[str, float]:
-    """Wall seconds of the first update of a global start (:func:`global_cloud`), ours sorted and
+    """Wall seconds of the first update of a global start (`global_cloud()`), ours sorted and
     unsorted on one thread and the GLT update, interleaved; medians (``sorted``, ``unsorted``,
     ``glt``) and the particle count ``n``."""
     import numba

@@ -7,7 +7,7 @@ project and never imported by it: it lives in a venv of its own (``$AMCL_PYTHON`
 ``out/peers/amcl-venv``, made on first use by
 [amcl_python][mcl.bench.peer_amcl.amcl_python]) and runs as a subprocess,
 [AmclPeer][mcl.bench.peer_amcl.AmclPeer], that reads our drives converted to its frames by
-[mcl.bench.amcl_inputs][] (.npz files) and writes its estimates back. :data:`PEER_SCRIPT` only
+[mcl.bench.amcl_inputs][] (.npz files) and writes its estimates back. `PEER_SCRIPT` only
 calls the bindings' public API.
 
 Parameters: [AmclParams][mcl.bench.peer_amcl.AmclParams] defaults are nav2's

@@ -1,7 +1,7 @@
 """f1tenth_gym's single-track model driven on command sequences, in its own venv (subprocess).
 
 f1tenth_gym (branch ``dev-dynamics``, not on PyPI, needs ``gymnasium==0.29.1``) runs as a
-subprocess of the peer's Python, as in :mod:`mcl.bench.peer_f1tenth`. :data:`PEER_SCRIPT` calls
+subprocess of the peer's Python, as in [`mcl.bench.peer_f1tenth`][mcl.bench.peer_f1tenth]. `PEER_SCRIPT` calls
 only its public pieces: ``F110Env.f1tenth_vehicle_params()`` (its default parameters),
 ``vehicle_dynamics_st`` (its CommonRoad single-track model) and ``RK4Integrator`` (its default
 integrator). None of its code is copied here.
@@ -61,7 +61,7 @@ for line in sys.stdin:
 
 
 class PeerDynamics(PeerProcess):
-    """The f1tenth_gym subprocess of :data:`PEER_SCRIPT` (``python``: its venv's interpreter,
+    """The f1tenth_gym subprocess of `PEER_SCRIPT` (``python``: its venv's interpreter,
     ``path``: its checkout)."""
 
     def __init__(self, python: str, path: str) -> None:

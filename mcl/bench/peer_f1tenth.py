@@ -5,13 +5,13 @@ it runs in its own virtual environment, as a subprocess of this benchmark: get i
 repository (``f1tenth/f1tenth_gym``, branch ``dev-dynamics``), make a venv with
 ``pip install gymnasium==0.29.1 /path/to/f1tenth_gym``, and pass ``--f1tenth-python
 /path/to/venv/bin/python --f1tenth-path /path/to/f1tenth_gym`` (the checkout is put first on the
-subprocess's ``sys.path``). None of its code is copied here; :data:`PEER_SCRIPT` only calls its
+subprocess's ``sys.path``). None of its code is copied here; `PEER_SCRIPT` only calls its
 Gymnasium API.
 
-Workload (:data:`WORKLOAD`), the same for both simulators: one car, a 1080-beam lidar over 4.7 rad
+Workload (`WORKLOAD`), the same for both simulators: one car, a 1080-beam lidar over 4.7 rad
 out to 30 m with a fresh scan every step, dt = 0.01 s, an open-loop slalom at 1 m/s (steering
 ``0.3 cos(pi t)`` rad), episodes of ``--sim-steps`` steps from the same start pose on the same map
-(:func:`start_pose` picks a pose on a long straight corridor; only ``env.step`` is timed, resets
+(`start_pose()` picks a pose on a long straight corridor; only ``env.step`` is timed, resets
 are not). f1tenth_gym reads the map as a converted copy (grayscale PNG and the YAML keys it knows)
 in a temporary folder. Its defaults otherwise: single-track model, RK4, Gaussian range noise of
 0.01 m; ours: the pymunk car with the four-part beam noise and odometry noise.
@@ -152,7 +152,7 @@ for line in sys.stdin:
 
 
 class _Peer(PeerProcess):
-    """The f1tenth_gym subprocess (see :data:`PEER_SCRIPT`)."""
+    """The f1tenth_gym subprocess (see `PEER_SCRIPT`)."""
 
     def __init__(
         self, python: str, path: str, map_yaml: Path, pose: np.ndarray, script: str = PEER_SCRIPT

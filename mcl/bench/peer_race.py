@@ -1,12 +1,12 @@
 """Races against f1tenth_gym's multi-agent env: agent-steps per second with every car scanning.
 
-Workload (:data:`WORKLOAD`), the same for both simulators: ``num_agents`` cars one behind the
-other on the longest straight of the map (:func:`column_start`), ``--race-spacing`` metres between
+Workload (`WORKLOAD`), the same for both simulators: ``num_agents`` cars one behind the
+other on the longest straight of the map (`column_start()`), ``--race-spacing`` metres between
 rear axles, every car a 1080-beam lidar over 4.7 rad out to 30 m with a fresh scan every step
 (each car's scan sees the others), dt 0.01 s, all cars on the same open-loop slalom at 1 m/s
-(:func:`~mcl.bench.peer_f1tenth.slalom`), so they follow each other without crashing (checked:
+([`slalom()`][mcl.bench.peer_f1tenth.slalom]), so they follow each other without crashing (checked:
 collisions are reported). Only the step is timed. f1tenth_gym (branch dev-dynamics) runs in its
-own venv as a subprocess (:mod:`mcl.bench.peer_f1tenth`), our :class:`racecar_sim.RaceEnv` in
+own venv as a subprocess ([`mcl.bench.peer_f1tenth`][mcl.bench.peer_f1tenth]), our [`racecar_sim.RaceEnv`][racecar_sim.RaceEnv] in
 this process, its scans cast on ``--race-workers`` threads (default 1); the two are interleaved size by size, round by round,
 and the report gives medians of agent-steps per second and the median of the per-round ratios.
 A last row times our race alone at ``--race-max-cars`` cars (beyond what f1tenth_gym is run at).
@@ -129,7 +129,7 @@ def _run_ours(env, steps: int, poses: np.ndarray, seed: int) -> dict[str, Any]:
 
 
 class _RacePeer:
-    """The f1tenth_gym subprocess of :data:`RACE_PEER_SCRIPT`."""
+    """The f1tenth_gym subprocess of `RACE_PEER_SCRIPT`."""
 
     def __init__(self, python: str, path: str, map_yaml: Path) -> None:
         self._peer = _Peer(python, path, map_yaml, np.zeros(3), script=RACE_PEER_SCRIPT)

@@ -2,15 +2,15 @@
 
 range_libc (Walsh & Karaman, the MIT RSS particle filter's caster) is an *optional* peer: it is
 imported only here, only when installed (``pip install "cython<3" setuptools wheel`` then
-``pip install --no-build-isolation pyrangelibc-danieldugas``); :func:`available` says whether it is.
+``pip install --no-build-isolation pyrangelibc-danieldugas``); `available()` says whether it is.
 None of its code is copied here; this module calls its Python API.
 
 Frames. range_libc's ``PyOMap(array)`` reads ``array[y, x]`` and casts in that array's pixel frame:
 ``x`` along columns, ``y`` along rows, heading 0 = +x, pi/2 = +y, ranges in pixels. We hand it the
 occupancy grid with row 0 at the *bottom* (the map frame's v axis up), so a world pose becomes
 ``(u / res, v / res, theta - yaw)`` with ``(u, v)`` the map-frame metres of
-:meth:`~racecar_sim.maps.OccupancyMap.world_to_map` (the Stata basement's origin yaw 3.14 rotates
-the heading, the grid stays as is). :func:`accuracy` checks this against the exact caster.
+[`world_to_map()`][racecar_sim.maps.OccupancyMap.world_to_map] (the Stata basement's origin yaw 3.14 rotates
+the heading, the grid stays as is). `accuracy()` checks this against the exact caster.
 
 The PyPI build (``pyrangelibc-danieldugas`` 0.0.2) compiles range_libc without its ROS helpers:
 ``calc_range_repeat_angles`` and ``eval_sensor_model`` are empty (they leave their output arrays
@@ -57,7 +57,7 @@ STAGES = ("predict", "cast", "weigh", "resample", "estimate")
 
 _ROUND_PAUSE_S = 0.03
 """Seconds of pause after each round of timed updates, as between a lidar's scans (see
-:func:`compare`)."""
+`compare()`)."""
 
 
 def available() -> bool:
@@ -116,7 +116,7 @@ def accuracy(
     """|range_libc range - exact range| (N, K) metres for world ``poses`` and car-frame ``angles``.
 
     ``method`` is a built range_libc caster (``PyGiantLUTCast``, ``PyRayMarching``, ...);
-    ``exact_caster`` a :class:`racecar_sim.raycast.RayCaster` with method ``"exact"`` whose
+    ``exact_caster`` a [`racecar_sim.raycast.RayCaster`][racecar_sim.raycast.RayCaster] with method ``"exact"`` whose
     ``max_range`` equals the range_libc caster's max range times the resolution.
     """
     px = pixel_poses(grid, poses)
@@ -130,7 +130,7 @@ def accuracy(
 class GltUpdate:
     """A kctess5-style particle filter update on range_libc's GLT, one thread.
 
-    Stages (seconds each, returned by :meth:`step`): ``predict`` (odometry composed with Gaussian
+    Stages (seconds each, returned by `step()`): ``predict`` (odometry composed with Gaussian
     noise in numpy), ``cast`` (queries in numpy + ``calc_range_many``), ``weigh`` (the sensor table
     as range_libc evaluates it, ``** squash``, normalised), ``resample`` (``Generator.choice``, the
     lab's multinomial), ``estimate`` (weighted mean pose, kctess5's ``expected_pose``).
@@ -245,7 +245,7 @@ def compare(
 
     Prints (through ``out``) the workload, build time and memory of both tables, the p99 error of
     both casters against our exact caster, and the median ms per stage with the ratios; returns the
-    headline numbers. Ours: :class:`mcl.ParticleFilter` with the ``lut`` caster (cast and score in
+    headline numbers. Ours: [`mcl.ParticleFilter`][mcl.ParticleFilter] with the ``lut`` caster (cast and score in
     one pass), resampling every update (the lab's policy, like the peer), on ``threads`` numba
     threads; the peer on its one thread.
     """

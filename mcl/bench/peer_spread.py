@@ -2,10 +2,10 @@
 
 ``racecar-sim bench peers --only spread``. A particle filter searching for its pose weighs clouds of
 5 000-20 000 particles uniform over the free space, where every particle reads the tables
-somewhere else; the tracking workload (:func:`mcl.bench.peer_rangelibc.compare`) has them within
+somewhere else; the tracking workload ([`mcl.bench.peer_rangelibc.compare()`][mcl.bench.peer_rangelibc.compare]) has them within
 half a metre of the car. Here, for each cloud (uniform over free space at each size, and a tracking
 cloud N(truth, 0.5 m, 0.5 m, 0.2 rad) for the other regime in the same run), one round times in
-turn: range_libc's GLT update (:class:`~mcl.bench.peer_rangelibc.GltUpdate`, one thread), ours on
+turn: range_libc's GLT update ([`GltUpdate`][mcl.bench.peer_rangelibc.GltUpdate], one thread), ours on
 each thread count, and ours with the Z-order sort of the cast turned off
 (``SensorModelParams.lut_sort_extent = inf``, the caster before the sort). Every update starts from the same
 cloud (a filter that resamples would otherwise collapse it after one scan); the sorted and
@@ -33,7 +33,7 @@ TRACKING = (0.5, 0.5, 0.2)
 
 SPREAD = "spread"
 CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
-"""What :func:`compare_spread` can time an update with."""
+"""What `compare_spread()` can time an update with."""
 _PAUSE_S = 0.03  # after each round, as between a lidar's scans
 
 
@@ -41,7 +41,7 @@ def clouds(
     grid: OccupancyMap, sizes: tuple[int, ...], truth: np.ndarray, rng: np.random.Generator
 ) -> dict[str, np.ndarray]:
     """The workload's clouds (N, 3) world poses: ``spread N`` uniform over free space for each of
-    ``sizes``, and ``tracking N`` (N = the first size) around ``truth`` (:data:`TRACKING`)."""
+    ``sizes``, and ``tracking N`` (N = the first size) around ``truth`` (`TRACKING`)."""
     out = {f"{SPREAD} {n}": grid.sample_free_poses(rng, n, clearance=0.0) for n in sizes}
     out[f"tracking {sizes[0]}"] = truth + rng.normal(0.0, TRACKING, size=(sizes[0], 3))
     return out
@@ -49,7 +49,7 @@ def clouds(
 
 def glt_inputs(grid: OccupancyMap, sm, scan: np.ndarray, seed: int):
     """``(peer, idx, angles, odometry)``: range_libc's GLT update for the beam model of ``sm``
-    (a :class:`~mcl.sensor_model.SensorModel`; None when range_libc is not installed), the
+    (a [`SensorModel`][mcl.sensor_model.SensorModel]; None when range_libc is not installed), the
     indexes of the scan's beams it uses and their car-frame angles (radians), and the odometry of
     one update (car frame, metres, radians)."""
     from mcl.bench import peer_rangelibc
@@ -89,7 +89,7 @@ def compare_spread(
     """Ours against the GLT update on spread and tracking clouds, interleaved round by round.
 
     ``clock``: ``"wall"`` (elapsed seconds) or ``"cpu"`` (the process's CPU seconds,
-    :func:`time.process_time`: on a shared machine it leaves out the time spent waiting for a
+    [`time.process_time()`][time.process_time]: on a shared machine it leaves out the time spent waiting for a
     core; on two threads it is the sum of both threads' time, not the latency).
 
     Returns, per cloud name, per variant (``glt``, ``ours/T``, ``unsorted/T``): ``ms`` (median

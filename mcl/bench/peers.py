@@ -1,34 +1,34 @@
 """Benchmarks against the real peers, measured in the same run: ``racecar-sim bench peers``.
 
-* range_libc (:mod:`mcl.bench.peer_rangelibc`): our full MCL update against a kctess5-style update
+* range_libc ([`mcl.bench.peer_rangelibc`][mcl.bench.peer_rangelibc]): our full MCL update against a kctess5-style update
   on range_libc's giant lookup table, Stata basement, 4 000 particles x 100 beams by default;
   skipped with a message when ``range_libc`` is not importable.
 
-* spread (:mod:`mcl.bench.peer_spread`): the same update on clouds spread uniformly over the free
+* spread ([`mcl.bench.peer_spread`][mcl.bench.peer_spread]): the same update on clouds spread uniformly over the free
   space (global localization; ``--spread-particles``, 4 000 and 10 000 by default) and on a
   tracking cloud, interleaved with the GLT update round by round (``--spread-rounds``); then a
   global start's first update (236 k particles on Stata) and whole global-start replays of the
-  shared bags, with the Z-order sort and without (:mod:`mcl.bench.global_start`,
+  shared bags, with the Z-order sort and without ([`mcl.bench.global_start`][mcl.bench.global_start],
   ``--global-rounds``, 0 skips them).
 
-* races (:mod:`mcl.bench.peer_race`): agent-steps per second of ``--race-cars`` cars one behind
+* races ([`mcl.bench.peer_race`][mcl.bench.peer_race]): agent-steps per second of ``--race-cars`` cars one behind
   the other, every car scanning every step, against f1tenth_gym's multi-agent env, and our race
   alone at ``--race-max-cars`` cars.
 
-* f1tenth_gym (:mod:`mcl.bench.peer_f1tenth`): simulator steps per second on f1tenth_gym's own
+* f1tenth_gym ([`mcl.bench.peer_f1tenth`][mcl.bench.peer_f1tenth]): simulator steps per second on f1tenth_gym's own
   workload (one car, 1080 beams over 4.7 rad, 30 m, a scan every step, dt 0.01 s, slalom at
   1 m/s), our single env and our vector env of ``--num-envs`` cars interleaved with it round by
   round; f1tenth_gym runs in its own venv (``--f1tenth-python``, ``--f1tenth-path``), skipped
   with a message when those are not given.
 
-* amcl (:mod:`mcl.bench.amcl_bench`): localization error of our filter against nav2's amcl
+* amcl ([`mcl.bench.amcl_bench`][mcl.bench.amcl_bench]): localization error of our filter against nav2's amcl
   (PyPI ``amcl``, GPL-3: its own venv, ``--amcl-python`` / ``$AMCL_PYTHON`` or made in
   ``out/peers/amcl-venv`` on first use, run as a subprocess) on the same recorded 60 s drives,
   ``--seeds`` seeds in the honest world (cluttered and clean scenes) and the ideal one; tables in
   ``--out``; skipped with a message when the venv cannot be made.
 
-Other peers add their part as a function ``part(args) -> int`` in :data:`PARTS` and their options
-in :func:`add_arguments`. Every part prints its workload (particles, beams, range, threads) and
+Other peers add their part as a function ``part(args) -> int`` in `PARTS` and their options
+in `add_arguments()`. Every part prints its workload (particles, beams, range, threads) and
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
@@ -154,7 +154,7 @@ def spread_part(args: argparse.Namespace) -> int:
 
 def global_part(args: argparse.Namespace) -> None:
     """A global start's first update (236 k particles on Stata) against the GLT, and whole
-    global-start replays of the shared bags (:mod:`mcl.bench.global_start`)."""
+    global-start replays of the shared bags ([`mcl.bench.global_start`][mcl.bench.global_start])."""
     from mcl.bench import global_start, shared_dir
     from racecar_sim.maps import load_map
 
@@ -265,7 +265,7 @@ PARTS: list[Callable[[argparse.Namespace], int]] = [
     race_part,
     amcl_part,
 ]
-"""The peer comparisons run by :func:`main`, in order."""
+"""The peer comparisons run by `main()`, in order."""
 
 
 def main(argv: list[str] | None = None) -> int:

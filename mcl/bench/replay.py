@@ -1,7 +1,7 @@
 """Benchmark the replay of real bags: is it faster than real time on one core?
 
 For each bag (default: the two Stata basement recordings in ``../shared/bags``) and each seed, the
-whole replay (:func:`mcl.experiments.replay.replay`: global start, the adaptive filter, the
+whole replay ([`mcl.experiments.replay.replay()`][mcl.experiments.replay.replay]: global start, the adaptive filter, the
 uncertainty report and ``scan_fit`` after every scan) runs on one numba thread after a warm-up
 replay (kernels compiled, lookup table built). Reported per bag, as medians over the seeds: wall
 and CPU seconds, the real-time factor (seconds of recording per second of wall / CPU time; > 1 is

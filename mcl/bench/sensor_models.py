@@ -1,7 +1,7 @@
 """Accuracy of the two sensor models: the beam model (lut, 100 beams) against the likelihood field
 (every beam).
 
-* In simulation: same drives, same seeds (:func:`mcl.experiments.runs.run_one`, MCL in the loop),
+* In simulation: same drives, same seeds ([`mcl.experiments.runs.run_one()`][mcl.experiments.runs.run_one], MCL in the loop),
   position and heading error per run.
 * On the real bags in ``../shared/bags`` (when present, ``--no-bags`` to skip): the replay's global
   filter finds the start; both models then track from its pose one second after it first fits the

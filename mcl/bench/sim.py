@@ -136,7 +136,7 @@ def instrument(env: gym.Env) -> dict[str, Timer]:
 
 
 def use_numpy_lidar(env: gym.Env) -> None:
-    """Replace the env lidar's exact numba cast by :class:`NumpyCaster` (same mount, same beams)."""
+    """Replace the env lidar's exact numba cast by `NumpyCaster` (same mount, same beams)."""
     lidar = env.unwrapped.lidar
     caster = NumpyCaster(lidar.map, lidar.params.max_range)
     lidar.measure = lambda pose, rng: lidar.add_noise(
@@ -149,7 +149,7 @@ def timed_runs(env: gym.Env, runs: int, steps: int, warmup: int, seed: int = 0) 
 
     Returns ``steps_per_s`` (wall clock), ``cpu_steps_per_s`` (this process's CPU time, which
     other programs on the machine do not inflate), ``us_per_step`` (CPU), ``driver_us`` (CPU per
-    step), ``scans_per_step``, and each part of :data:`PARTS` plus ``rest`` in CPU microseconds
+    step), ``scans_per_step``, and each part of `PARTS` plus ``rest`` in CPU microseconds
     per step.
     """
     timers = instrument(env)

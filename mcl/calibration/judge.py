@@ -1,10 +1,10 @@
 """One judge for real and simulated scans: residual fractions against exact casts from poses
 refined by a robust scan match (not the filter's beam model).
 
-Each scan's lidar pose is refined by :meth:`ScanMatcher.refine` (pattern search on a
+Each scan's lidar pose is refined by [`ScanMatcher.refine()`][ScanMatcher.refine] (pattern search on a
 Geman-McClure loss, 5 cm) from a starting pose: the tracked reference pose for a real scan, the
 true pose for a simulated one. The scan is then compared with the exact cast from that pose,
-beam by beam: pass the pair to :func:`~mcl.calibration.scan_stats.residual_fractions`. A real sweep is de-skewed
+beam by beam: pass the pair to [`residual_fractions()`][mcl.calibration.scan_stats.residual_fractions]. A real sweep is de-skewed
 with the odometry first, so that its beams and the cast share the pose's time; a simulated scan
 has no skew.
 """

@@ -2,7 +2,7 @@
 odometry noise -> the settings of a simulator noise profile.
 
 ``scripts/calibrate_noise.py`` (``racecar-sim calibrate-noise``) is the command line over
-:func:`calibrate` and :func:`profile_document`.
+`calibrate()` and `profile_document()`.
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ class Calibration:
         failures: run lengths, drop-outs by range, long excess, mixed pixels, over every beam
             with a mapped surface (for the record).
         sensor: the same over the beams that show the sensor only
-            (:func:`mcl.calibration.room_split.sensor_beams`): what the profile simulates.
+            ([`mcl.calibration.room_split.sensor_beams()`][mcl.calibration.room_split.sensor_beams]): what the profile simulates.
         hit_corr: correlation of neighbouring sensor beams' hit errors.
         noreturns: failure statistics over every mapped beam off the body: the no-returns by
             range (a drop-out is the sensor's wherever the beam goes; an opening's or a box's

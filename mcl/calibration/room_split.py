@@ -10,7 +10,7 @@ to a few beams) are the sensor's own (mixed pixels, speckle), and are kept in it
 
 The wide runs are the *room*: long ones are openings in the mapped walls (glass, open doors,
 things moved since the map was drawn), short ones are furniture and people. Their shares and
-sizes describe a scene (:mod:`racecar_sim.scenes`), not the sensor.
+sizes describe a scene (`racecar_sim.scenes`), not the sensor.
 """
 
 from __future__ import annotations
@@ -139,7 +139,7 @@ class RoomStats:
         opening_excess: metres, mean range beyond the expected one plus 0.15 m of those returns.
         clutter: share in wide runs of short returns (furniture, people).
         clutter_ratio: median measured / expected range of those returns.
-        sensor: share of the mapped beams that show the sensor (:func:`sensor_beams`).
+        sensor: share of the mapped beams that show the sensor (`sensor_beams()`).
     """
 
     openings: float
@@ -154,7 +154,7 @@ class RoomStats:
 
 
 def room_stats(z: np.ndarray, z_star: np.ndarray, spacing: float, max_range: float) -> RoomStats:
-    """:class:`RoomStats` of scans ``z`` (S, B) against expected ``z_star`` (S, B), metres."""
+    """`RoomStats` of scans ``z`` (S, B) against expected ``z_star`` (S, B), metres."""
     mapped, valid, res = _kinds(z, z_star, max_range)
     with np.errstate(invalid="ignore"):
         wl = wide_runs(valid & (res > _TOL), z_star, spacing, ROOM_WIDTH)

@@ -3,7 +3,7 @@ matching against exact ray casts.
 
 Without ground truth, a real scan's "true" pose is taken as the lidar pose where the scan agrees
 best with the map: a robust (Geman-McClure, scale ``scale`` metres) sum over the valid beams of
-``measured - cast`` range residuals, casts exact (:class:`~racecar_sim.raycast.RayCaster`
+``measured - cast`` range residuals, casts exact ([`RayCaster`][racecar_sim.raycast.RayCaster]
 ``"exact"``). The global search scores poses on a coarse lattice with the map's distance field at
 the beam end points (a likelihood field); the best few are then refined by pattern search on the
 cast residuals. Poses here are *lidar* poses [x, y, theta] in the map's world frame (metres,

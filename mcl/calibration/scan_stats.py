@@ -85,11 +85,11 @@ class ScanFailureStats:
         fractions: the residual categories.
         run_length: mean run length (beams) of consecutive short / long / no-return beams.
         next_same: P(the next beam fails the same way | this one does), per kind.
-        noreturn_by_range: no-return probability per bin of :data:`RANGE_BINS` (expected range).
+        noreturn_by_range: no-return probability per bin of `RANGE_BINS` (expected range).
         long_excess: metres, mean of (z - z* - 0.15) over long returns (the excess beyond 0.15 m).
         short_ratio: mean z / z* of short returns.
         hit_bias, hit_sigma: metres, mean and standard deviation of |z - z*| <= 0.15 m residuals.
-        hit_sigma_by_range: per bin of :data:`RANGE_BINS`, the same standard deviation.
+        hit_sigma_by_range: per bin of `RANGE_BINS`, the same standard deviation.
         mixed_at_edges: fraction of beams beside a cast jump (> 0.5 m) reading strictly between
             the neighbouring expected ranges (mixed pixels), and ``edge_fraction`` of such beams.
     """

@@ -1,4 +1,4 @@
-"""The simulated lidar against the real one, by one judge (:mod:`mcl.calibration.judge`): the real
+"""The simulated lidar against the real one, by one judge ([`mcl.calibration.judge`][mcl.calibration.judge]): the real
 scans of a bag at their reference poses, and simulated scans from the same poses with a noise
 profile in a scene, both refined by the same robust scan match and compared with exact casts.
 
@@ -43,7 +43,7 @@ class JudgedBag:
         rec: the recording.
         poses: its reference poses (scan matching).
         z, z_star: (S, B) de-skewed scans and exact casts from the refined poses, metres.
-        fractions: the five fractions (:func:`residual_fractions`).
+        fractions: the five fractions (`residual_fractions()`).
     """
 
     rec: BagData
@@ -78,7 +78,7 @@ def simulated_scans(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(z, z_star) (S, B) metres: simulated scans from every ``every``-th of ``base_poses`` (S, 3)
     (rear-axle, world) and the exact casts from their refined poses, judged like real ones
-    (:func:`mcl.calibration.judge.judged_simulation`). ``settings`` go to ``RacecarSim-v0``
+    ([`mcl.calibration.judge.judged_simulation()`][mcl.calibration.judge.judged_simulation]). ``settings`` go to ``RacecarSim-v0``
     (e.g. ``noise_profile``, ``scene``); the lidar is the Hokuyo's (1081 beams over 270 degrees,
     30 m). Pose i is reset with seed ``seed + i`` (a scene is placed anew at each). Poses where
     the car's box touches a wall of the map are skipped."""
@@ -113,7 +113,7 @@ def simulated_fractions(
     seed: int = 0,
     **settings,
 ) -> ResidualFractions:
-    """The five fractions of :func:`simulated_scans` (same arguments)."""
+    """The five fractions of `simulated_scans()` (same arguments)."""
     z, zs = simulated_scans(occupancy_map, base_poses, every, seed, **settings)
     return residual_fractions(z, zs, MAX_RANGE)
 
@@ -126,8 +126,8 @@ def simulated_room(
     body: float = 0.0,
     **settings,
 ) -> RoomStats:
-    """What the room adds to :func:`simulated_scans` (same arguments): the shares of mapped
-    beams in wide runs (:func:`mcl.calibration.room_split.room_stats`), the first ``body``
+    """What the room adds to `simulated_scans()` (same arguments): the shares of mapped
+    beams in wide runs ([`mcl.calibration.room_split.room_stats()`][mcl.calibration.room_split.room_stats]), the first ``body``
     share of the scan's beams (the car's own body) left out as the calibration leaves it out."""
     z, zs = simulated_scans(occupancy_map, base_poses, every, seed, **settings)
     zs = zs.copy()

@@ -1,4 +1,4 @@
-"""``racecar-sim bench NAME [options]``: run one benchmark module of :mod:`mcl.bench`."""
+"""``racecar-sim bench NAME [options]``: run one benchmark module of [`mcl.bench`][mcl.bench]."""
 
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ class _CommandParser(NegativeValuesParser):
 
 @contextlib.contextmanager
 def _command_parsers(module: ModuleType, prog: str) -> Iterator[None]:
-    """While ``module`` (a benchmark) runs, the ``argparse`` it sees builds :class:`_CommandParser`.
+    """While ``module`` (a benchmark) runs, the ``argparse`` it sees builds `_CommandParser`.
 
     The benchmark modules build plain parsers (they also run as ``scripts/bench_*.py``); only the
     name ``argparse`` inside ``module`` is swapped, for one ``racecar-sim bench`` call.

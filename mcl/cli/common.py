@@ -4,7 +4,7 @@ is written.
 
 A mistake ends the command with ``racecar-sim SUBCOMMAND: error: --flag: the problem`` on stderr and
 exit code 2 (argparse's convention), no traceback, and no output folder created: subcommands check
-their map, env settings and flags first, then create ``--out`` with :func:`output_folder`, which
+their map, env settings and flags first, then create ``--out`` with `output_folder()`, which
 removes the folder again if the command fails before writing anything into it. The output paths'
 checks ([out_paths][mcl.cli.out_paths], re-exported here) keep a command from writing into,
 replacing or removing anything racecar-sim did not make.
@@ -241,7 +241,7 @@ def check_map(
     parser: Parser, spec: str, flag: str = "--map", env: Sequence[tuple[str, Any]] = ()
 ) -> str:
     """Load the map ``spec`` (bundled name or YAML path) once, or stop naming ``flag``; the
-    ``max_map_cells`` of the ``env`` settings (from :func:`check_env`) applies."""
+    ``max_map_cells`` of the ``env`` settings (from `check_env()`) applies."""
     from racecar_sim.maps import MapError, bundled_names, resolve_map
 
     try:
@@ -319,7 +319,7 @@ def check_env(
     """``NAME=VALUE`` texts -> validated RacecarEnv settings, or stop with ``--env NAME: problem``.
 
     Each value is read as YAML and must have the type of the setting's default; then the settings
-    are checked by :class:`racecar_sim.config.EnvConfig`, one by one (so a bad value is named) and
+    are checked by [`racecar_sim.config.EnvConfig`][racecar_sim.config.EnvConfig], one by one (so a bad value is named) and
     together.
     """
     from racecar_sim.config import EnvConfig

@@ -10,11 +10,11 @@ and writes into ``--out``:
                     (drive_frames/*.png instead when OpenCV cannot write mp4)
 
 With ``--bag DIR`` the drive is also recorded as a ROS 2 bag with MCAP storage (scans, odometry,
-tf, ground truth, the filter's pose and particles, the map; :class:`mcl.io.DriveRecorder`), which
+tf, ground truth, the filter's pose and particles, the map; [`mcl.io.DriveRecorder`][mcl.io.DriveRecorder]), which
 ``racecar-sim replay DIR --map MAP`` reads back and scores against the ground truth.
 
 With ``--live [HOST:]PORT`` the same messages stream to Foxglove as the drive runs (a WebSocket
-server on 127.0.0.1 unless a host is given; :mod:`mcl.io.live`), paced at ``--live-speed`` times
+server on 127.0.0.1 unless a host is given; [`mcl.io.live`][mcl.io.live]), paced at ``--live-speed`` times
 real time (0: as fast as it runs).
 """
 

@@ -1,5 +1,5 @@
 """``racecar-sim fast-laps``: localization on fast laps, the lab's motion noise against the alpha
-model (:mod:`mcl.experiments.fast_laps`; results in docs/odometry.md)."""
+model ([`mcl.experiments.fast_laps`][mcl.experiments.fast_laps]; results in docs/odometry.md)."""
 
 from __future__ import annotations
 

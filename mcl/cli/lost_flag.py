@@ -1,5 +1,5 @@
 """racecar-sim lost-flag: how right the filter's ``lost`` flag is, and how fast a kidnapped filter
-finds the car again (:mod:`mcl.experiments.lost_flag`).
+finds the car again ([`mcl.experiments.lost_flag`][mcl.experiments.lost_flag]).
 
 Per world, tracking drives (the honest world: Stata with the ``mit_racecar`` noise, the cluttered
 and the clean scene, the filter holding the old map) and kidnap drives (the same worlds and the
@@ -69,7 +69,7 @@ def build_parser() -> Parser:
 
 
 def filter_settings(parser: Parser, items: list[str]) -> dict[str, Any]:
-    """``KEY=VALUE`` items as a nested mapping of :class:`~mcl.localization.LocalizationConfig`
+    """``KEY=VALUE`` items as a nested mapping of [`LocalizationConfig`][mcl.localization.LocalizationConfig]
     fields (values read as YAML); a malformed item fails naming ``--filter``."""
     settings: dict[str, Any] = {}
     for item in items:

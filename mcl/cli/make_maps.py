@@ -1,4 +1,4 @@
-"""``racecar-sim make-maps``: draw the bundled maps (see :mod:`racecar_sim.maps.draw`)."""
+"""``racecar-sim make-maps``: draw the bundled maps (see [`racecar_sim.maps.draw`][racecar_sim.maps.draw])."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ INSTALLED_OUT = Path("maps")
 def default_out() -> tuple[Path, str | None]:
     """The default output folder, and a notice to print when it is not the bundled maps' own
     folder: ``$RACECAR_SIM_MAPS`` when set, else the checkout's ``maps/``
-    (:func:`racecar_sim.maps.bundled.checkout_maps_dir`), else, for an installed package, ``./maps``
+    ([`racecar_sim.maps.bundled.checkout_maps_dir()`][racecar_sim.maps.bundled.checkout_maps_dir]), else, for an installed package, ``./maps``
     in the current directory (the package's own files are left as they are)."""
     if os.environ.get("RACECAR_SIM_MAPS") or _bundled.checkout_maps_dir() is not None:
         return draw.bundled_dir(), None
@@ -43,7 +43,7 @@ def default_out() -> tuple[Path, str | None]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Draw every bundled map into ``--out`` (default: :func:`default_out`)."""
+    """Draw every bundled map into ``--out`` (default: `default_out()`)."""
     parser = Parser("racecar-sim make-maps", (draw.__doc__ or "").split("\n\n")[0], EXAMPLES)
     parser.add_argument(
         "--out",

@@ -1,5 +1,5 @@
 """MCL among opponents: the filter's error alone and with cars close ahead, plain and with beam
-skipping, against the truth (:mod:`mcl.experiments.opponents_run`).
+skipping, against the truth ([`mcl.experiments.opponents_run`][mcl.experiments.opponents_run]).
 
 Every (opponents, method, seed) run drives the map's loop by pure pursuit on the true pose; the
 opponents are car-sized boxes held a few metres ahead on the same line (``--backend boxes``).

@@ -1,9 +1,9 @@
 """Which parts of the global-localization filter matter? The recovery experiment with one part off.
 
-Runs :func:`mcl.experiments.recovery.run_recovery_experiment` on one map for each variant below (``--variants``
+Runs [`mcl.experiments.recovery.run_recovery_experiment()`][mcl.experiments.recovery.run_recovery_experiment] on one map for each variant below (``--variants``
 to choose), each into ``<out>/<variant>``, and prints one summary line per variant:
 
-* ``full``: :func:`mcl.experiments.recovery.recovery_localization` as is;
+* ``full``: [`mcl.experiments.recovery.recovery_localization()`][mcl.experiments.recovery.recovery_localization] as is;
 * ``lab``: the plain filter of the tracking experiments (beam model squash 1/2.2, every scan,
   global start at the default 20 particles/m², fixed count, no augmented MCL);
 * ``sparse``: a global start at 20 particles/m² instead of 300;

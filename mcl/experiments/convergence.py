@@ -115,7 +115,7 @@ def recovery_stats(
     n_particles: np.ndarray | None = None,
     criteria: ConvergenceCriteria | None = None,
 ) -> RecoveryStats:
-    """:class:`RecoveryStats` of a run's log.
+    """`RecoveryStats` of a run's log.
 
     Args:
         log: the run's error log (one row per step).

@@ -1,8 +1,8 @@
-"""What every executor shares: the :data:`Runner` type, the :class:`Executor` protocol and the
+"""What every executor shares: the `Runner` type, the `Executor` protocol and the
 result of a run whose worker died.
 
-Below :mod:`mcl.experiments.runner` (the local executors, :func:`make_executor`) and
-:mod:`mcl.experiments.ray_executor` (Ray tasks), which both use it.
+Below [`mcl.experiments.runner`][mcl.experiments.runner] (the local executors, `make_executor()`) and
+[`mcl.experiments.ray_executor`][mcl.experiments.ray_executor] (Ray tasks), which both use it.
 """
 
 from __future__ import annotations
@@ -21,11 +21,11 @@ worker processes, local or on a Ray cluster, can import it)."""
 
 
 class Executor(Protocol):
-    """Where runs execute: :class:`InlineExecutor`, :class:`PoolExecutor` or
-    :class:`mcl.experiments.ray_executor.RayExecutor`.
+    """Where runs execute: `InlineExecutor`, `PoolExecutor` or
+    `mcl.experiments.ray_executor.RayExecutor`.
 
     ``run_all(runner, todo, diverged_m)`` runs ``runner(spec, path, diverged_m)`` for every
-    ``(spec, path)`` of ``todo`` and yields each :class:`RunResult` as it finishes. A run whose
+    ``(spec, path)`` of ``todo`` and yields each `RunResult` as it finishes. A run whose
     worker process died comes back as a ``"failed"`` result; the others go on.
     """
 

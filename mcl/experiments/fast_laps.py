@@ -1,11 +1,11 @@
 """Localization on fast laps: the lab's constant motion noise against the alpha model that grows
-with the motion (:mod:`mcl.alpha_motion`), on a car that may slide.
+with the motion (`mcl.alpha_motion`), on a car that may slide.
 
-Each run is a :class:`~mcl.experiments.runs.RunSpec`: the ``racing`` driver (pure pursuit round
+Each run is a [`RunSpec`][mcl.experiments.runs.RunSpec]: the ``racing`` driver (pure pursuit round
 the map's loop at ``speed`` m/s everywhere, on the true pose), the ``tracking`` scenario started on
 the loop (seed ``k`` of ``n`` starts ``k / n`` of the way round), ``car_model`` and any other env
 settings, one motion model per series. Runs that differ only in the motion model drive the same
-true trajectory through the same sensor noise (:mod:`mcl.experiments.runs`).
+true trajectory through the same sensor noise ([`mcl.experiments.runs`][mcl.experiments.runs]).
 
 The table pools every logged step of a series' runs (position error, metres: mean, median, 95th
 percentile), counts the runs that diverged (a position error beyond ``diverged_m`` at any step)
@@ -169,7 +169,7 @@ def _corner_speed(log: Any) -> np.ndarray:
 
 
 def markdown_table(rows: Sequence[SeriesRow], diverged_m: float) -> str:
-    """The table of :func:`summarize_fast_laps` as Markdown."""
+    """The table of `summarize_fast_laps()` as Markdown."""
     lines = [
         f"| motion model | runs | mean error (m) | median (m) | p95 (m) | diverged (> {diverged_m:g} m) "
         "| wall-contact steps | corner speed: median, 5th pct (m/s) |",

@@ -4,7 +4,7 @@ A drive holds the same memory from one minute to the next (the soak benchmark,
 ``racecar-sim bench soak``), but glibc's allocator keeps the pages that the step's short-lived
 arrays of changing sizes free in the middle of its heap, so the resident memory of a two-hour
 drive crept up by ~110 bytes per step without anything being held. ``malloc_trim(0)`` returns
-those pages; :func:`run_one <mcl.experiments.runs.run_one>` calls it once per simulated minute.
+those pages; [run_one][mcl.experiments.runs.run_one] calls it once per simulated minute.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from collections.abc import Callable
 __all__ = ["TRIM_EVERY_S", "release_free_heap"]
 
 TRIM_EVERY_S = 60.0
-"""Simulated seconds between two calls of :func:`release_free_heap` in a drive."""
+"""Simulated seconds between two calls of `release_free_heap()` in a drive."""
 
 
 @functools.cache

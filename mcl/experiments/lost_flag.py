@@ -5,7 +5,7 @@ Per world (map, filter map, env settings), two kinds of drives with the wall fol
 filter's settings as given (the defaults unless changed): ``tracking`` drives (the filter starts
 around the truth; in the honest world it loses the car by itself now and then) and ``kidnap``
 drives (the car is teleported at ``kidnap_time`` to a random free pose at least 2 m away,
-:class:`~mcl.experiments.scenarios.KidnapScenario`). Every step's ``lost`` column of the error
+[`KidnapScenario`][mcl.experiments.scenarios.KidnapScenario]). Every step's ``lost`` column of the error
 log is judged as a classifier against the truth ``position_error > 1 m``:
 
 - precision: share of the lost steps that were more than 1 m off;

@@ -44,7 +44,7 @@ class ErrorStats:
 
 
 def error_stats(log: ErrorLog, diverged_m: float = DIVERGED_M) -> ErrorStats:
-    """Statistics of a log (see :class:`ErrorStats`); NaN values everywhere for an empty log.
+    """Statistics of a log (see `ErrorStats`); NaN values everywhere for an empty log.
 
     Args:
         log: the run's error log.

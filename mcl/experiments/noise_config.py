@@ -1,8 +1,8 @@
-"""The odometry-noise sweep's settings: the source's coefficients and :class:`ExperimentConfig`
+"""The odometry-noise sweep's settings: the source's coefficients and `ExperimentConfig`
 (which runs to make).
 
-Below :mod:`mcl.experiments.noise_sweep` (which runs the sweep) and
-:mod:`mcl.experiments.noise_report` (which summarises it), which both read it.
+Below [`mcl.experiments.noise_sweep`][mcl.experiments.noise_sweep] (which runs the sweep) and
+[`mcl.experiments.noise_report`][mcl.experiments.noise_report] (which summarises it), which both read it.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ class ExperimentConfig:
 
     Attributes:
         map: bundled map name or map YAML path.
-        driver: ``"wall"`` or ``"pursuit"`` (see :data:`mcl.experiments.runs.DRIVERS`).
-        scenario: a key of :data:`mcl.experiments.scenarios.SCENARIOS`.
+        driver: ``"wall"`` or ``"pursuit"`` (see [`mcl.experiments.runs.DRIVERS`][mcl.experiments.runs.DRIVERS]).
+        scenario: a key of [`mcl.experiments.scenarios.SCENARIOS`][mcl.experiments.scenarios.SCENARIOS].
         seeds: number of seeds (``first_seed``, ``first_seed + 1``, ...).
         first_seed: the first seed.
         duration: seconds of simulated time per run.

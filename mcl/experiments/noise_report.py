@@ -59,7 +59,7 @@ class SummaryRow:
         coefficient: the series' coefficient (c for uniform and matched, sigma for Gaussian).
         noise_sd: standard deviation of the noise per component (c / sqrt(3) or sigma).
         n_runs: runs that finished. n_failed: runs that crashed.
-        mean, sd: each statistic of :data:`METRICS` averaged over the seeds, and its sample
+        mean, sd: each statistic of `METRICS` averaged over the seeds, and its sample
             standard deviation (NaN with one seed).
     """
 
@@ -89,7 +89,7 @@ class SummaryRow:
 
 
 def summarize(results: Iterable[RunResult]) -> list[SummaryRow]:
-    """One :class:`SummaryRow` per (series, coefficient), in the order the series first appear."""
+    """One `SummaryRow` per (series, coefficient), in the order the series first appear."""
     groups: dict[tuple[str, float], list[RunResult]] = {}
     for r in results:
         groups.setdefault((r.spec.series, r.spec.nominal), []).append(r)

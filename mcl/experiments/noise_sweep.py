@@ -5,7 +5,7 @@ sigma in {0.01, 0.1, 0.3, 0.5, 1.0} (per update, applied to dx m, dy m and dthet
 adds the comparison the source does not make: Gaussian noise with the *variance* of each uniform
 setting, sigma = c / sqrt(3) (series ``gaussian_matched``, plotted at its c).
 
-Every run (:class:`mcl.experiments.runs.RunSpec`) drives the same route for a given seed: the env's noise and
+Every run ([`mcl.experiments.runs.RunSpec`][mcl.experiments.runs.RunSpec]) drives the same route for a given seed: the env's noise and
 the driver do not depend on the filter, so all schemes see the same true trajectory and the same
 sensor noise. Runs go to a process pool; each writes its CSV error log as it goes, so ``resume``
 can skip runs whose log is complete, and a run that crashes is reported while the others finish.
@@ -47,7 +47,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class ExperimentReport:
-    """What :func:`run_experiment` did.
+    """What `run_experiment()` did.
 
     Attributes:
         config: the sweep. out_dir: the output folder. results: one per run, in sweep order.
@@ -89,7 +89,7 @@ def run_experiment(
         plots: draw the PNG plots.
         stream: where progress and failures are reported (default: stderr).
         executor: where the runs execute (default: a process pool of ``workers``; see
-            :func:`mcl.experiments.runner.make_executor`, e.g. Ray).
+            [`mcl.experiments.runner.make_executor()`][mcl.experiments.runner.make_executor], e.g. Ray).
 
     Failed runs are listed on ``stream``, in runs.csv and in summary.md; they do not stop the
     others.

@@ -1,14 +1,14 @@
 """Stand-in opponents for the localization experiment: car-sized boxes driving ahead of the car.
 
-:class:`OpponentsScenario` keeps ``n`` unmapped boxes of a car's footprint (``length x width``
+`OpponentsScenario` keeps ``n`` unmapped boxes of a car's footprint (``length x width``
 metres) on the loop a few metres ahead of the car (``gaps``, metres of arc length from the car's
 rear axle to each box's centre), facing along the loop, in the car's own lane: they move with the
 car, so the sectors they shadow stay in front of it for the whole drive, as opponents driving
 close ahead at the car's speed do. They are the env's obstacle boxes (``obstacles={"boxes": n}``,
-:mod:`racecar_sim.obstacles`), placed before every step, so the lidar sees them exactly (their
+[`racecar_sim.obstacles`][racecar_sim.obstacles]), placed before every step, so the lidar sees them exactly (their
 edges cut the beams before the lidar's noise is drawn) and the filter's map does not.
 
-The loop is :func:`mcl.agents.track.track_for_map` of the env's map; the direction along it is the
+The loop is [`mcl.agents.track.track_for_map()`][mcl.agents.track.track_for_map] of the env's map; the direction along it is the
 car's (the sign of the cosine between the car's heading and the loop's).
 
 Frames: world (metres, radians).

@@ -1,17 +1,17 @@
 """MCL among opponents: one localized drive with K opponents close ahead, and the table over seeds.
 
-A run (:class:`OpponentRun`) drives the car by pure pursuit (on its true pose, so that filter
+A run (`OpponentRun`) drives the car by pure pursuit (on its true pose, so that filter
 settings never change the trajectory) round the map's loop at ``speed``, starting at a point of
-the loop picked by the seed, with :class:`~mcl.wrapper.LocalizationWrapper` in the loop, and logs
+the loop picked by the seed, with [`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] in the loop, and logs
 the position error against the truth every step. The opponents are
-:class:`~mcl.experiments.opponents.OpponentsScenario`'s car-sized boxes held ``gaps`` metres
+[`OpponentsScenario`][mcl.experiments.opponents.OpponentsScenario]'s car-sized boxes held ``gaps`` metres
 ahead on the same line (``backend="boxes"``), or ``RacecarRace-v0``'s scripted cars
 (``backend="race"``: every car on pure pursuit along the race's centerline at ``speed``, the
 opponents starting ``gaps`` ahead of car 0, which the filter localizes).
 
-:func:`opponents_table` pools the steps of every seed of one (opponents, method) cell: mean,
+`opponents_table()` pools the steps of every seed of one (opponents, method) cell: mean,
 median and 95th percentile of the position error (metres), the fraction of steps over
-:data:`~mcl.experiments.metrics.DIVERGED_M`, the runs that ever diverged, and the beams beam
+[`DIVERGED_M`][mcl.experiments.metrics.DIVERGED_M], the runs that ever diverged, and the beams beam
 skipping left out.
 
 Frames and units: world frame; metres, radians, seconds.
@@ -50,7 +50,7 @@ METHODS: dict[str, dict[str, Any]] = {
     "beam_skip": {"beam_skip": True},
     "beam_skip_short": {"beam_skip": True, "beam_skip_short_only": True},
 }
-"""Sensor-model settings of each method of the table (:class:`SensorModelParams` fields)."""
+"""Sensor-model settings of each method of the table (`SensorModelParams` fields)."""
 
 BACKENDS: tuple[str, ...] = ("boxes", "race")
 """Where the opponents come from: car-sized boxes held ahead, or ``RacecarRace-v0``'s cars."""
@@ -63,16 +63,16 @@ class OpponentRun:
     """One localized drive among opponents.
 
     Attributes:
-        map: bundled map with a loop (:func:`mcl.agents.track.track_for_map`).
+        map: bundled map with a loop ([`mcl.agents.track.track_for_map()`][mcl.agents.track.track_for_map]).
         opponents: cars close ahead (0 = alone).
-        method: a key of :data:`METHODS`.
+        method: a key of `METHODS`.
         seed: reset seed (env, filter and start point).
         duration: seconds of simulated time.
         speed: m/s of the car (and of the opponents, which keep their gaps).
         gaps: metres of loop from the car's rear axle to each opponent's centre (boxes backend).
         n_particles: particles of the filter.
-        backend: a key of :data:`BACKENDS`.
-        sensor: extra :class:`SensorModelParams` settings as (name, value) pairs.
+        backend: a key of `BACKENDS`.
+        sensor: extra `SensorModelParams` settings as (name, value) pairs.
     """
 
     map: str = "basement_loop"
@@ -112,7 +112,7 @@ class OpponentRunResult:
 
     Attributes:
         run: the run.
-        log_path: its CSV error log (:mod:`mcl.error_log`).
+        log_path: its CSV error log (`mcl.error_log`).
         collisions: steps with any contact.
         skipped_beams: beams left out over beams scored, over the corrected steps.
         converged: fraction of the corrected steps on which the cloud counted as converged.

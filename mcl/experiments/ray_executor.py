@@ -1,6 +1,6 @@
 """Runs on Ray: a local Ray on this machine, or an existing cluster (the optional extra ``[ray]``).
 
-:class:`RayExecutor` is an :class:`mcl.experiments.runner.Executor`: each run is one Ray task
+`RayExecutor` is an [`mcl.experiments.runner.Executor`][mcl.experiments.runner.Executor]: each run is one Ray task
 (one CPU, one numba thread) calling the same runner as the process pool, so a run's log is the
 same whichever executor ran it (apart from the ``update_s`` timing column). The sweep's logic stays
 in the driver: resume, the progress bar, crash reporting, summaries and plots.

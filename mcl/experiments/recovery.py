@@ -3,13 +3,13 @@
 Over N seeds on one map, every run starts the filter without knowing the pose (scenario
 ``global``: particles uniform over free space, the car at a random start) or loses it on purpose
 (scenario ``kidnap``: tracking from the true start, then the car is teleported to a random free pose
-at ``kidnap_time``, see :mod:`mcl.experiments.scenarios`). The wall follower drives; each run writes the
-wrapper's CSV error log. From the log (:mod:`mcl.experiments.convergence`): the time from losing the car to
+at ``kidnap_time``, see [`mcl.experiments.scenarios`][mcl.experiments.scenarios]). The wall follower drives; each run writes the
+wrapper's CSV error log. From the log (`mcl.experiments.convergence`): the time from losing the car to
 convergence (position error < 0.3 m and heading error < 10 deg held for 2 s), success within the
 time limit (10 s global, 15 s kidnap), and from the per-step flags of ``info["localization"]`` the
 fraction of time the filter called its pose ambiguous and the fraction it was confidently wrong.
 
-The filter (:func:`recovery_localization`) is the lab's beam model tempered harder (squash 0.05),
+The filter (`recovery_localization()`) is the lab's beam model tempered harder (squash 0.05),
 using a scan every 0.1 m or 0.2 rad of motion, started with 300 particles per m² of free floor,
 KLD-sampling down to 1000 particles (up to 20 000 while searching) and augmented MCL
 (alpha_slow 0.001, alpha_fast 0.1). The docs' page on global localization and kidnapping says why each of these is needed.
@@ -67,7 +67,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class RecoveryReport:
-    """What :func:`run_recovery_experiment` did.
+    """What `run_recovery_experiment()` did.
 
     Attributes:
         config: the experiment. out_dir: its folder. runs: one per seed, in seed order.
@@ -97,7 +97,7 @@ def _outcome_path(log_path: Path) -> Path:
 
 
 def run_recovery_safely(spec: RunSpec, log_path: Path, diverged_m: float = DIVERGED_M) -> RunResult:
-    """:func:`mcl.experiments.runner.run_spec_safely`, then the scenario's outcome saved next to the log
+    """[`mcl.experiments.runner.run_spec_safely()`][mcl.experiments.runner.run_spec_safely], then the scenario's outcome saved next to the log
     (``<log>.json``) so that ``resume`` can judge the run without running it again."""
     result = run_spec_safely(spec, log_path, diverged_m)
     if result.status == "ok":
@@ -147,7 +147,7 @@ def run_recovery_experiment(
         plots: draw the PNG plots.
         stream: where progress and failures are reported (default: stderr).
         executor: where the runs execute (default: a process pool of ``workers``; see
-            :func:`mcl.experiments.runner.make_executor`, e.g. Ray).
+            [`mcl.experiments.runner.make_executor()`][mcl.experiments.runner.make_executor], e.g. Ray).
     """
     out = Path(out_dir)
 

@@ -1,7 +1,7 @@
 """The recovery experiment's settings and per-run judgement: the scenarios, the filter that finds
-the car (:func:`recovery_localization`), :class:`RecoveryConfig` and :class:`RecoveryRun`.
+the car (`recovery_localization()`), `RecoveryConfig` and `RecoveryRun`.
 
-Below :mod:`mcl.experiments.recovery` (which runs the experiment) and its report and plots, which
+Below [`mcl.experiments.recovery`][mcl.experiments.recovery] (which runs the experiment) and its report and plots, which
 all read these classes.
 """
 
@@ -82,7 +82,7 @@ class RecoveryConfig:
     Attributes:
         map: bundled map name or map YAML path.
         scenario: ``"global"`` or ``"kidnap"``.
-        driver: a key of :data:`mcl.experiments.runs.DRIVERS`.
+        driver: a key of [`mcl.experiments.runs.DRIVERS`][mcl.experiments.runs.DRIVERS].
         seeds: number of seeds (``first_seed``, ``first_seed + 1``, ...): each gives its own start
             pose, sensor noise, filter draws and kidnap pose.
         first_seed: the first seed.
@@ -92,7 +92,7 @@ class RecoveryConfig:
         time_limit: seconds after losing the car within which convergence counts as a success;
             None = 10 s (global) or 15 s (kidnap).
         criteria: what counts as converged.
-        localization: the filter's settings (default :func:`recovery_localization`).
+        localization: the filter's settings (default `recovery_localization()`).
         env: extra RacecarEnv settings as (name, value) pairs.
     """
 
@@ -179,7 +179,7 @@ class RecoveryRun:
     """One run and its judgement.
 
     Attributes:
-        result: how the run went (:class:`mcl.experiments.runs.RunResult`).
+        result: how the run went ([`mcl.experiments.runs.RunResult`][mcl.experiments.runs.RunResult]).
         stats: convergence and honesty (None when the run failed).
     """
 

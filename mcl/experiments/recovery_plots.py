@@ -1,4 +1,4 @@
-"""Plots of the global-localization / kidnapping experiment (:mod:`mcl.experiments.recovery`), headless (Agg).
+"""Plots of the global-localization / kidnapping experiment ([`mcl.experiments.recovery`][mcl.experiments.recovery]), headless (Agg).
 
 Times are seconds of simulated time, errors metres.
 """
@@ -104,7 +104,7 @@ def plot_particles(
 def write_recovery_plots(
     config: RecoveryConfig, runs: Sequence[RecoveryRun], out_dir: str | os.PathLike[str]
 ) -> list[Path]:
-    """Every plot of :mod:`mcl.experiments.recovery`'s folder layout into ``out_dir/plots``."""
+    """Every plot of [`mcl.experiments.recovery`][mcl.experiments.recovery]'s folder layout into ``out_dir/plots``."""
     plots = Path(out_dir) / "plots"
     name = Path(config.map).stem
     files: list[Path] = []

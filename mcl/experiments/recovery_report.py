@@ -1,4 +1,4 @@
-"""Tables of the global-localization / kidnapping experiment (:mod:`mcl.experiments.recovery`):
+"""Tables of the global-localization / kidnapping experiment ([`mcl.experiments.recovery`][mcl.experiments.recovery]):
 runs.csv, summary.csv and summary.md. Times in seconds of simulated time, errors in metres.
 """
 

@@ -1,7 +1,7 @@
-"""Replay a recording (:class:`mcl.io.BagData`) through the particle filter, in recorded order.
+"""Replay a recording ([`mcl.io.BagData`][mcl.io.BagData]) through the particle filter, in recorded order.
 
 Each odometry message's twist is held until the next message (or scan) and integrated exactly
-(:func:`mcl.motion_model.twist_to_odometry`); at every scan the filter moves by the odometry
+([`mcl.motion_model.twist_to_odometry()`][mcl.motion_model.twist_to_odometry]); at every scan the filter moves by the odometry
 gathered since the previous scan (one predict per scan, as in the simulator, 40 Hz), then weighs
 the scan. After every scan one row: the base_link estimate in the map's world frame, the cloud's
 size and spread, the ambiguity flag and ``scan_fit``, the fraction of valid beams within
@@ -9,10 +9,10 @@ size and spread, the ambiguity flag and ``scan_fit``, the fraction of valid beam
 explains the scan that needs no ground truth). When the bag carries ``/ground_truth`` (a recorded
 simulated drive), also the position and heading error against it.
 
-The filter is :func:`unknown_start_localization`: :class:`mcl.adaptive.AdaptiveParticleFilter`,
+The filter is `unknown_start_localization()`: [`mcl.adaptive.AdaptiveParticleFilter`][mcl.adaptive.AdaptiveParticleFilter],
 which searches from a global start and tracks once converged, without switching anything.
 
-No-returns (NaN from :func:`mcl.io.read_bag`) are given to the beam model as max-range readings by
+No-returns (NaN from [`mcl.io.read_bag()`][mcl.io.read_bag]) are given to the beam model as max-range readings by
 default (``no_return="max"``, the table's ``p_max`` term, which is what the model's max-range
 component stands for): on the Stata basement bags they are the beams whose wall is 10-30 m away,
 and dropping them (``"drop"``) loses information that tells the corridors apart.
@@ -63,29 +63,29 @@ COLUMNS: tuple[str, ...] = (
     "ambiguous",
     "scan_fit",
 )
-"""Columns of :attr:`ReplayResult.rows` and of trajectory.csv."""
+"""Columns of `ReplayResult.rows` and of trajectory.csv."""
 
 NO_RETURN: tuple[str, ...] = ("max", "drop")
 
 GOOD_FIT = 0.6
-"""A replay has found the car once ``scan_fit`` averages at least this over :data:`FIT_WINDOW_S`
-while the cloud is tight (position sd < :data:`FOUND_SD` m). Tracking on the right map fits
+"""A replay has found the car once ``scan_fit`` averages at least this over `FIT_WINDOW_S`
+while the cloud is tight (position sd < `FOUND_SD` m). Tracking on the right map fits
 0.80-0.92 (the Stata bags, 2026-12-02; 0.52-0.56 while bag 2 waits among unmapped furniture, for a
 second or two); the wrong map (bag 1 on ``office``) fits at most 0.39 over any second, with the
 cloud tight on a wrong pose."""
 FIT_WINDOW_S = 1.0
-"""Seconds of scans :data:`GOOD_FIT` is averaged over."""
+"""Seconds of scans `GOOD_FIT` is averaged over."""
 FOUND_SD = 0.5
 """Metres of position sd below which the cloud counts as tight (one pose, not a search)."""
 
 
 def unknown_start_localization() -> LocalizationConfig:
-    """The one filter for an unknown start on real scans (module docstring of :mod:`mcl.adaptive`).
+    """The one filter for an unknown start on real scans (module docstring of `mcl.adaptive`).
 
     Global start with 300 particles per m² of free floor (capped at 300 000), KLD-sampling (at
     most 20 000; 5 000 at least while searching, 1 000 once tracking), augmented MCL (0.001, 0.1),
     the lab's beam model (squash 1/2.2 while tracking, 0.05 while searching) on one numba thread,
-    and :class:`~mcl.adaptive.AdaptiveParams` (searching, then tracking).
+    and `AdaptiveParams` (searching, then tracking).
     """
     return LocalizationConfig(
         init="global",
@@ -112,8 +112,8 @@ class ReplayConfig:
         seed: the filter's random seed.
         no_return: ``"max"`` (no-returns weigh as max-range readings) or ``"drop"``.
         fit_tolerance: metres, a beam within this of the exact cast counts in ``scan_fit``.
-        localization: the filter (default :func:`unknown_start_localization`); without
-            ``adaptive`` settings it is a plain :class:`~mcl.particle_filter.ParticleFilter`.
+        localization: the filter (default `unknown_start_localization()`); without
+            ``adaptive`` settings it is a plain [`ParticleFilter`][mcl.particle_filter.ParticleFilter].
     """
 
     init: str | tuple[float, float, float] = "global"
@@ -140,10 +140,10 @@ class ReplayConfig:
 
 @dataclass
 class ReplayResult:
-    """What :func:`replay` produced.
+    """What `replay()` produced.
 
     Attributes:
-        rows: (S, len(COLUMNS)) one row per scan (see :data:`COLUMNS`).
+        rows: (S, len(COLUMNS)) one row per scan (see `COLUMNS`).
         particles: per scan, a subsample (at most 300) of the particles (for the video).
         wall_time: wall-clock seconds of the whole replay: the filter's setup, then every scan's
             update and ``scan_fit`` (not reading the bag, not writing the outputs).
@@ -164,7 +164,7 @@ class ReplayResult:
     setup_time: float = 0.0
 
     def column(self, name: str) -> np.ndarray:
-        """One column of :attr:`rows` by name."""
+        """One column of `rows` by name."""
         return self.rows[:, COLUMNS.index(name)]
 
     @property
@@ -173,7 +173,7 @@ class ReplayResult:
         return self.duration / self.wall_time if self.wall_time > 0 else math.inf
 
     def _windows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per scan ``i``: the end (exclusive) of the :data:`FIT_WINDOW_S` of scans starting at it,
+        """Per scan ``i``: the end (exclusive) of the `FIT_WINDOW_S` of scans starting at it,
         whether that window is whole (not cut by the bag's end), and its mean ``scan_fit``."""
         t = self.column("time")
         fit = np.nan_to_num(self.column("scan_fit"), nan=0.0)
@@ -184,8 +184,8 @@ class ReplayResult:
 
     def found_at(self) -> float | None:
         """Seconds since the bag's start when the filter had found the car: the first scan fitting
-        at least :data:`GOOD_FIT` in the first :data:`FIT_WINDOW_S` of scans in which ``scan_fit``
-        averaged at least that with the cloud tight throughout (position sd < :data:`FOUND_SD`
+        at least `GOOD_FIT` in the first `FIT_WINDOW_S` of scans in which ``scan_fit``
+        averaged at least that with the cloud tight throughout (position sd < `FOUND_SD`
         m); None when that never happened (a wrong map, frame or
         start: the estimate then explains the scans no better than chance)."""
         if len(self.rows) == 0:
@@ -200,7 +200,7 @@ class ReplayResult:
         return float(self.column("time")[first + int(np.argmax(fits))])
 
     def best_fit(self) -> float:
-        """The highest ``scan_fit`` averaged over any whole :data:`FIT_WINDOW_S` of scans (0 when
+        """The highest ``scan_fit`` averaged over any whole `FIT_WINDOW_S` of scans (0 when
         the bag is shorter than that)."""
         if len(self.rows) == 0:
             return 0.0
@@ -314,7 +314,7 @@ def replay(
     """Run the filter over the bag (module docstring); ``progress(i, n)`` after each scan, and
     ``on_scan(i, t, moved, pf)`` after its correction: ``t`` its time (s), ``moved`` the odometry's
     motion since the scan before (car frame, m, m, rad), ``pf`` the filter (e.g.
-    :class:`mcl.io.replay_stream.ReplayStream`, the live view)."""
+    [`mcl.io.replay_stream.ReplayStream`][mcl.io.replay_stream.ReplayStream], the live view)."""
     config = config if config is not None else ReplayConfig()
     caster = RayCaster(occupancy_map, max(float(data.range_max), 1.0), method="exact")
     start = time.perf_counter()

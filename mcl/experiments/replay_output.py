@@ -1,6 +1,6 @@
 """What a replay writes: trajectory.csv, trajectory.png, scan_fit.png and replay.mp4.
 
-- ``trajectory.csv``: one row per scan, the columns of :data:`mcl.experiments.replay.COLUMNS`
+- ``trajectory.csv``: one row per scan, the columns of [`mcl.experiments.replay.COLUMNS`][mcl.experiments.replay.COLUMNS]
   (time in seconds since the bag's first message; the base_link estimate in the map's world frame;
   position_sd metres, heading_sd radians; ambiguous 0/1; scan_fit a fraction), plus
   ``position_error,heading_error`` when the bag has ``/ground_truth``.

@@ -1,7 +1,7 @@
 """Running many drives: a process pool (or inline), resume from complete logs, crash reporting.
 
 Shared by every experiment (the noise sweep, global localization / kidnapping): each run is a
-:class:`~mcl.experiments.runs.RunSpec` that writes ``<out>/logs/<run_id>.csv`` as it goes, so a run
+[`RunSpec`][mcl.experiments.runs.RunSpec] that writes ``<out>/logs/<run_id>.csv`` as it goes, so a run
 that fails half-way keeps its log, and ``resume`` skips the runs whose log is complete.
 """
 
@@ -58,7 +58,7 @@ def _init_worker() -> None:
 
 
 def run_spec_safely(spec: RunSpec, log_path: Path, diverged_m: float = DIVERGED_M) -> RunResult:
-    """:func:`mcl.experiments.runs.run_one`, with any exception turned into a ``"failed"`` result."""
+    """[`mcl.experiments.runs.run_one()`][mcl.experiments.runs.run_one], with any exception turned into a ``"failed"`` result."""
     try:
         return run_one(spec, log_path, diverged_m=diverged_m)
     except Exception as exc:  # a crashed run is reported; the sweep goes on
@@ -148,7 +148,7 @@ def make_executor(
 
 
 EXECUTORS: tuple[str, ...] = ("pool", "ray")
-"""Names :func:`make_executor` knows."""
+"""Names `make_executor()` knows."""
 
 
 def execute_runs(
@@ -164,9 +164,9 @@ def execute_runs(
     executor: Executor | None = None,
 ) -> list[RunResult]:
     """Run ``todo`` = [(spec, log path)] on ``executor`` (default: inline when ``workers`` is 1,
-    else a :class:`PoolExecutor` of ``workers`` processes).
+    else a `PoolExecutor` of ``workers`` processes).
 
-    Each run is ``runner(spec, log_path, diverged_m)`` (default :func:`run_spec_safely`; another
+    Each run is ``runner(spec, log_path, diverged_m)`` (default `run_spec_safely()`; another
     runner must be a module-level function so that worker processes can import it).
 
     A tqdm bar counts ``total`` runs (default: len(todo)) from ``done_already``; failures are
@@ -244,9 +244,9 @@ def run_pending(
     ``out`` is claimed first ([claim_folder][racecar_sim.file_guard.claim_folder]: a new, empty or
     racecar-sim folder; [NotOurs][racecar_sim.file_guard.NotOurs] for any other).
 
-    The folder's ``config.json`` records ``config`` (see :func:`record_settings`). With ``resume``,
+    The folder's ``config.json`` records ``config`` (see `record_settings()`). With ``resume``,
     ``reuse(spec, log_path)`` may return a ``"skipped"`` result for a run whose output is complete;
-    every other run goes to :func:`execute_runs` on ``executor`` (default: a pool of ``workers``
+    every other run goes to `execute_runs()` on ``executor`` (default: a pool of ``workers``
     processes, the CPU count by default).
     """
     ids = [s.run_id for s in specs]

@@ -1,8 +1,8 @@
 """One localized drive: a run = (map, driver, scenario, filter settings, seed, duration).
 
-:func:`run_one` builds a ``RacecarSim-v0`` env on the map, wraps it in
-:class:`~mcl.wrapper.LocalizationWrapper` with an error log, lets the driver drive for the
-duration, and returns the run's error statistics. The experiment (:mod:`mcl.experiments`) and the
+`run_one()` builds a ``RacecarSim-v0`` env on the map, wraps it in
+[`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] with an error log, lets the driver drive for the
+duration, and returns the run's error statistics. The experiment (`mcl.experiments`) and the
 main job (``scripts/drive.py``) are both made of such runs.
 
 Reproducibility: the env, the filter and the scenario each get their own stream from the run's
@@ -54,7 +54,7 @@ _WAYPOINT_SECONDS = 600.0  # simulated seconds the wall follower may take to clo
 _RUN_ENV_DEFAULTS: dict[str, Any] = {"terminate_on_collision": False}
 
 StepDriver = Callable[[Mapping[str, Any], Mapping[str, Any]], np.ndarray]
-"""``driver(obs, info) -> action`` as used by :func:`run_one`."""
+"""``driver(obs, info) -> action`` as used by `run_one()`."""
 
 
 @dataclass(frozen=True)
@@ -63,19 +63,19 @@ class RunSpec:
 
     Attributes:
         map: bundled map name or map YAML path.
-        driver: a key of :data:`DRIVERS` (``"wall"`` or ``"pursuit"``).
-        scenario: a key of :data:`mcl.experiments.scenarios.SCENARIOS`.
+        driver: a key of `DRIVERS` (``"wall"`` or ``"pursuit"``).
+        scenario: a key of [`mcl.experiments.scenarios.SCENARIOS`][mcl.experiments.scenarios.SCENARIOS].
         motion: the filter's motion noise (scheme, coefficients per update).
         seed: reset seed; the env's, the filter's and the scenario's streams derive from it.
         duration: seconds of simulated time.
         n_particles: particles of the filter.
         series: label of the experiment series the run belongs to (e.g. ``"uniform"``).
         nominal: the series' coefficient for this run, in the series' own units (plots' x).
-        env: extra :class:`racecar_sim.env.EnvConfig` settings as (name, value) pairs; runs
+        env: extra [`racecar_sim.env.EnvConfig`][racecar_sim.env.EnvConfig] settings as (name, value) pairs; runs
             default to ``terminate_on_collision=False`` so that each lasts its full duration.
         drive_on: ``"truth"`` or ``"estimate"``: the pose pure pursuit steers by.
         config: the filter's settings (sensor model, particle filter, ...) apart from ``motion``
-            and ``n_particles``; None for :class:`~mcl.localization.LocalizationConfig` defaults.
+            and ``n_particles``; None for [`LocalizationConfig`][mcl.localization.LocalizationConfig] defaults.
         scenario_settings: keyword arguments of the scenario as (name, value) pairs.
         filter_map: bundled name or YAML path of the map the filter holds, when it differs from
             the world ``map`` (same world frame; size and resolution may differ); None = ``map``.
@@ -195,7 +195,7 @@ def _pursue(pursuit: PurePursuit, drive_on: str) -> StepDriver:
 def _racing_driver(
     env: RacecarEnv, seed: int, drive_on: str, speed: float = 6.0, lookahead: float | None = None
 ) -> StepDriver:
-    """Pure pursuit round the map's loop (:func:`mcl.agents.track.track_for_map`) at ``speed``
+    """Pure pursuit round the map's loop ([`mcl.agents.track.track_for_map()`][mcl.agents.track.track_for_map]) at ``speed``
     m/s everywhere, corners included; look-ahead 0.3 s of travel (at least 1 m) unless given."""
     from mcl.agents.track import track_for_map
 
@@ -220,7 +220,7 @@ def make_driver(
     drive_on: str = "truth",
     settings: Mapping[str, Any] | None = None,
 ) -> StepDriver:
-    """The driver ``name`` for the bare env ``env`` (see :data:`DRIVERS`), with its ``settings``."""
+    """The driver ``name`` for the bare env ``env`` (see `DRIVERS`), with its ``settings``."""
     try:
         factory = DRIVERS[name]
     except KeyError:
@@ -270,20 +270,20 @@ def run_one(
     on_step: Callable[[Any, dict[str, Any], dict[str, Any]], None] | None = None,
 ) -> RunResult:
     """Drive ``spec`` with MCL in the loop, logging the error to ``log_path`` (CSV, see
-    :mod:`mcl.error_log`); returns its statistics.
+    `mcl.error_log`); returns its statistics.
 
     Args:
         spec: the run.
         log_path: where the error log goes (parents created, an old file replaced).
         config: filter settings besides ``spec.motion`` and ``spec.n_particles`` (defaults:
-            ``spec.config``, else :class:`LocalizationConfig`).
+            ``spec.config``, else `LocalizationConfig`).
         on_frame: when given, called as ``on_frame(frame, info)`` with the ``render()`` frame (RGB
             uint8) and the info of the reset and of every ``frame_every``-th step.
         frame_every: steps between two frames.
         progress: show a tqdm bar over the steps.
         diverged_m: metres of error counted as diverged in the statistics.
         on_step: when given, called as ``on_step(wrapper, obs, info)`` after the reset and after
-            every step (e.g. :class:`mcl.io.DriveRecorder` writing a bag).
+            every step (e.g. [`mcl.io.DriveRecorder`][mcl.io.DriveRecorder] writing a bag).
 
     Raises:
         Exception: whatever the map, the env, the driver or the filter raises; the log keeps the

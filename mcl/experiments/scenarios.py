@@ -1,19 +1,19 @@
 """Localization scenarios: how a run starts the filter and what happens to the car on the way.
 
 A scenario is a small object with a ``name``, the reset options it gives
-:class:`~mcl.wrapper.LocalizationWrapper` (how the filter starts), and a ``before_step`` hook called
+[`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] (how the filter starts), and a ``before_step`` hook called
 before every step (a kidnapping scenario teleports the car there with
-``env.unwrapped.teleport(pose)``). New scenarios register a factory in :data:`SCENARIOS`; the
+``env.unwrapped.teleport(pose)``). New scenarios register a factory in `SCENARIOS`; the
 experiment's ``--scenario`` choices are its keys.
 
 Two optional methods: ``after_step(env, step, info)`` sees every step's info (the run calls it
 when the scenario has it), and ``outcome()`` returns a dict of what happened (JSON-friendly values),
-which the run hands back in :attr:`mcl.experiments.runs.RunResult.outcome`.
+which the run hands back in `mcl.experiments.runs.RunResult.outcome`.
 
 Scenarios: ``tracking`` (start around the truth), ``global`` (start uniform over free space: the
 filter must find the car) and ``kidnap`` (start around the truth, then the car is teleported to a
 random free pose without telling the filter), ``opponents`` (tracking with car-sized boxes
-driving close ahead, :mod:`mcl.experiments.opponents`). ``global`` and ``kidnap`` record, per step, the particle count and
+driving close ahead, `mcl.experiments.opponents`). ``global`` and ``kidnap`` record, per step, the particle count and
 the ambiguity flag of ``info["localization"]``.
 """
 
@@ -219,7 +219,7 @@ class KidnapScenario(_Recorder):
 
 
 def _opponents(**settings: Any) -> Scenario:
-    """:class:`mcl.experiments.opponents.OpponentsScenario` (imported when first asked for)."""
+    """[`mcl.experiments.opponents.OpponentsScenario`][mcl.experiments.opponents.OpponentsScenario] (imported when first asked for)."""
     from mcl.experiments.opponents import OpponentsScenario
 
     return OpponentsScenario(**settings)

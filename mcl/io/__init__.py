@@ -1,5 +1,5 @@
-"""Real data in and out: read ROS 1 / ROS 2 bags (:func:`read_bag`), record drives as ROS 2 / MCAP
-bags (:class:`BagRecorder`), stream them live to Foxglove (:func:`start_live`). Needs ``rosbags`` (a core dependency)."""
+"""Real data in and out: read ROS 1 / ROS 2 bags (`read_bag()`), record drives as ROS 2 / MCAP
+bags (`BagRecorder`), stream them live to Foxglove (`start_live()`). Needs ``rosbags`` (a core dependency)."""
 
 from mcl.io.bag_reader import (
     DEFAULT_MOUNT_OFFSET,

@@ -1,5 +1,5 @@
 """Checks of a bag's message order while it is read: log time that runs backwards, and messages
-read twice (exact copies, counted by :class:`mcl.io.salvage.Copies`), each said in one line."""
+read twice (exact copies, counted by [`mcl.io.salvage.Copies`][mcl.io.salvage.Copies]), each said in one line."""
 
 from __future__ import annotations
 

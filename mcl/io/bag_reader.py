@@ -1,9 +1,9 @@
 """Read a lidar + odometry recording from a ROS 1 ``.bag`` or a ROS 2 bag (sqlite3 or MCAP storage).
 
-Uses ``rosbags`` (pure Python, no ROS installation). :func:`read_bag` returns a :class:`BagData`:
+Uses ``rosbags`` (pure Python, no ROS installation). `read_bag()` returns a `BagData`:
 every scan of one ``sensor_msgs/LaserScan`` topic, every message of one ``nav_msgs/Odometry``
 topic, the lidar mount, and ``/ground_truth`` poses when the bag has them (a recorded simulated
-drive, :mod:`mcl.io.bag_writer`).
+drive, [`mcl.io.bag_writer`][mcl.io.bag_writer]).
 
 Conventions:
 
@@ -19,9 +19,9 @@ Conventions:
 - Odometry: the twist ``[vx, vy, omega]`` in the child (car) frame, m/s and rad/s, and the pose
   ``[x, y, theta]`` in the odometry frame.
 
-Errors are :class:`BagError` with one line saying what is wrong: not a bag, a missing topic (naming
+Errors are `BagError` with one line saying what is wrong: not a bag, a missing topic (naming
 the topics that are there), scans whose beam count changes. A truncated or corrupt file keeps what
-was read before the damage and says so in :attr:`BagData.warnings`.
+was read before the damage and says so in `BagData.warnings`.
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ class BagError(ValueError):
 
 @dataclass
 class BagData:
-    """What :func:`read_bag` read (module docstring for units and frames).
+    """What `read_bag()` read (module docstring for units and frames).
 
     Attributes:
         path: the bag (a ``.bag`` file, an ``.mcap`` / ``.db3`` file or a ROS 2 bag folder).
@@ -175,7 +175,7 @@ def read_bag(
     Args:
         path: a ROS 1 ``.bag`` file, a ROS 2 bag folder, or the ``.mcap`` / ``.db3`` file in one.
         scan_topic: the ``sensor_msgs/LaserScan`` topic.
-        odom_topic: the ``nav_msgs/Odometry`` topic; None tries :data:`DEFAULT_ODOM_TOPICS`.
+        odom_topic: the ``nav_msgs/Odometry`` topic; None tries `DEFAULT_ODOM_TOPICS`.
         mount_offset: metres from base_link to the lidar; None takes it from ``/tf_static``
             when the bag has the transform, else ``default_mount_offset``.
         default_mount_offset: metres, see ``mount_offset``.

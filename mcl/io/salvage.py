@@ -3,8 +3,8 @@
 rosbags opens a bag through its index (ROS 1: at the end of the file; MCAP: the summary section),
 which a recording cut short never got. These readers walk the file from its start instead and yield
 every message they can decode, ``(topic, msgtype, log time ns, message)``, stopping quietly at the
-first damaged record; :func:`salvage_bag` says how far they got (:class:`Salvaged`), and
-:func:`mcl.io.read_bag` reports it.
+first damaged record; `salvage_bag()` says how far they got (`Salvaged`), and
+[`mcl.io.read_bag()`][mcl.io.read_bag] reports it.
 
 - ROS 1 (format 2.0): bag header, then chunk records (compression none, bz2 or lz4) holding
   connection and message-data records; connection records name topic and type. A file that ends
@@ -13,7 +13,7 @@ first damaged record; :func:`salvage_bag` says how far they got (:class:`Salvage
 - MCAP: the ``mcap`` package's non-seeking reader (messages in file order).
 
 A message that is an exact copy of one read before (same topic, log time and bytes: a chunk
-written twice) is read once (:class:`Copies`).
+written twice) is read once (`Copies`).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ Message = tuple[str, str, int, Any]
 
 class Copies:
     """Remembers the messages read (topic, log time ns, a digest of the bytes) to tell an exact
-    copy of one of them; :attr:`n` counts the copies found."""
+    copy of one of them; `n` counts the copies found."""
 
     def __init__(self) -> None:
         self._seen: set[tuple[str, int, int, int]] = set()
@@ -75,7 +75,7 @@ class SalvageState:
 
 @dataclass
 class Salvaged:
-    """What :func:`salvage_bag` read: messages in file order, topic -> type, and the walk's state."""
+    """What `salvage_bag()` read: messages in file order, topic -> type, and the walk's state."""
 
     messages: list[Message]
     topics: dict[str, str]

@@ -1,6 +1,6 @@
 """The lidar's mount on the car from a bag's ``/tf_static`` transforms (``tf2_msgs/TFMessage``).
 
-:func:`static_mount` walks the chain of child-in-parent transforms from the scan's frame up to
+`static_mount()` walks the chain of child-in-parent transforms from the scan's frame up to
 ``base_link`` and composes them in the plane: the lidar's forward offset (metres along base_link's
 x axis), its yaw (radians) and whether it is mounted upside down (its beam angles then turn the
 other way in base_link).

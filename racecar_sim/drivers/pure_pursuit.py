@@ -49,7 +49,7 @@ class PurePursuit:
         speed: metres per second; without ``loop`` it falls to 0 over the last ``lookahead`` metres.
         loop: whether the path closes from the last waypoint back to the first.
         car: the car's ``wheelbase`` (metres) and ``max_steer`` (radians), as the env's
-            :class:`~racecar_sim.config.CarParams` (default: the default car).
+            [`CarParams`][racecar_sim.config.CarParams] (default: the default car).
     """
 
     def __init__(

@@ -22,7 +22,7 @@ __all__ = ["WallFollower"]
 class WallFollower:
     """PD wall follower on the lidar scan, with look-ahead, a collision check and slowing down.
 
-    Each call, on a scan cleaned of isolated outliers (:func:`despeckle`):
+    Each call, on a scan cleaned of isolated outliers (`despeckle()`):
 
     1. **Fit the wall.** The hits on ``side`` between ``window[0]`` and ``window[1]`` radians
        from the front and nearer than ``fit_range`` are cut into ``n_segments`` runs of
@@ -50,7 +50,7 @@ class WallFollower:
     5. **Backing out.** When even the best arc is blocked within ``stop_distance`` (a dead end
        too tight to turn in), the car reverses at ``reverse_speed`` with full lock towards the
        wall side (so the nose swings away from it) until an arc ahead is clear again. This is
-       the driver's only state; :meth:`reset` clears it.
+       the driver's only state; `reset()` clears it.
 
     Beams are assumed spread evenly over ``lidar.fov`` (radians, centred on the heading) for
     whatever length the scan has; the lidar sits ``lidar.mount_offset`` metres ahead of the rear
@@ -78,9 +78,9 @@ class WallFollower:
             ``stop_distance`` (0 never reverses); the car backs up, nose turning away from the
             wall, until an arc ahead is clear for ``check_distance``.
         car: the car's geometry and limits (wheelbase, max_steer, length, rear_overhang), as the
-            env's :class:`~racecar_sim.config.CarParams`; :meth:`for_env` takes the env's own.
+            env's [`CarParams`][racecar_sim.config.CarParams]; `for_env()` takes the env's own.
         lidar: the lidar's ``fov`` (radians) and ``mount_offset`` (metres ahead of the rear axle),
-            as the env's :class:`~racecar_sim.config.LidarParams`.
+            as the env's [`LidarParams`][racecar_sim.config.LidarParams].
     """
 
     side: str = "right"

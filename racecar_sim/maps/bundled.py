@@ -2,7 +2,7 @@
 
 They live in the repository's top-level ``maps/`` folder (drawn by ``racecar-sim make-maps``); a
 wheel carries them as package data in ``racecar_sim/maps/data`` (``setup.py`` copies them there at
-build time). :func:`maps_dir` is the one place that decides which folder holds them.
+build time). `maps_dir()` is the one place that decides which folder holds them.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def maps_dir() -> Path:
     """The folder holding the bundled maps (``NAME.yaml`` + ``NAME.png``).
 
     ``$RACECAR_SIM_MAPS`` when set; else the checkout's top-level ``maps/`` when the package runs
-    from a source checkout (:func:`checkout_maps_dir`); else the package data an installed wheel
+    from a source checkout (`checkout_maps_dir()`); else the package data an installed wheel
     carries, ``racecar_sim/maps/data``.
     """
     env = os.environ.get("RACECAR_SIM_MAPS")
@@ -47,7 +47,7 @@ def maps_dir() -> Path:
 
 
 def bundled_names() -> list[str]:
-    """Names of the bundled maps in :func:`maps_dir` (sorted)."""
+    """Names of the bundled maps in `maps_dir()` (sorted)."""
     folder = maps_dir()
     if not folder.is_dir():
         return []
@@ -69,11 +69,11 @@ def bundled(name: str = DEFAULT_MAP) -> Path:
 def resolve_map(
     spec: str | os.PathLike[str] | OccupancyMap | None, max_cells: int | None = None
 ) -> OccupancyMap:
-    """A map from a bundled name, a YAML path, an :class:`OccupancyMap`, or None (the default).
+    """A map from a bundled name, a YAML path, an `OccupancyMap`, or None (the default).
 
     Raises:
         MapError: the map cannot be loaded, or has more cells than ``max_cells`` (None: the
-            default limit, :func:`racecar_sim.maps.limits.max_map_cells`).
+            default limit, `racecar_sim.maps.limits.max_map_cells()`).
     """
     if isinstance(spec, OccupancyMap):
         check_cells(f"map {spec.name!r}", spec.width, spec.height, max_cells)

@@ -5,7 +5,7 @@ Every map is a ROS ``map_server`` pair: an 8-bit grayscale PNG (0 = occupied, 25
 (metres per cell) and the world pose of the lower-left corner of the image.
 
 The drawing is fully deterministic (no randomness at all): geometry is written by hand in
-metres, rasterised at :data:`RESOLUTION` and saved with fixed PNG parameters, so drawing twice gives
+metres, rasterised at `RESOLUTION` and saved with fixed PNG parameters, so drawing twice gives
 byte-identical files.
 
 World frame: the origin of every map is ``[0.0, 0.0, 0.0]``, i.e. world ``(0, 0)`` is the
@@ -105,7 +105,7 @@ class MapCanvas:
     def poly_mask(self, points: Sequence[Point]) -> np.ndarray:
         """Cells whose centre lies inside a polygon (vertices in metres, design frame).
 
-        Even-odd rule on the cell centres, the same convention as :meth:`rect_mask`, so a
+        Even-odd rule on the cell centres, the same convention as `rect_mask()`, so a
         polygon edge that coincides with a rectangle edge rasterises to the same cell boundary.
         """
         ox, oy = self.offset
@@ -387,6 +387,6 @@ def draw_maps(out_dir: Path) -> list[Path]:
 
 
 def bundled_dir() -> Path:
-    """Where :func:`draw_maps` writes by default: the bundled maps' folder
-    (:func:`racecar_sim.maps.bundled.maps_dir`; in a checkout, its top-level ``maps/``)."""
+    """Where `draw_maps()` writes by default: the bundled maps' folder
+    ([`racecar_sim.maps.bundled.maps_dir()`][racecar_sim.maps.bundled.maps_dir]; in a checkout, its top-level ``maps/``)."""
     return maps_dir()

@@ -123,7 +123,7 @@ class OccupancyMap:
     def world_to_grid(self, xy: np.ndarray) -> np.ndarray:
         """World points (…, 2) metres -> integer cells (…, 2) as [row, col] (grid frame).
 
-        Cells may lie outside the image; use :meth:`in_bounds` to check.
+        Cells may lie outside the image; use `in_bounds()` to check.
         """
         uv = self.world_to_map(xy)
         col = np.floor(uv[..., 0] / self.resolution).astype(np.int64)

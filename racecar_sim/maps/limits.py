@@ -1,7 +1,7 @@
 """The limits on a map, checked before anything of its size is allocated.
 
 A map's memory grows with its cell count: the image while it is read, the occupancy grid, the
-distance field, the wall segments, the casters' tables. :data:`MAX_MAP_CELLS` (4 million cells,
+distance field, the wall segments, the casters' tables. `MAX_MAP_CELLS` (4 million cells,
 e.g. 2000 x 2000, a 100 m square at 5 cm) keeps a map, an env on it and a particle filter's
 lookup table within a few GB (docs/settings.md has the measured memory); the largest real map in
 the project's shared data has 2.25 million. Raise it per env with the setting ``max_map_cells``
@@ -39,7 +39,7 @@ _ENV_VAR = "RACECAR_SIM_MAX_MAP_CELLS"
 
 
 def max_map_cells() -> int:
-    """The default cell limit: ``RACECAR_SIM_MAX_MAP_CELLS`` when set, else :data:`MAX_MAP_CELLS`.
+    """The default cell limit: ``RACECAR_SIM_MAX_MAP_CELLS`` when set, else `MAX_MAP_CELLS`.
 
     Raises:
         MapError: the variable is set but not a positive whole number.

@@ -1,4 +1,4 @@
-"""Reading ROS map_server YAML + image files into an :class:`~racecar_sim.maps.grid.OccupancyMap`."""
+"""Reading ROS map_server YAML + image files into an [`OccupancyMap`][racecar_sim.maps.grid.OccupancyMap]."""
 
 from __future__ import annotations
 
@@ -73,16 +73,16 @@ def _read_image(path: Path, image_path: Path, max_cells: int | None) -> np.ndarr
 
 
 def load_map(path: str | os.PathLike[str], max_cells: int | None = None) -> OccupancyMap:
-    """Load a ROS map_server YAML and its image into an :class:`OccupancyMap`.
+    """Load a ROS map_server YAML and its image into an `OccupancyMap`.
 
     Honoured keys: ``image`` (relative to the YAML), ``resolution`` (m/cell), ``origin`` [x, y, yaw]
     (metres, radians), ``negate``, ``occupied_thresh``, ``free_thresh``, ``mode`` (``trinary``
     (default), ``scale`` or ``raw``). Unknown cells count as occupied.
 
     The YAML is read without anchors or aliases; the image's size is read from its header and
-    checked against ``max_cells`` (None: :func:`racecar_sim.maps.limits.max_map_cells`) before
+    checked against ``max_cells`` (None: `racecar_sim.maps.limits.max_map_cells()`) before
     it is decoded; ``resolution`` must lie in [MIN_RESOLUTION, MAX_RESOLUTION] and the origin's
-    x and y within +-MAX_ORIGIN metres (:mod:`racecar_sim.maps.limits`).
+    x and y within +-MAX_ORIGIN metres (`racecar_sim.maps.limits`).
 
     Raises:
         MapError: the file is missing, a key is missing or invalid, the image is missing or unreadable,

@@ -1,4 +1,4 @@
-"""Named noise profiles: sets of :class:`~racecar_sim.config.EnvConfig` settings that make the
+"""Named noise profiles: sets of [`EnvConfig`][racecar_sim.config.EnvConfig] settings that make the
 simulated sensors behave like a particular real car.
 
 A profile is a YAML file in ``racecar_sim/noise_profiles/data/`` (package data) with a

@@ -1,4 +1,4 @@
-"""Several cars in one world: :class:`RaceEnv` (PettingZoo, extra ``race``), tracks, laps, grid.
+"""Several cars in one world: `RaceEnv` (PettingZoo, extra ``race``), tracks, laps, grid.
 
 ``RaceEnv`` is imported on first use, so the tracks and the single-agent race env work without
 pettingzoo installed.

@@ -1,6 +1,6 @@
 """Cars touching cars: each car's pymunk space holds the cars near it as moving boxes.
 
-Every car keeps its own :class:`~racecar_sim.physics.RacecarPhysics` (its space, its walls, its
+Every car keeps its own [`RacecarPhysics`][racecar_sim.physics.RacecarPhysics] (its space, its walls, its
 free steps), so the race's car is exactly the single env's car. Before a step, the cars that could
 touch within it (bounding circles closer than their reach) see each other: car ``j`` appears in
 car ``i``'s space as a kinematic box ("ghost") at ``j``'s pose, moving with ``j``'s velocity over
@@ -68,7 +68,7 @@ class CarContacts:
         self.physics = physics
         n = len(physics)
         self.touched: list[set[int]] = [set() for _ in range(n)]
-        """Per car, what it touched since :meth:`clear`: :data:`WALL` or other cars' indices."""
+        """Per car, what it touched since `clear()`: `WALL` or other cars' indices."""
         self._ghosts: dict[tuple[int, int], tuple[pymunk.Body, pymunk.Poly]] = {}
         self._shown: set[tuple[int, int]] = set()  # (i, j): car j's ghost is in car i's space
         self._busy: set[int] = set()  # cars with a ghost in their space (no free steps)
@@ -122,7 +122,7 @@ class CarContacts:
         """Show each other the cars of ``pairs`` (P, 2), hide the rest.
 
         Args:
-            pairs: index pairs from :func:`near_pairs`.
+            pairs: index pairs from `near_pairs()`.
             poses: (N, 3) rear-axle world poses at the start of the step.
             velocities: (N, 3) world velocities [vx, vy, omega] of the rear axles (m/s, rad/s)
                 over the step; the ghosts move with them.

@@ -2,9 +2,9 @@
 
 Every car is the single env's car (``RacecarSim-v0``: its observation, action, noise and seeding)
 and every ``RacecarSim-v0`` setting applies to every car. What a race adds (see
-:class:`~racecar_sim.race.world.RaceWorld`): each lidar sees the other cars' boxes exactly as it
+[`RaceWorld`][racecar_sim.race.world.RaceWorld]): each lidar sees the other cars' boxes exactly as it
 sees walls, cars collide with each other as pymunk bodies, and on a track the info carries
-progress, laps, lap times and race order (:mod:`racecar_sim.race.laps`). Needs the ``race`` extra
+progress, laps, lap times and race order (`racecar_sim.race.laps`). Needs the ``race`` extra
 (pettingzoo; in the checkout ``.venv/bin/pip install -e '.[race]'``).
 """
 
@@ -66,8 +66,8 @@ class RaceEnv(ParallelEnv):
     every dict keyed by the agents alive before the step. The reward is the single env's (metres
     driven forwards along the heading, minus ``collision_penalty`` on a step with contact).
     ``terminated`` on any contact (wall or car) unless ``terminate_on_collision=False``;
-    ``truncated`` after ``max_episode_steps``. A finished car leaves :attr:`agents` and stays where
-    it stopped, still seen and touched by the others. A step before :meth:`reset` (or after a
+    ``truncated`` after ``max_episode_steps``. A finished car leaves `agents` and stays where
+    it stopped, still seen and touched by the others. A step before `reset()` (or after a
     refused one), or once every agent is done, raises ``ResetNeeded``.
 
     ## Info (per agent)
@@ -84,16 +84,16 @@ class RaceEnv(ParallelEnv):
     PettingZoo's API allows (its API test passes ``{"options": 1}``), except a near miss of
     ``"poses"`` (``"pose"``, ``"Poses"``): a ``ValueError``, since the race would otherwise start
     from the grid. Without poses the cars stand on the
-    track's staggered start grid (:func:`~racecar_sim.race.grid.start_grid`; it holds track length
+    track's staggered start grid ([`start_grid()`][racecar_sim.race.grid.start_grid]; it holds track length
     / (car length + 0.3 m) cars, more is a ``ValueError``), or at random free places clear of each
     other when there is no track. The same seed gives the same race.
 
     Args:
-        map: as ``RacecarSim-v0`` (a bundled name, a map YAML or an :class:`OccupancyMap`).
+        map: as ``RacecarSim-v0`` (a bundled name, a map YAML or an `OccupancyMap`).
         n_cars: number of cars (agents ``car_0`` ... ``car_{n_cars-1}``).
         config: as ``RacecarSim-v0``; keyword ``settings`` override it.
-        track: a centerline CSV (f1tenth's format), ``"auto"``, a :class:`Track`, or None: the
-            derived centerline on a bundled loop map (:data:`~racecar_sim.race.track.LOOP_STARTS`),
+        track: a centerline CSV (f1tenth's format), ``"auto"``, a `Track`, or None: the
+            derived centerline on a bundled loop map (`LOOP_STARTS`),
             else no track.
         max_episode_steps: truncate every agent after this many steps (None: never).
         workers: threads casting the scans (default 1).
@@ -194,7 +194,7 @@ class RaceEnv(ParallelEnv):
 
     @property
     def cars(self) -> list:
-        """Each car's :class:`~racecar_sim.env.RacecarEnv` (its physics, lidar and generator)."""
+        """Each car's [`RacecarEnv`][racecar_sim.env.RacecarEnv] (its physics, lidar and generator)."""
         return self.world.cars
 
     # ------------------------------------------------------------------ PettingZoo API
@@ -245,7 +245,7 @@ class RaceEnv(ParallelEnv):
         Raises:
             ValueError: ``actions`` is not a mapping, an action for an agent that is not alive, a
                 missing action, or an action that is not two finite numbers (the agent named).
-            gymnasium.error.ResetNeeded: :meth:`reset` was never called (or was refused), or every
+            gymnasium.error.ResetNeeded: `reset()` was never called (or was refused), or every
                 agent is done.
         """
         if self._needs_reset:
@@ -326,7 +326,7 @@ class RaceEnv(ParallelEnv):
 
     def render(self) -> np.ndarray | None:
         """RGB uint8 (H, W, 3): the map, every car's last scan hits and its box in its own colour
-        (:data:`CAR_COLOURS`), the track's centerline when there is one."""
+        (`CAR_COLOURS`), the track's centerline when there is one."""
         if self.render_mode is None:
             warnings.warn(  # a plain warning: gym.logger.warn's colour codes end up in logs
                 "render() called without a render_mode; make the env with render_mode='rgb_array'",

@@ -1,9 +1,9 @@
 """Every car's lidar in one numba call: the walls, the other cars' boxes, then the beam noise.
 
-A race scan is the single env's scan (:mod:`racecar_sim.raycast.scan`: the mount pose, the exact
+A race scan is the single env's scan ([`racecar_sim.raycast.scan`][racecar_sim.raycast.scan]: the mount pose, the exact
 cast on the grid, the four-part beam noise) with one stage between the cast and the noise: each
 other car's footprint (its ``length x width`` box at its pose at scan time, world frame) cuts the
-beams that hit it first, exactly (:func:`racecar_sim.obstacles.ray_segment` on the box's four
+beams that hit it first, exactly ([`racecar_sim.obstacles.ray_segment()`][racecar_sim.obstacles.ray_segment] on the box's four
 edges). The noise then treats a car like a wall.
 
 Culling keeps the cost linear in the beams a car actually covers, not cars x beams: a car whose
@@ -12,7 +12,7 @@ angle their bounding circle subtends are tested (beams are evenly spaced, so tha
 range), nearest car first, and a beam that already ends nearer than a car's bounding circle skips
 it (a car hidden behind the one ahead costs a comparison per beam). The cars are cut before the
 walls are cast: a beam that hit a car is cast on the grid only to just behind the car (the wall
-cast's per-beam limits, :func:`racecar_sim.raycast.scan.exact_one`), so the long beams down a
+cast's per-beam limits, [`racecar_sim.raycast.scan.exact_one()`][racecar_sim.raycast.scan.exact_one]), so the long beams down a
 straight that the car ahead blocks cost a few cells. The result is, bit for bit, the full wall
 cast cut by every other car's box (tested against that brute force).
 """
@@ -58,7 +58,7 @@ def _cut_by_cars(k, mx, my, th, boxes, radius, cos_a, sin_a, angle0, step, max_r
 
     The cars in range go nearest first, and a beam that already ends nearer than a car's bounding
     circle skips that car: a car hidden behind a nearer one costs a comparison per beam. Each hit
-    is the nearest of :func:`ray_segment` on the box's four edges, so ``ranges`` ends as the
+    is the nearest of `ray_segment()` on the box's four edges, so ``ranges`` ends as the
     minimum of what it held and every hit, whatever the order. Returns the number of cars in
     range.
     """
@@ -127,7 +127,7 @@ def _cut_by_cars(k, mx, my, th, boxes, radius, cos_a, sin_a, angle0, step, max_r
 def _race_one(field, poses, k, geometry, cos_a, sin_a, angle0, step, boxes, radius, seed, noise,
               work, where, order, dist, ranges, out):  # fmt: skip
     """One car's scan: the other cars' boxes first, then the walls, a beam that hit a car cast
-    only to just behind it, then the noise; a status (as :func:`race_scans_serial`).
+    only to just behind it, then the noise; a status (as `race_scans_serial()`).
 
     Scratch: ``work`` (5, M) float64, ``where`` (M,) int64, ``order``, ``dist`` (N,).
     """
@@ -189,10 +189,10 @@ def race_scans_serial(field, poses, cars, geometry, cos_a, sin_a, angle0, step, 
     (noisy, float32 metres) and ``status`` (0 ok, 1 pose not finite, 2 range out of bounds).
 
     Args:
-        field, geometry, cos_a, sin_a, noise: as :func:`racecar_sim.raycast.scan.scan_with_noise`.
+        field, geometry, cos_a, sin_a, noise: as [`racecar_sim.raycast.scan.scan_with_noise()`][racecar_sim.raycast.scan.scan_with_noise].
         poses: (N, 3) rear-axle world poses of every car.
         angle0, step: the first beam's angle and the spacing (car frame, radians).
-        boxes: (N, 4, 2) every car's world corners (:func:`car_boxes`); a car's own is skipped.
+        boxes: (N, 4, 2) every car's world corners (`car_boxes()`); a car's own is skipped.
         radius: metres from a box's centre to its corners.
         seeds: (K,) int64 seeds of the scans' noise streams.
     """
@@ -209,8 +209,8 @@ def race_scans_serial(field, poses, cars, geometry, cos_a, sin_a, angle0, step, 
 @nb.njit(cache=True, nogil=True)
 def race_scans_shared(field, poses, cars, geometry, cos_a, sin_a, angle0, step, boxes, radius,
                       seeds, noise, ranges, out, status, chunk, counter):  # fmt: skip
-    """:func:`race_scans_serial` in chunks of ``chunk`` cars taken from ``counter``: one thread of
-    :func:`racecar_sim.raycast.shared_work.run_shared`."""
+    """`race_scans_serial()` in chunks of ``chunk`` cars taken from ``counter``: one thread of
+    [`racecar_sim.raycast.shared_work.run_shared()`][racecar_sim.raycast.shared_work.run_shared]."""
     n = cars.shape[0]
     m = cos_a.shape[0]
     work, where = np.empty((5, m)), np.empty(m, dtype=np.int64)

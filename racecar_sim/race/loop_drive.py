@@ -1,10 +1,10 @@
 """The bundled loop maps' tracks, derived by driving them in an env class the caller gives.
 
-The derivation drives a car with the wall follower (:func:`~racecar_sim.drivers.waypoints_from_drive`)
-round the loop and centres that path between the walls (:func:`~racecar_sim.race.track.centre_loop`).
+The derivation drives a car with the wall follower ([`waypoints_from_drive()`][racecar_sim.drivers.waypoints_from_drive])
+round the loop and centres that path between the walls ([`centre_loop()`][racecar_sim.race.track.centre_loop]).
 It needs an env to drive but does not import one: the single env passes its own class, so that
 ``RacecarSim-v0`` takes ``track="auto"`` as the race envs do, with no import loop between the env
-and this module (:mod:`racecar_sim.race.loops` is the same with :class:`~racecar_sim.env.RacecarEnv`
+and this module ([`racecar_sim.race.loops`][racecar_sim.race.loops] is the same with [`RacecarEnv`][racecar_sim.env.RacecarEnv]
 filled in). Each result is computed once per process and env class.
 """
 
@@ -24,7 +24,7 @@ __all__ = ["drive_centerline", "drive_loop"]
 @lru_cache(maxsize=8)
 def drive_loop(map_name: str, start: tuple[float, float, float] | None, env_class: type) -> Track:
     """The loop the wall follower drives on ``map_name`` from ``start`` (None: the map's loop
-    start, :data:`LOOP_STARTS`) in an ``env_class(map_name)`` env, 0.25 m between points,
+    start, `LOOP_STARTS`) in an ``env_class(map_name)`` env, 0.25 m between points,
     oriented along the start heading.
 
     Raises:
@@ -47,6 +47,6 @@ def drive_loop(map_name: str, start: tuple[float, float, float] | None, env_clas
 
 @lru_cache(maxsize=8)
 def drive_centerline(map_name: str, env_class: type) -> Track:
-    """The centerline of a bundled loop map: :func:`drive_loop` from its loop start, centred
+    """The centerline of a bundled loop map: `drive_loop()` from its loop start, centred
     between the walls, with widths."""
     return centre_loop(resolve_map(map_name), drive_loop(map_name, None, env_class).points)

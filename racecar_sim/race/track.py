@@ -1,12 +1,12 @@
 """A race track: a closed centerline on a map, its widths, arc length along it and the start line.
 
-A :class:`Track` is a closed polyline of world points (metres) in driving order, with the free width
+A `Track` is a closed polyline of world points (metres) in driving order, with the free width
 to the right and to the left of each point. It loads from f1tenth's track format (a CSV with
 ``x_m, y_m, w_tr_right_m, w_tr_left_m`` per row, header lines starting with ``#``; their users'
 ``*_centerline.csv`` files load as they are), or is derived from a loop map
-(:func:`centre_loop` of the loop the wall follower drives, :mod:`racecar_sim.race.loops`). The start line crosses the track at its first point; arc length ``s`` runs from there in
+(`centre_loop()` of the loop the wall follower drives, [`racecar_sim.race.loops`][racecar_sim.race.loops]). The start line crosses the track at its first point; arc length ``s`` runs from there in
 the driving direction. Frames: ``world`` (the map's) for the points and poses, ``car`` (x forward,
-y left, origin at the rear axle) for :meth:`Track.ahead`.
+y left, origin at the rear axle) for [`Track.ahead()`][Track.ahead].
 """
 
 from __future__ import annotations
@@ -335,9 +335,9 @@ def with_widths(track: Track, grid: OccupancyMap) -> Track:
 def resolve_track(
     spec: object, grid: OccupancyMap, auto: Callable[[str], Track] | None = None
 ) -> Track | None:
-    """The track of the ``track`` setting: None (no track), a :class:`Track`, a CSV path
+    """The track of the ``track`` setting: None (no track), a `Track`, a CSV path
     (f1tenth's centerline format) or ``"auto"``: ``auto(map name)``, the centerline derived from
-    a loop map by driving it (:func:`racecar_sim.race.loops.centerline_for_map`; every env passes
+    a loop map by driving it ([`racecar_sim.race.loops.centerline_for_map()`][racecar_sim.race.loops.centerline_for_map]; every env passes
     one: the race envs that function, the single env the same derivation in its own class).
 
     Raises:

@@ -1,12 +1,12 @@
 """Several cars on one map, stepped together: the part of the race that knows no agent API.
 
-:class:`RaceWorld` holds one :class:`~racecar_sim.env.RacecarEnv` per car (its physics, its lidar
+`RaceWorld` holds one [`RacecarEnv`][racecar_sim.env.RacecarEnv] per car (its physics, its lidar
 settings, its odometry and its own random generator, exactly the single env's pieces) and steps
-them the way :class:`~racecar_sim.vector_env.RacecarVectorEnv` does (the free steps of all cars in
+them the way [`RacecarVectorEnv`][racecar_sim.vector_env.RacecarVectorEnv] does (the free steps of all cars in
 one numba call, the others through pymunk), with two things added: cars that could touch within a
-step see each other's boxes in their pymunk spaces (:mod:`racecar_sim.race.contact`), and every
+step see each other's boxes in their pymunk spaces ([`racecar_sim.race.contact`][racecar_sim.race.contact]), and every
 due scan is cast in one numba call that cuts the beams at the other cars' boxes
-(:mod:`racecar_sim.race.lidar`). Each car's generator draws, per step, its scan's seed and then
+([`racecar_sim.race.lidar`][racecar_sim.race.lidar]). Each car's generator draws, per step, its scan's seed and then
 its odometry's six normals, as the single env's does, so a world of one car gives what
 ``RacecarSim-v0`` gives for the same seed, start and actions.
 
@@ -70,9 +70,9 @@ class RaceWorld:
 
     Args:
         n_cars: number of cars (>= 1).
-        config: the settings of every car (an :class:`EnvConfig` whose map is loaded).
+        config: the settings of every car (an `EnvConfig` whose map is loaded).
         workers: threads casting the scans (default 1: on the calling thread). Threads pay off
-            from :data:`~racecar_sim.raycast.kernels.PARALLEL_MIN_RAYS` rays per step on idle
+            from `PARALLEL_MIN_RAYS` rays per step on idle
             cores.
 
     Raises:
@@ -181,7 +181,7 @@ class RaceWorld:
     # ------------------------------------------------------------------ simulation
     def reset(self, seeds: list[int | None], poses: np.ndarray | None) -> None:
         """Seed every car's generator, place the cars at rest (``poses`` (N, 3); None: random,
-        see :meth:`random_poses`) and take every first scan and odometry."""
+        see `random_poses()`) and take every first scan and odometry."""
         self.contacts.remove_all()
         given = None if poses is None else self.check_poses(poses)  # before anything changes
         for car, seed in zip(self.cars, seeds, strict=True):

@@ -1,4 +1,4 @@
-"""Ray casting on occupancy grids: one API (:class:`RayCaster`) for the lidar and for particles.
+"""Ray casting on occupancy grids: one API (`RayCaster`) for the lidar and for particles.
 
 ``caster.py`` holds the API and the in-process cache, ``kernels.py`` the numba per-ray kernels
 (exact grid traversal with distance-field jumps, sphere tracing), ``lut.py`` the lookup-table method's

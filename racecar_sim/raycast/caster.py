@@ -4,7 +4,7 @@ A ray starts at a pose's position and runs along ``theta + angle`` (world frame)
 distance in metres to where it *enters* the first occupied cell (unknown cells and everything beyond
 the image border count as occupied), clipped to ``max_range``. A pose inside an occupied cell, or
 off the map, gives 0 on every ray. Casting is done in the grid's own axis-aligned frame (see
-:mod:`racecar_sim.maps`), so a map origin with a yaw is handled by rotating the ray, not the grid.
+[`racecar_sim.maps`][racecar_sim.maps]), so a map origin with a yaw is handled by rotating the ray, not the grid.
 
 Methods (``METHODS``)
 ---------------------
@@ -17,8 +17,8 @@ Methods (``METHODS``)
     A table of ranges over free cells and ``LutParams.n_angles`` directions, answered by the pose's
     cell and the two bracketing directions (the true ray against the line through their hits),
     with an exact cast (started just before the table's hit) where the two disagree and the table
-    does not flag them as one straight face; see :mod:`racecar_sim.raycast.lut` (query) and
-    :mod:`racecar_sim.raycast.lut_build` (table, :mod:`~racecar_sim.raycast.lut_table`). For many poses (particles): about 6x the exact
+    does not flag them as one straight face; see [`racecar_sim.raycast.lut`][racecar_sim.raycast.lut] (query) and
+    [`racecar_sim.raycast.lut_build`][racecar_sim.raycast.lut_build] (table, [`lut_table`][racecar_sim.raycast.lut_table]). For many poses (particles): about 6x the exact
     method's rays per second on the Stata basement. Building the table takes seconds and ``2 K``
     bytes per free cell, so it is cached (below).
 ``"march"``
@@ -28,7 +28,7 @@ Methods (``METHODS``)
     cost more than exact cell steps. Kept as the plain approximate reference.
 
 Every method runs on the calling thread below
-:data:`~racecar_sim.raycast.kernels.PARALLEL_MIN_RAYS` rays per cast (one lidar scan), and in
+`PARALLEL_MIN_RAYS` rays per cast (one lidar scan), and in
 chunks over numba's threads above it (``RayCaster(..., parallel=...)`` overrides).
 
 Error of the approximate methods (absolute, vs ``"exact"``, default parameters, 1500 poses uniform
@@ -55,10 +55,10 @@ Building a caster prepares per-map data (the jump field; for ``"lut"`` the table
 a module-level least-recently-used cache, keyed by a hash of the occupancy grid's contents, and for
 tables also the range in cells (``max_range / resolution``) and the table parameters (tables are in
 the grid frame, so the origin and the query parameters ``tolerance`` and ``guide`` do not matter).
-Least recently used entries are dropped while the cache holds more than :data:`CACHE_BYTES` (the
+Least recently used entries are dropped while the cache holds more than `CACHE_BYTES` (the
 newest entry always stays). A particle filter and an experiment script that
 build casters for the same map and range therefore share one table. ``RayCaster(..., cache=False)``
-bypasses it; :func:`clear_cache` empties it.
+bypasses it; `clear_cache()` empties it.
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ __all__ = [
 ]
 
 METHODS: tuple[str, ...] = ("exact", "lut", "march")
-"""Names accepted by :class:`RayCaster`'s ``method``."""
+"""Names accepted by `RayCaster`'s ``method``."""
 
 _DTYPES = (np.dtype(np.float64), np.dtype(np.float32))
 
@@ -131,14 +131,14 @@ class RayCaster:
     Args:
         occupancy_map: the map (world frame defined by its origin).
         max_range: metres; ranges are clipped to it.
-        method: one of :data:`METHODS`.
+        method: one of `METHODS`.
         lut: parameters of ``"lut"`` (defaults if None).
         march: parameters of ``"march"`` (defaults if None).
         dtype: float64 (default) or float32 for the returned ranges (float32 halves their memory;
             it is not faster, the kernels compute in float64).
         cache: share prepared data (field, table) through the module-level cache.
         parallel: spread rays over numba's threads; None (default) does so from
-            :data:`~racecar_sim.raycast.kernels.PARALLEL_MIN_RAYS` rays per cast.
+            `PARALLEL_MIN_RAYS` rays per cast.
 
     Raises:
         ValueError: unknown method or dtype, max_range not a positive finite number, parameters
@@ -242,8 +242,8 @@ class RayCaster:
         )
 
     def _particle_frame(self, poses: np.ndarray, offset: float) -> tuple[np.ndarray, ...]:
-        """:meth:`_grid_frame` of the points ``offset`` metres ahead of the poses, in one numba
-        pass (:func:`kernels.grid_frame`; equal to it up to rounding, which :meth:`cast` keeps
+        """`_grid_frame()` of the points ``offset`` metres ahead of the poses, in one numba
+        pass ([`kernels.grid_frame()`][kernels.grid_frame]; equal to it up to rounding, which `cast()` keeps
         bit-exact for the simulated lidar)."""
         n = poses.shape[0]
         gu, gv, heading, cos_h, sin_h = (np.empty(n) for _ in range(5))
@@ -329,14 +329,14 @@ class RayCaster:
     ) -> np.ndarray:
         """(N,) ``sum_b rows[b, round(clip(range_ib * per_metre, 0, W - 1))]`` over the beams.
 
-        The same ranges as :meth:`cast` (metres, float64) looked up in a per-beam score table
+        The same ranges as `cast()` (metres, float64) looked up in a per-beam score table
         ``rows`` (M, W) float64, e.g. a sensor model's log-likelihood row for each beam's measured
         range. The ``"lut"`` method casts and scores in one pass without storing the (N, M) ranges;
         the others cast, then score. ``offset``: metres; the rays start that far ahead of each
         pose along its heading (a lidar's mount) instead of at the pose.
 
         Raises:
-            ValueError: as :meth:`cast`; rows not (M, W) for the M angles.
+            ValueError: as `cast()`; rows not (M, W) for the M angles.
         """
         poses = np.asarray(poses, dtype=np.float64)
         if poses.ndim == 1:

@@ -1,14 +1,14 @@
 """Many exact casts at once, in lockstep: the fallbacks of the ``lut`` query.
 
-Each ray is :func:`~racecar_sim.raycast.kernels.cast_ray_from` from its own start parameter
-``t0`` (cells, pad frame), or :func:`~racecar_sim.raycast.kernels.cast_ray` from its origin when
+Each ray is [`cast_ray_from()`][racecar_sim.raycast.kernels.cast_ray_from] from its own start parameter
+``t0`` (cells, pad frame), or [`cast_ray()`][racecar_sim.raycast.kernels.cast_ray] from its origin when
 ``t0 <= 0`` or the point at ``t0`` is occupied or off the grid: the same doubles, operation for
 operation (tested). What differs is the order of work. One ray at a time, the cell-by-cell
 traversal costs a mispredicted branch at most steps (x or y crossing next?) and waits on each
 field read; here every ray takes one step per pass over the list of rays still stepping, with
 selects instead of branches, so the passes are branch-free and the reads of different rays
 overlap. A ray that leaves the walls (a field value allowing a jump) finishes on its own with
-:func:`~racecar_sim.raycast.kernels.traverse`; those are few, as the ``lut`` starts its fallbacks
+[`traverse()`][racecar_sim.raycast.kernels.traverse]; those are few, as the ``lut`` starts its fallbacks
 just before a wall.
 """
 
@@ -32,7 +32,7 @@ def guided_casts(field, x, y, dx, dy, t0, max_t, n, out, fstate, istate, active)
     ``fstate`` (4, >= n) float64, ``istate`` (4, >= n) int64 and ``active`` (>= n) int64 are work
     arrays (their contents are overwritten; C-contiguous, read as four numbers per ray). The
     segment of each ray before ``t0`` must be free, as for
-    :func:`~racecar_sim.raycast.kernels.cast_ray_from`.
+    [`cast_ray_from()`][racecar_sim.raycast.kernels.cast_ray_from].
     """
     h = field.shape[0]
     w = field.shape[1]

@@ -93,7 +93,7 @@ def field_from_occupancy(occupied: np.ndarray) -> np.ndarray:
 
 @nb.njit(cache=True, inline="always")
 def cast_ray_from(field, gu, gv, dx, dy, t0, max_t):
-    """Like :func:`cast_ray` but the traversal starts at parameter ``t0`` (cells) along the ray.
+    """Like `cast_ray()` but the traversal starts at parameter ``t0`` (cells) along the ray.
 
     Returns -1 when the point at ``t0`` is in an occupied cell or off the grid. Exact provided
     the segment before ``t0`` is free (``t0 = 0`` always is).
@@ -114,7 +114,7 @@ def cast_ray_from(field, gu, gv, dx, dy, t0, max_t):
 
 @nb.njit(cache=True, inline="always")
 def traverse(field, gu, gv, dx, dy, t, px, py, col, rv, v, max_t):
-    """The traversal of :func:`cast_ray_from` from the free cell ``(col, rv)`` whose field value is
+    """The traversal of `cast_ray_from()` from the free cell ``(col, rv)`` whose field value is
     ``v``, holding the point ``(px, py) = (gu + t dx, gv + t dy)`` at parameter ``t`` (cells).
 
     With ``v != 0`` it jumps first (``col, rv`` are then recomputed and may be anything); with
@@ -257,7 +257,7 @@ def to_metres(r, max_t, scale, max_out):
 
 @nb.njit(cache=True)
 def _exact_span(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, q0, q1):
-    """Rays ``q0 <= q < q1`` (pose ``q // M``, beam ``q % M``) of :func:`exact_rays`."""
+    """Rays ``q0 <= q < q1`` (pose ``q // M``, beam ``q % M``) of `exact_rays()`."""
     m = cos_a.shape[0]
     for q in range(q0, q1):
         i = q // m
@@ -270,7 +270,7 @@ def _exact_span(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out
 
 @nb.njit(cache=True, nogil=True)
 def _exact_shared(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out, counter):
-    """:func:`_exact_span` over chunks of ``CHUNK`` rays taken from ``counter`` (shared work)."""
+    """`_exact_span()` over chunks of ``CHUNK`` rays taken from ``counter`` (shared work)."""
     total = gu.shape[0] * cos_a.shape[0]
     while True:
         q0 = fetch_add(counter, 1) * CHUNK
@@ -287,7 +287,7 @@ def _march_span(
     field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out, out,
     q0, q1,
 ):  # fmt: skip
-    """Rays ``q0 <= q < q1`` of :func:`march_rays`."""
+    """Rays ``q0 <= q < q1`` of `march_rays()`."""
     m = cos_a.shape[0]
     for q in range(q0, q1):
         i = q // m
@@ -303,7 +303,7 @@ def _march_shared(
     field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out, out,
     counter,
 ):  # fmt: skip
-    """:func:`_march_span` over chunks of ``CHUNK`` rays taken from ``counter`` (shared work)."""
+    """`_march_span()` over chunks of ``CHUNK`` rays taken from ``counter`` (shared work)."""
     total = gu.shape[0] * cos_a.shape[0]
     while True:
         q0 = fetch_add(counter, 1) * CHUNK
@@ -320,8 +320,8 @@ def exact_rays(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out,
 
     Poses as pad-frame (gu, gv) in cells and heading cos/sin in the map frame; beams as cos/sin
     relative to the heading; ``max_t`` in cells. ``parallel``: share chunks of rays among numba's
-    thread count of threads (:mod:`~racecar_sim.raycast.shared_work`; worth it from about
-    :data:`PARALLEL_MIN_RAYS` rays).
+    thread count of threads (`shared_work`; worth it from about
+    `PARALLEL_MIN_RAYS` rays).
     """
     if parallel:
         args = (field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, scale, max_out, out)
@@ -336,7 +336,7 @@ def march_rays(
     field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out, out,
     parallel,
 ):  # fmt: skip
-    """Like :func:`exact_rays` with :func:`march_ray` (approximate)."""
+    """Like `exact_rays()` with `march_ray()` (approximate)."""
     args = (field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, min_step, n_refine, scale, max_out)
     if parallel:
         run_shared(_march_shared, (*args, out), nb.get_num_threads())

@@ -1,7 +1,7 @@
-"""Lookup-table ray casting for particles: the query (the table: :mod:`.lut_table`, its build:
-:mod:`.lut_build`).
+"""Lookup-table ray casting for particles: the query (the table: `lut_table`, its build:
+`lut_build`).
 
-Everything here works in the pad frame of :mod:`racecar_sim.raycast.kernels` (cells).
+Everything here works in the pad frame of `racecar_sim.raycast.kernels` (cells).
 
 Query
     A pose's cell row and the two directions ``k0, k1`` bracketing the ray give ranges ``r0, r1``
@@ -12,13 +12,13 @@ Query
     exactly, starting ``guide`` before the nearer table hit (or from the pose if that point is
     occupied): this *guided* fallback misses only an obstacle that both table rays passed.
 Kernel layout
-    Per pose, three loops over the beams (the vectorised ones in :mod:`.lut_beams`): (1) the
+    Per pose, three loops over the beams (the vectorised ones in `lut_beams`): (1) the
     bracketing directions in 32-bit fixed point
     (a turn is 2**32) and the two table entries; (2) the interpolation, branch-free, so LLVM
     vectorises it (SIMD division; the bracketing directions come from the ray's by a rotation
     through the fixed-point remainder, a short Taylor series, instead of table look-ups);
     (3) the list of rays to cast, without branches. The rays to cast of a group of poses are cast
-    together, in lockstep (:mod:`.fallback`: the same doubles as casting them one by one, about
+    together, in lockstep (`fallback`: the same doubles as casting them one by one, about
     1.5x faster), then the group's output is written (ranges, or the score look-ups).
 """
 
@@ -72,7 +72,7 @@ class LutParams:
             ``math.inf`` makes every fallback an exact cast from the pose (slower, slightly more
             accurate).
         sort_extent: metres; a batch of poses whose bounding box is at least this wide (on
-            either axis) is cast in Z-order of its cells (:mod:`.morton`) and the results are
+            either axis) is cast in Z-order of its cells (`morton`) and the results are
             scattered back: the same numbers, fewer cache misses on a cloud spread over the map
             (global localization). ``math.inf`` never sorts. A tracking cloud is narrower.
     """
@@ -131,7 +131,7 @@ def _lut_poses(
     empty, ``scores[i] = sum_b rows[b, round(clip(range * per_out, 0, top))]``.
 
     ``heading`` (N,) radians, map frame; ``afix`` (M,) int64 beam angles in fixed point (a turn
-    is 2**32, see :func:`_fixed`). ``error_model="numpy"``: a float division raises nothing, which
+    is 2**32, see `_fixed()`). ``error_model="numpy"``: a float division raises nothing, which
     lets LLVM vectorise loop (2) of the module docstring.
     """
     m = cos_a.shape[0]
@@ -252,8 +252,8 @@ def _lut_shared(
     table, index, unit, sub, tol, guide, field, gu, gv, heading, cos_h, sin_h,
     afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores, counter,
 ):  # fmt: skip
-    """:func:`_lut_poses` over blocks of about ``_BLOCK_RAYS`` rays taken from ``counter`` until
-    none is left (see :mod:`.shared_work`); one of the threads that share the poses."""
+    """`_lut_poses()` over blocks of about ``_BLOCK_RAYS`` rays taken from ``counter`` until
+    none is left (see `shared_work`); one of the threads that share the poses."""
     n = gu.shape[0]
     blk = max(1, _BLOCK_RAYS // max(1, cos_a.shape[0]))
     while True:
@@ -331,7 +331,7 @@ def lut_rays(
     Poses as pad-frame (gu, gv) in cells and heading (radians, map frame) with its cos/sin; beams
     as angles relative to the heading with their cos/sin. ``tol``, ``guide``, ``max_t`` in cells.
     ``field`` is the exact kernel's field, for the fallback casts. Poses whose bounding box is
-    at least ``sort_cells`` wide are cast in Z-order (:mod:`.morton`); the output is the same.
+    at least ``sort_cells`` wide are cast in Z-order (`morton`); the output is the same.
     """
     _run(
         lut, tol, guide, field, gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a, max_t,
@@ -363,7 +363,7 @@ def lut_score(
 ) -> None:
     """``out[i] = sum_b rows[b, round(clip(range_ib * per_out, 0, W - 1))]`` without storing ranges.
 
-    ``range_ib`` is exactly what :func:`lut_rays` writes for pose ``i`` and beam ``b`` (same
+    ``range_ib`` is exactly what `lut_rays()` writes for pose ``i`` and beam ``b`` (same
     arguments); ``rows`` is a float64 (M, W) table of per-beam scores (a sensor model's log
     likelihood row of each beam's measured range), ``per_out`` converts the output unit to row
     columns. Cast and score share one pass over the poses, so the (N, M) ranges never reach memory.

@@ -1,8 +1,8 @@
-"""Building the lookup table of the ``"lut"`` ray casting method (its format: :mod:`.lut_table`;
-its planar flags: :mod:`.lut_flags`; the query: :mod:`.lut`).
+"""Building the lookup table of the ``"lut"`` ray casting method (its format: `lut_table`;
+its planar flags: `lut_flags`; the query: `lut`).
 
 In the spirit of range_libc's CDDT/GLT (Walsh & Karaman, ICRA 2018), with its own build and query.
-Everything here works in the pad frame of :mod:`racecar_sim.raycast.kernels` (cells).
+Everything here works in the pad frame of `racecar_sim.raycast.kernels` (cells).
 
 Build: one sweep per direction (parallel over directions)
     For direction ``theta_k`` with normal ``n_k``, the parallel lines ``s = (j + 1/2) / sub``
@@ -167,7 +167,7 @@ def _sweep_rows(kind, index, n_angles, k_start, r_lo, r_hi, sub, box, unit, cap,
 
 @nb.njit(cache=True, parallel=True)
 def _sweep_parallel(kind, index, n_angles, k_start, sub, box, unit, cap, buf, written):
-    """:func:`_sweep_rows` over all of ``buf``, one direction per work item."""
+    """`_sweep_rows()` over all of ``buf``, one direction per work item."""
     for r in nb.prange(buf.shape[0]):
         _sweep_rows(kind, index, n_angles, k_start, r, r + 1, sub, box, unit, cap, buf, written)
 
@@ -183,7 +183,7 @@ def _scatter_rows(buf, k_start, table, i_lo, i_hi):
 
 @nb.njit(cache=True, parallel=True)
 def _scatter_parallel(buf, k_start, table):
-    """:func:`_scatter_rows` over every table row, in blocks of 1024 rows."""
+    """`_scatter_rows()` over every table row, in blocks of 1024 rows."""
     n = table.shape[0]
     blk = 1024
     for bi in nb.prange((n + blk - 1) // blk):
@@ -204,7 +204,7 @@ def _fill_unset(field, index, cells, out, unit, cap):
 
 
 def _cell_kinds(occ_pad: np.ndarray) -> np.ndarray:
-    """uint8 pad frame: 0 free, ``1 + skip`` occupied (see :func:`_sweep_direction`)."""
+    """uint8 pad frame: 0 free, ``1 + skip`` occupied (see `_sweep_direction()`)."""
     free = occ_pad == 0
     # Distance between closed squares = centre distance to the 3x3-dilated set (as for the field).
     near_free = cv2.dilate(free.astype(np.uint8), np.ones((3, 3), np.uint8))

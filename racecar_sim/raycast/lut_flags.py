@@ -2,9 +2,9 @@
 
 Planar flag (the high bit of entry ``k``)
     Set when the two table rays ``k`` and ``k + 1`` of the cell see one straight face: their
-    ranges differ by more than :data:`~racecar_sim.raycast.lut_table.FLAG_ABOVE` cells (closer pairs are judged by the query's
+    ranges differ by more than [`FLAG_ABOVE`][racecar_sim.raycast.lut_table.FLAG_ABOVE] cells (closer pairs are judged by the query's
     tolerance), and the exact range from the cell centre along the middle direction
-    ``theta_k + pi / K`` lies within :data:`~racecar_sim.raycast.lut_table.FLAG_EPS` cells of where that ray meets the line
+    ``theta_k + pi / K`` lies within [`FLAG_EPS`][racecar_sim.raycast.lut_table.FLAG_EPS] cells of where that ray meets the line
     through the two table hits. The query interpolates flagged pairs however far apart their
     ranges are (oblique walls, corridors seen lengthwise) instead of casting them.
 """
@@ -76,7 +76,7 @@ def flag_rows(
 def flag_parallel(
     table, rv_of, col_of, field, unit, sub, cos_k, sin_k, cos_m, sin_m, cap, above, eps
 ):
-    """:func:`flag_rows` over every row, in blocks of 1024 rows on numba's threads."""
+    """`flag_rows()` over every row, in blocks of 1024 rows on numba's threads."""
     n = table.shape[0]
     blk = 1024
     n_blk = (n + blk - 1) // blk

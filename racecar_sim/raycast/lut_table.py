@@ -47,7 +47,7 @@ class LutTable:
 
     Attributes:
         table: uint16 (n_free, K) entries, one row per free cell: the range code in the low
-            15 bits (:data:`RANGE_MASK`), the planar flag in the high bit (:data:`FLAG`).
+            15 bits (`RANGE_MASK`), the planar flag in the high bit (`FLAG`).
         index: int32 (H + 2, W + 2) row of each free pad-frame cell, -1 elsewhere.
         unit: cells per code unit.
         sub_lines: sweep lines per cell width used to build it.

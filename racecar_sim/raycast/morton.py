@@ -4,7 +4,7 @@ When a particle cloud covers the whole map, consecutive particles read table row
 far apart, so nearly every read misses the cache. Casting them in Z-order of their cells (pad
 frame, whole cells) makes neighbouring poses read neighbouring memory. Each pose's ranges depend
 only on that pose, so casting in another order and scattering the results back gives the same
-doubles (:func:`racecar_sim.raycast.lut.lut_score` relies on it).
+doubles ([`racecar_sim.raycast.lut.lut_score()`][racecar_sim.raycast.lut.lut_score] relies on it).
 """
 
 from __future__ import annotations

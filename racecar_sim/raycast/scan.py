@@ -1,15 +1,15 @@
 """One lidar scan in one numba call: mount pose, exact cast of every beam and the beam noise.
 
-The simulated lidar casts a single scan (1080 beams) per step. Through :meth:`RayCaster.cast` that
+The simulated lidar casts a single scan (1080 beams) per step. Through [`RayCaster.cast()`][RayCaster.cast] that
 is a dozen numpy operations on one pose, a kernel call and a second kernel call for the noise; here
 it is one call whose arithmetic is the same, operation for operation, as
-:func:`~racecar_sim.raycast.kernels.cast_ray` after :meth:`RayCaster.cast`'s frame change, and as
-the noise of :meth:`racecar_sim.sensors.Lidar.add_noise` (:func:`add_beam_noise`, which draws its
-uniforms and normals itself from a :mod:`racecar_sim.rand` stream seeded once per scan): the ranges
+[`cast_ray()`][racecar_sim.raycast.kernels.cast_ray] after [`RayCaster.cast()`][RayCaster.cast]'s frame change, and as
+the noise of [`racecar_sim.sensors.Lidar.add_noise()`][racecar_sim.sensors.Lidar.add_noise] (`add_beam_noise()`, which draws its
+uniforms and normals itself from a `racecar_sim.rand` stream seeded once per scan): the ranges
 are the same doubles and the noisy scan the same floats (tested).
 
-The per-ray traversal is :func:`~racecar_sim.raycast.kernels.cast_ray` written for one origin:
-the beams go through its phases together (see :func:`_exact_scan`), the flat cell index stepped
+The per-ray traversal is [`cast_ray()`][racecar_sim.raycast.kernels.cast_ray] written for one origin:
+the beams go through its phases together (see `_exact_scan()`), the flat cell index stepped
 along in the exact traversal instead of recomputed, truncation instead of ``floor`` (coordinates
 inside the padded grid are never negative).
 """
@@ -46,11 +46,11 @@ cos and sin of the yaw; metres per cell; lidar mount offset ahead of the rear ax
 range limit in cells and in metres)."""
 
 NOISE_FIELDS = ("sigma", "max_range", "p_rand", "p_max", "p_short", "short_lambda")
-"""Layout of the float64 ``noise`` array (see :class:`~racecar_sim.config.LidarParams`)."""
+"""Layout of the float64 ``noise`` array (see [`LidarParams`][racecar_sim.config.LidarParams])."""
 
 
 def scan_geometry(occupancy_map, max_range: float, mount_offset: float) -> np.ndarray:
-    """The ``geometry`` array of :func:`scan_with_noise` for a map, a range (m) and a mount (m)."""
+    """The ``geometry`` array of `scan_with_noise()` for a map, a range (m) and a mount (m)."""
     yaw = float(occupancy_map.yaw)
     res = float(occupancy_map.resolution)
     return np.array(
@@ -77,7 +77,7 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, limits, scale,
     (not ``max_out``) and only a nearer wall is exact (the race's cast: a beam that already hit a
     car stops behind the car). With None the compiled kernel is the one without limits.
 
-    Every beam does the operations of :func:`~racecar_sim.raycast.kernels.cast_ray` in the same
+    Every beam does the operations of [`cast_ray()`][racecar_sim.raycast.kernels.cast_ray] in the same
     order (so the same doubles), but the beams go through the traversal's phases together, in
     passes over lists of the beams still in a phase: the direction, steps and cell crossings per
     beam (one loop the compiler vectorises); one jump of every beam in jump mode per pass (the
@@ -202,17 +202,17 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, limits, scale,
 
 @nb.njit(cache=True, error_model="numpy")
 def add_beam_noise(ranges, seed, noise, out) -> int:
-    """The four-part beam noise (:mod:`racecar_sim.sensors`) of true ``ranges`` into ``out``.
+    """The four-part beam noise ([`racecar_sim.sensors`][racecar_sim.sensors]) of true ``ranges`` into ``out``.
 
     Args:
         ranges: float64 (M,) true ranges, metres.
-        seed: int64 seed of this scan's random stream (:func:`racecar_sim.rand.seed_from`).
-        noise: float64 array laid out as :data:`NOISE_FIELDS`.
+        seed: int64 seed of this scan's random stream ([`racecar_sim.rand.seed_from()`][racecar_sim.rand.seed_from]).
+        noise: float64 array laid out as `NOISE_FIELDS`.
         out: float32 (M,) output, metres.
 
     Per beam one uniform picks the part (and, rescaled within its interval, gives a random or
     short return's distance) and one normal is the Gaussian part's; both come from
-    :func:`racecar_sim.rand.uniforms_and_normals` (beam ``i`` from its own counters).
+    `racecar_sim.rand.uniforms_and_normals()` (beam ``i`` from its own counters).
 
     Returns:
         0, or 2 when a range is NaN or outside [0, max_range] (``out`` then unfinished).
@@ -256,7 +256,7 @@ def add_beam_noise(ranges, seed, noise, out) -> int:
 def exact_one(field, x, y, th, geometry, cos_a, sin_a, limits, ranges):
     """Mount pose and exact cast of one scan from rear-axle world (x, y, th) into ``ranges``
     (metres); 0, or 1 when the pose is not finite (``ranges`` untouched). ``limits``: None, or
-    per-beam limits in cells (see :func:`_exact_scan`)."""
+    per-beam limits in cells (see `_exact_scan()`)."""
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(th)):
         return 1
     # Lidar mount (Lidar.mount_pose), then RayCaster._grid_frame: map frame / resolution + 1 cell.
@@ -280,7 +280,7 @@ def exact_one(field, x, y, th, geometry, cos_a, sin_a, limits, ranges):
 
 @nb.njit(cache=True, inline="always")
 def _scan_one(field, x, y, th, geometry, cos_a, sin_a, seed, noise, ranges, out):
-    """Mount pose, exact cast and noise of one scan (see :func:`scan_with_noise`); a status."""
+    """Mount pose, exact cast and noise of one scan (see `scan_with_noise()`); a status."""
     if exact_one(field, x, y, th, geometry, cos_a, sin_a, None, ranges):
         return 1
     return add_beam_noise(ranges, seed, noise, out)
@@ -291,14 +291,14 @@ def scan_with_noise(field, pose, geometry, cos_a, sin_a, seed, noise, ranges, ou
     """Cast a scan from the car at rear-axle world ``pose`` and add the beam noise.
 
     Args:
-        field: the exact caster's pad-frame jump field (:attr:`RayCaster.field`).
+        field: the exact caster's pad-frame jump field ([`RayCaster.field`][RayCaster.field]).
         pose: float64 (3,) world [x, y, theta] of the rear axle (metres, radians).
-        geometry: float64 array laid out as :data:`GEOMETRY_FIELDS`.
+        geometry: float64 array laid out as `GEOMETRY_FIELDS`.
         cos_a, sin_a: (M,) cos and sin of the beam angles (car frame).
-        seed: int64 seed of the scan's random stream (see :func:`add_beam_noise`).
-        noise: float64 array laid out as :data:`NOISE_FIELDS`.
+        seed: int64 seed of the scan's random stream (see `add_beam_noise()`).
+        noise: float64 array laid out as `NOISE_FIELDS`.
         ranges: float64 (M,) output, exact ranges in metres.
-        out: float32 (M,) output, the noisy scan in metres (see :mod:`racecar_sim.sensors`).
+        out: float32 (M,) output, the noisy scan in metres (see [`racecar_sim.sensors`][racecar_sim.sensors]).
 
     Returns:
         0 on success, 1 when the pose is not finite (outputs untouched), 2 when an exact range
@@ -321,8 +321,8 @@ def _scans_serial(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, ou
 @nb.njit(cache=True, nogil=True)
 def scans_shared(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status, chunk,
                  counter):  # fmt: skip
-    """:func:`scans_with_noise`'s cars in chunks of ``chunk`` taken from ``counter`` until none is
-    left: one of the threads of :func:`racecar_sim.raycast.shared_work.run_shared`."""
+    """`scans_with_noise()`'s cars in chunks of ``chunk`` taken from ``counter`` until none is
+    left: one of the threads of [`racecar_sim.raycast.shared_work.run_shared()`][racecar_sim.raycast.shared_work.run_shared]."""
     n = poses.shape[0]
     while True:
         k0 = fetch_add(counter, 1) * chunk
@@ -338,11 +338,11 @@ def scans_shared(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out
 def scans_with_noise(
     field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, parallel: bool
 ) -> np.ndarray:
-    """:func:`scan_with_noise` for K cars at once: poses (K, 3), seeds (K,), ranges, out (K, M).
+    """`scan_with_noise()` for K cars at once: poses (K, 3), seeds (K,), ranges, out (K, M).
 
     ``parallel`` shares the cars, one at a time, among numba's thread count of threads
-    (:mod:`~racecar_sim.raycast.shared_work`). Returns the (K,) statuses. The serial kernel
-    releases the GIL (:func:`scans_serial_nogil`), so Python threads can also share the cars out.
+    (`shared_work`). Returns the (K,) statuses. The serial kernel
+    releases the GIL (`scans_serial_nogil()`), so Python threads can also share the cars out.
     """
     status = np.zeros(poses.shape[0], dtype=np.int64)
     if parallel:
@@ -354,5 +354,5 @@ def scans_with_noise(
 
 
 def scans_serial_nogil(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status):
-    """:func:`scans_with_noise` on the calling thread, without holding the GIL."""
+    """`scans_with_noise()` on the calling thread, without holding the GIL."""
     _scans_serial(field, poses, geometry, cos_a, sin_a, seeds, noise, ranges, out, status)

@@ -7,7 +7,7 @@ idle CPU is halted, waking the second thread was measured to take from 0.1 to se
 (more than a whole 4000-particle update), and a parallel region then ran slower than one thread.
 
 Here the calling thread and ``threads - 1`` pool threads each run the same ``nogil`` numba kernel,
-which takes items (blocks of work) with :func:`fetch_add` on a shared counter until none are left.
+which takes items (blocks of work) with `fetch_add()` on a shared counter until none are left.
 A pool thread that the OS runs late finds fewer items, or none; a pool job that has not started
 when the calling thread has taken the last item is cancelled instead of waited for. The result does
 not depend on which thread did which item (each item writes its own outputs).

@@ -1,9 +1,9 @@
 """The module-level cache of prepared maps (distance fields, lookup tables) shared by ray casters.
 
 Casters built for the same map content and range share one prepared field or table: the key is a
-content hash of the occupancy grid (:func:`digest`) plus the method's build parameters, so two
-:class:`~racecar_sim.raycast.RayCaster` on the same map (e.g. the filter's and a benchmark's) build
-once. Least recently used entries go first once the cache holds more than :data:`CACHE_BYTES`.
+content hash of the occupancy grid (`digest()`) plus the method's build parameters, so two
+[`RayCaster`][racecar_sim.raycast.RayCaster] on the same map (e.g. the filter's and a benchmark's) build
+once. Least recently used entries go first once the cache holds more than `CACHE_BYTES`.
 """
 
 from __future__ import annotations

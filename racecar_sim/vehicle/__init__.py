@@ -1,15 +1,15 @@
 """Car models: one module per model, each a numba function over the car's state array.
 
-``car_model`` picks one by name (:data:`CAR_MODELS`):
+``car_model`` picks one by name (`CAR_MODELS`):
 
-* ``"kinematic"`` (:mod:`~racecar_sim.vehicle.kinematic`, the default): the kinematic bicycle
+* ``"kinematic"`` ([`kinematic`][racecar_sim.vehicle.kinematic], the default): the kinematic bicycle
   about the rear axle; the car goes where its wheels point, at any speed.
-* ``"single_track"`` (:mod:`~racecar_sim.vehicle.single_track`): the single-track model with tire
+* ``"single_track"`` ([`single_track`][racecar_sim.vehicle.single_track]): the single-track model with tire
   slip, yaw rate and body slip angle as states, and tires that saturate at the friction limit.
 
 Both share the actuators (steering rate, acceleration and braking limits) and the state layout of
-:data:`racecar_sim.free_steps.STATE_FIELDS`; :func:`racecar_sim.free_steps.advance` steps either
-in free space, and :class:`racecar_sim.physics.RacecarPhysics` among walls.
+[`racecar_sim.free_steps.STATE_FIELDS`][racecar_sim.free_steps.STATE_FIELDS]; [`racecar_sim.free_steps.advance()`][racecar_sim.free_steps.advance] steps either
+in free space, and [`racecar_sim.physics.RacecarPhysics`][racecar_sim.physics.RacecarPhysics] among walls.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ def check_car_model(name: object, owner: str = "car_model") -> str:
 
 
 def model_params(car, car_model: str) -> list[float]:
-    """The model's parameters from a :class:`~racecar_sim.config.CarParams` (the kinematic car's
+    """The model's parameters from a [`CarParams`][racecar_sim.config.CarParams] (the kinematic car's
     are the actuator limits already in the constants: none)."""
     check_car_model(car_model)
     if car_model == "single_track":

@@ -3,10 +3,10 @@
 The car has no slip: each substep its rear axle moves along the heading at ``speed`` (the rear
 wheels' rolling speed, m/s) and it turns at ``omega = speed * tan(steer) / wheelbase`` (rad/s).
 The command [steer (rad), speed (m/s)] is followed within the steering-rate and acceleration
-limits (:func:`actuate`), once per substep of ``h`` seconds.
+limits (`actuate()`), once per substep of ``h`` seconds.
 
 These are plain floating-point operations in a fixed order, so calling them from Python (the
-pymunk path of :mod:`racecar_sim.physics`) and from numba (:mod:`racecar_sim.free_steps`) gives
+pymunk path of [`racecar_sim.physics`][racecar_sim.physics]) and from numba ([`racecar_sim.free_steps`][racecar_sim.free_steps]) gives
 the same doubles.
 """
 

@@ -1,6 +1,6 @@
 """Open-loop manoeuvres of a car model in free space: command sequences and skidpad circles.
 
-These drive :func:`racecar_sim.free_steps.advance`, which is what :class:`RacecarPhysics` does far
+These drive [`racecar_sim.free_steps.advance()`][racecar_sim.free_steps.advance], which is what `RacecarPhysics` does far
 from walls (bit for bit), so they measure the simulator's car, not a copy of it. Used by the unit
 tests of the vehicle models and by ``racecar-sim bench dynamics``.
 """

@@ -1,4 +1,4 @@
-"""The car's geometry, limits and tire parameters (:class:`CarParams`), in SI units."""
+"""The car's geometry, limits and tire parameters (`CarParams`), in SI units."""
 
 from __future__ import annotations
 
@@ -33,11 +33,11 @@ class CarParams:
         rear_overhang: metres from the rear axle back to the rear bumper.
         mass: kilograms.
 
-    The single-track car (``car_model="single_track"``, :mod:`racecar_sim.vehicle.single_track`)
+    The single-track car (``car_model="single_track"``, [`racecar_sim.vehicle.single_track`][racecar_sim.vehicle.single_track])
     also uses the following; their defaults are F1TENTH's as f1tenth_gym gives them
     (``F110Env.f1tenth_vehicle_params`` in ``f1tenth_gym/envs/f110_env.py``, branch dev-dynamics,
     for the CommonRoad single-track model). The fields above keep their values (the kinematic car's are unchanged); for
-    the F1TENTH car throughout (wheelbase 0.3302, mass 3.74, ...) use :meth:`f1tenth`.
+    the F1TENTH car throughout (wheelbase 0.3302, mass 3.74, ...) use `f1tenth()`.
 
     Attributes:
         cg_to_rear: metres from the rear axle forwards to the centre of gravity (``lr``; the front

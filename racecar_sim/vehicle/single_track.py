@@ -26,7 +26,7 @@ brakes in a turn. A wheel rolling backwards or not at all is sliding: its force 
 velocity, so a spinning or reversing car stays well defined.
 
 The speed servo: the command [steer, speed] goes through the steering-rate and acceleration
-limits of :func:`racecar_sim.vehicle.kinematic.actuate`, as the kinematic car's, acting on the
+limits of `racecar_sim.vehicle.kinematic.actuate()`, as the kinematic car's, acting on the
 wheel speed ``u`` (as a VESC's speed control does); its step over a substep becomes ``a``, plus
 what makes up for the tires and the turn (their part of ``u'``) within the limits. ``a`` is
 limited by the friction (``mu g``) and, above ``v_switch``, by the motor's power
@@ -36,7 +36,7 @@ Low speed: the slip angles divide by the wheels' speeds and the lateral dynamics
 ``kinematic_below`` (speed of the centre of gravity) the car is the kinematic bicycle (the rear axle
 does not slide: ``r = u tan(steer) / L``, ``vy = lr r``); up to ``dynamic_above`` the rates are
 blended, with a smoothstep weight of the speed, from the dynamic ones to the kinematic states' own
-rates plus a pull towards them (time constant :data:`KINEMATIC_PULL`), as CommonRoad's drift model
+rates plus a pull towards them (time constant `KINEMATIC_PULL`), as CommonRoad's drift model
 blends its dynamic and kinematic rates (f1tenth_gym switches at 0.5 m/s without blending).
 
 Integration: each substep of ``h`` seconds the actuators move first; then ``(u, vy, r)`` are
@@ -75,7 +75,7 @@ _TINY_FRICTION = 1e-6  # friction left to a tire when the car brakes at the fric
 
 
 def params_array(car) -> np.ndarray:
-    """The parameter array (:data:`PARAM_FIELDS`) of a :class:`~racecar_sim.config.CarParams`."""
+    """The parameter array (`PARAM_FIELDS`) of a [`CarParams`][racecar_sim.config.CarParams]."""
     lr = car.cg_to_rear
     return np.array(
         [
@@ -142,9 +142,9 @@ def blend_weight(speed, p):
 
 @nb.njit(cache=True)
 def blended_rates(u, vy, r, a, cos_d, sin_d, tan_d, dsteer, p):
-    """(u', vy', r'): the dynamic rates weighted by :func:`blend_weight`, the rest the kinematic
+    """(u', vy', r'): the dynamic rates weighted by `blend_weight()`, the rest the kinematic
     bicycle's (its states' rates at steering rate ``dsteer`` rad/s, plus a pull towards them with
-    time constant :data:`KINEMATIC_PULL`)."""
+    time constant `KINEMATIC_PULL`)."""
     w = blend_weight(math.sqrt(u * u + vy * vy), p)
     du, dvy, dr = a, 0.0, 0.0
     if w > 0.0:
