@@ -45,6 +45,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from mcl.bench import missing_map, shared_dir, stata_map
+from racecar_sim.file_guard import claim_folder, folder_problem
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -238,6 +239,10 @@ def amcl_part(args: argparse.Namespace) -> int:
     from mcl.bench import amcl_bench, peer_amcl
 
     print("== localization vs nav2 amcl, the same recorded drives ==")
+    problem = folder_problem(args.out)  # its tables are replaced: only in a folder of ours
+    if problem is not None:
+        print(f"racecar-sim bench peers: --out: {problem}", file=sys.stderr)
+        return 2
     maps = shared_dir() / "maps"
     needed = [maps / amcl_bench.FILTER_MAP, *{maps / amcl_bench.WORLDS[w].world_map
                                               for w in args.amcl_worlds}]  # fmt: skip
@@ -251,6 +256,7 @@ def amcl_part(args: argparse.Namespace) -> int:
         return 0
     print(f"{args.seeds} seeds x {args.amcl_duration:g} s x worlds {', '.join(args.amcl_worlds)}; "
           f"amcl from {python}; results into {args.out}")  # fmt: skip
+    claim_folder(args.out)
     rows = amcl_bench.run_benchmark(
         python, args.amcl_worlds, args.seeds, args.amcl_duration, args.out
     )

@@ -147,6 +147,20 @@ def test_part_skips_with_the_reason_when_amcl_cannot_be_had(capsys, monkeypatch)
     assert python is None and "/nonexistent/python cannot import amcl" in why
 
 
+def test_the_tables_go_only_into_a_folder_of_ours(tmp_path, capsys, monkeypatch):
+    """A folder of the user's (here with a file named as one of the bench's tables) is refused
+    before anything runs, and nothing in it changes."""
+    monkeypatch.setattr(peer_amcl, "amcl_python", lambda given=None: (None, "no amcl here"))
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "amcl_results.csv").write_text("keep\n")
+    assert peers.amcl_part(peers_args(["--only", "amcl", "--out", str(mine)])) == 2
+    err = capsys.readouterr().err
+    assert "--out" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert sorted(p.name for p in mine.iterdir()) == ["amcl_results.csv"]
+    assert (mine / "amcl_results.csv").read_text() == "keep\n"
+
+
 def test_bad_seeds_is_a_one_line_error(capsys):
     with pytest.raises(SystemExit) as exited:
         peers.main(["--only", "amcl", "--seeds", "0"])
