@@ -17,6 +17,11 @@ LEGEND_KINDS = ("box", "dots", "arrow", "line")
 """Swatches of a legend entry."""
 
 
+_OUTLINE_SHIFTS = tuple(
+    (dx, dy) for dx in range(-2, 3) for dy in range(-2, 3) if 0 < dx * dx + dy * dy <= 5
+)
+
+
 def put_label(
     img: np.ndarray,
     text: str,
@@ -29,8 +34,11 @@ def put_label(
     """Write ``text`` with its baseline's left end at ``org`` (in place), in ``colour`` over an
     ``outline`` two pixels wide (None: no outline)."""
     org = (int(org[0]), int(org[1]))
-    if outline is not None:
-        cv2.putText(img, text, org, FONT, scale, outline, thickness + 3, cv2.LINE_AA)
+    if outline is not None:  # the text shifted around by up to 2 px (a thick stroke is not an
+        # outline in every OpenCV: 5.x draws its own font, whose strokes widen differently)
+        for dx, dy in _OUTLINE_SHIFTS:
+            at = (org[0] + dx, org[1] + dy)
+            cv2.putText(img, text, at, FONT, scale, outline, thickness, cv2.LINE_AA)
     cv2.putText(img, text, org, FONT, scale, colour, thickness, cv2.LINE_AA)
 
 
