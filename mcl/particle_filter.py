@@ -265,8 +265,7 @@ class ParticleFilter:
         self.recovery_share, self._shrink_to, self._before_burst = 0.0, None, None
         self._moved = [math.inf, math.inf]
         self.odometry_scale.restart()
-        self.searching = False  # a new belief wider than search_spread is searched (wide hit)
-        self.searching = self.is_searching(self.sensor_model.params.search_spread)
+        self.searching = False
 
     # ------------------------------------------------------------------ update steps
     def predict(self, twist: np.ndarray, dt: float) -> None:
@@ -399,20 +398,16 @@ class ParticleFilter:
         self.last_injected = k
         self.n_injected += k
 
-    def is_searching(self, start_spread: float | None = None) -> bool:
+    def is_searching(self) -> bool:
         """Whether the next correction scores with the sensor model's wide search hit: random
         particles just joined, or the cloud's position spread exceeds ``search_start_spread``
-        metres (a tracking filter; ``start_spread`` instead when given) or ``search_spread`` (a
-        searching one: hysteresis). A new belief (initialize) wider than ``search_spread`` is
-        searched."""
+        metres (a tracking filter) or ``search_spread`` (a searching one: hysteresis)."""
         if self.last_injected > 0:
             return True
         covariance = self.covariance()
         spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
         params = self.sensor_model.params
-        if self.searching:
-            return spread > params.search_spread
-        return spread > (params.search_start_spread if start_spread is None else start_spread)
+        return spread > (params.search_spread if self.searching else params.search_start_spread)
 
     def request_recovery(self, share: float, burst: int = 0) -> None:
         """Recovery asked for by the lost flag ([LostDetector][mcl.lost.LostDetector]).
