@@ -220,7 +220,9 @@ def test_filter_stream_is_not_the_env_stream() -> None:
 
 # ---------------------------------------------------------------------- rendering
 def test_render_overlays_particles_and_estimate(room) -> None:
-    env = make(room, render_mode="rgb_array")
+    # a cloud wide enough to show around the estimate's marker (a tight one hides beneath it)
+    wide = {"filter": {"n_particles": 200, "init_spread": (0.5, 0.5, 0.2)}}
+    env = make(room, config=wide, render_mode="rgb_array")
     env.reset(seed=0, options={"pose": START})
     plain = env.env.render()
     img = env.render()
