@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 import gymnasium as gym
 import numpy as np
 
-from mcl.io import cdr
+import mcl.io.cdr as cdr
 from mcl.io.bag_folder import remove_recording
 from racecar_sim.maps import OccupancyMap
 

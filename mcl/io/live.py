@@ -37,7 +37,7 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from mcl.io import live_worker as worker
+import mcl.io.live_worker as worker
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
