@@ -1,7 +1,7 @@
 """The ``lut`` query's loops over one pose's beams, written so that LLVM vectorises them.
 
 Pad frame of `racecar_sim.raycast.kernels` (cells). Called by
-[`racecar_sim.raycast.lut._lut_poses()`][racecar_sim.raycast.lut._lut_poses] for each pose: `directions()` (the two table
+`racecar_sim.raycast.lut._lut_poses()` for each pose: `directions()` (the two table
 directions bracketing each ray, in 32-bit fixed point), `unpack()` (table entries to range
 codes and planar flags), `interpolate()` (the range where the true ray meets the line through
 the two table hits, or -1 where the ray must be cast exactly).
@@ -58,7 +58,7 @@ def interpolate(
     tol_code, sat, max_t, max_t64, scale, max_out, per_out, top, tb, db,
 ):  # fmt: skip
     """One pose's interpolated ranges ``tb`` (cells; -1 where the ray must be cast) and score
-    columns ``db``, branch-free so that LLVM vectorises it (see [`racecar_sim.raycast.lut._lut_poses()`][racecar_sim.raycast.lut._lut_poses]). ``c0b`` is
+    columns ``db``, branch-free so that LLVM vectorises it (see `racecar_sim.raycast.lut._lut_poses()`). ``c0b`` is
     negative where the table flags the pair as one straight face.
 
     float32 (arrays, scalars and constants; the score column in float64 from the float32 range,
