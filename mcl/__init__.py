@@ -1,31 +1,40 @@
 """mcl: Monte Carlo Localization (particle filter) for racecar_sim.
 
-The main classes are here; helpers live in their modules (``mcl.resampling``, ``mcl.angles``,
-``mcl.motion_model``, ...). The experiment harness is ``mcl.experiments``, the console command
-``mcl.cli``, the benchmarks ``mcl.bench``. Depends on ``racecar_sim``; ``racecar_sim`` never
-imports ``mcl``.
+What a user needs is here: the wrappers that run the filter inside the envs, the filters and
+their settings. The filter's parts live in ``mcl.filter`` (models, kernels, resampling, KLD, the
+``lost`` flag), the wrappers in ``mcl.wrappers``, the lab around them in ``mcl.io``,
+``mcl.experiments``, ``mcl.calibration``, ``mcl.agents``, ``mcl.bench`` and ``mcl.cli`` (the
+``racecar-sim`` command). Depends on ``racecar_sim``; ``racecar_sim`` never imports ``mcl``.
 """
 
-from mcl.augmented import AugmentedParams
-from mcl.filter_params import DEFAULT_PARTICLES, ParticleFilterParams
-from mcl.kld import KLDParams
-from mcl.localization import LocalizationConfig
-from mcl.motion_model import MotionModel, MotionModelParams
-from mcl.particle_filter import ParticleFilter
-from mcl.sensor_model import SensorModel, SensorModelParams
-from mcl.uncertainty import ClusterParams, Uncertainty
-from mcl.vector_wrapper import LocalizedVectorEnv
-from mcl.wrapper import LocalizationWrapper
+from mcl.filter.adaptive import AdaptiveParticleFilter
+from mcl.filter.augmented import AugmentedParams
+from mcl.filter.kld import KLDParams
+from mcl.filter.lost import LostParams
+from mcl.filter.motion_model import MotionModel, MotionModelParams
+from mcl.filter.params import DEFAULT_PARTICLES, ParticleFilterParams
+from mcl.filter.particle_filter import ParticleFilter
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
+from mcl.filter.uncertainty import ClusterParams, Uncertainty
+from mcl.wrappers.localization import LocalizationConfig
+from mcl.wrappers.single import LocalizationWrapper
+from mcl.wrappers.vector import LocalizedVectorEnv
 from racecar_sim import __version__
+from racecar_sim.old_paths import MCL_MOVED, install
+
+install(MCL_MOVED)  # ``mcl.wrapper`` and the other 0.2 paths still import, with a warning
 
 __all__ = [
     "DEFAULT_PARTICLES",
+    "AdaptiveParticleFilter",
     "AugmentedParams",
     "ClusterParams",
     "KLDParams",
     "LocalizationConfig",
     "LocalizationWrapper",
+    "LocalizedRaceEnv",
     "LocalizedVectorEnv",
+    "LostParams",
     "MotionModel",
     "MotionModelParams",
     "ParticleFilter",
@@ -35,3 +44,12 @@ __all__ = [
     "Uncertainty",
     "__version__",
 ]
+
+
+def __getattr__(name: str):
+    """``mcl.LocalizedRaceEnv`` (PettingZoo, the ``race`` extra) is imported on first use."""
+    if name == "LocalizedRaceEnv":
+        from mcl.wrappers.race import LocalizedRaceEnv
+
+        return LocalizedRaceEnv
+    raise AttributeError(f"module 'mcl' has no attribute {name!r}")

@@ -3,8 +3,22 @@
 from gymnasium.envs.registration import register, registry
 
 from racecar_sim.maps import DEFAULT_MAP, MapError, OccupancyMap, bundled, load_map
+from racecar_sim.old_paths import RACECAR_SIM_MOVED, install
 
-__all__ = ["DEFAULT_MAP", "ENV_ID", "RACE_ENV_ID", "MapError", "OccupancyMap", "RaceEnv", "bundled", "load_map"]
+install(RACECAR_SIM_MOVED)  # ``racecar_sim.config`` and the other 0.2 paths still import, with a warning
+
+__all__ = [
+    "DEFAULT_MAP",
+    "ENV_ID",
+    "RACE_ENV_ID",
+    "MapError",
+    "OccupancyMap",
+    "RaceEnv",
+    "RacecarEnv",
+    "RacecarVectorEnv",
+    "bundled",
+    "load_map",
+]
 __version__ = "0.2.0"
 
 ENV_ID = "RacecarSim-v0"
@@ -28,9 +42,17 @@ if ENV_ID not in registry:  # importing the package twice (or reloading it) must
 
 
 def __getattr__(name: str):
-    """``racecar_sim.RaceEnv`` (PettingZoo, the ``race`` extra) is imported on first use."""
+    """The envs are imported on first use (``racecar_sim.RaceEnv`` needs the ``race`` extra)."""
     if name == "RaceEnv":
         from racecar_sim.race.env import RaceEnv
 
         return RaceEnv
+    if name == "RacecarEnv":
+        from racecar_sim.env import RacecarEnv
+
+        return RacecarEnv
+    if name == "RacecarVectorEnv":
+        from racecar_sim.vector_env import RacecarVectorEnv
+
+        return RacecarVectorEnv
     raise AttributeError(f"module 'racecar_sim' has no attribute {name!r}")

@@ -15,8 +15,15 @@ from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 
 from racecar_sim.car.clock import CarClock
+from racecar_sim.car.physics import RacecarPhysics
+from racecar_sim.car.start_poses import random_start, shared_start_cells
 from racecar_sim.compile_log import install as log_first_compile
-from racecar_sim.config import (
+from racecar_sim.maps import OccupancyMap, resolve_map
+from racecar_sim.render import MapRenderer
+from racecar_sim.sensors.lidar import Lidar
+from racecar_sim.sensors.odometry import Odometry
+from racecar_sim.sensors.vesc import CommandDelay, lead_steps, wheel_twist
+from racecar_sim.settings.config import (
     CarParams,
     EnvConfig,
     LidarParams,
@@ -24,14 +31,14 @@ from racecar_sim.config import (
     load_config,
     merge_settings,
 )
-from racecar_sim.maps import OccupancyMap, resolve_map
-from racecar_sim.obstacles import Obstacles
-from racecar_sim.physics import RacecarPhysics
-from racecar_sim.render import MapRenderer
-from racecar_sim.sensors import Lidar, Odometry
-from racecar_sim.start_poses import random_start, shared_start_cells
-from racecar_sim.validation import check_action, check_options, check_poses, check_seed, short
-from racecar_sim.vesc import CommandDelay, lead_steps, wheel_twist
+from racecar_sim.settings.validation import (
+    check_action,
+    check_options,
+    check_poses,
+    check_seed,
+    short,
+)
+from racecar_sim.world.obstacles import Obstacles
 
 log_first_compile()  # the first compile of a kernel of ours is logged (racecar_sim.compile_log)
 
@@ -49,12 +56,12 @@ class RacecarEnv(gym.Env):
     ## Description
     A headless simulator of an F1TENTH / MIT RSS style racecar. The car is a kinematic bicycle
     about its rear axle (``car_model="kinematic"``, the default) or a single-track model with tire
-    slip and a friction limit (``car_model="single_track"``, `racecar_sim.vehicle`), with
+    slip and a friction limit (``car_model="single_track"``, `racecar_sim.car.models`), with
     steering-rate and acceleration limits, driving in a pymunk world
     whose walls are the map's occupied-cell edges, so it cannot pass through walls and every wall
     contact is reported. A lidar ``mount_offset`` ahead of the rear axle casts exact rays on the
     grid and adds beam-model noise; the odometry reports what a VESC measures (wheel speed and
-    the steering angle through the bicycle formula, [`racecar_sim.vesc`][racecar_sim.vesc]) with Gaussian noise.
+    the steering angle through the bicycle formula, [`racecar_sim.sensors.vesc`][racecar_sim.sensors.vesc]) with Gaussian noise.
     Frames: ``world`` (the map's frame), ``car`` (x forward, y left, origin at the rear axle).
 
     ## Action Space
@@ -62,7 +69,7 @@ class RacecarEnv(gym.Env):
     wheel angle to steer to (radians, positive turns left) and the speed to reach (m/s, negative
     reverses). Actions outside the box are clipped to it; an action with NaN or infinity raises
     ``ValueError``. The car follows the command within ``max_steer_rate``, ``max_accel`` and
-    ``max_decel`` of its [`CarParams`][racecar_sim.config.CarParams].
+    ``max_decel`` of its [`CarParams`][racecar_sim.settings.config.CarParams].
 
     ## Observation Space
     ``Dict``:
@@ -74,7 +81,7 @@ class RacecarEnv(gym.Env):
       (``info["new_scan"]`` tells which steps carry a fresh one).
     * ``odom``: ``Box(-inf, inf, (3,), float32)``, the VESC's noisy car-frame twist ``[vx, vy,
       omega]`` (m/s, m/s, rad/s) at the end of the step, new every step: ``[wheel_speed, 0,
-      wheel_speed * tan(steer) / wheelbase]`` ([`racecar_sim.vesc.wheel_twist()`][racecar_sim.vesc.wheel_twist]), so a sliding
+      wheel_speed * tan(steer) / wheelbase]`` ([`racecar_sim.sensors.vesc.wheel_twist()`][racecar_sim.sensors.vesc.wheel_twist]), so a sliding
       car's odometry disagrees with its true twist (``info["twist"]``) as a real car's does.
     * ``imu`` (only with the ``imu`` setting): ``Box(-inf, inf, (1,), float32)``, a gyro's yaw
       rate (rad/s): the true yaw rate over the step plus bias and noise.

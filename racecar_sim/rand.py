@@ -1,6 +1,6 @@
 """A fast seeded random stream inside numba kernels: the lidar's beam noise (seeded once per scan
 from the env's generator) and the particle filter's motion noise (seeded once per predict from the
-filter's generator, [`mcl.step_kernels`][mcl.step_kernels]).
+filter's generator, [`mcl.filter.step_kernels`][mcl.filter.step_kernels]).
 
 A scan needs one uniform and (for most beams) one standard normal per beam. Drawn through numpy's
 ``Generator`` that is two calls and ~14 us per 1080-beam scan, most of it the normals; here the

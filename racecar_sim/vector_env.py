@@ -31,13 +31,13 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from racecar_sim.car.fleet import CarFleet
-from racecar_sim.config import EnvConfig, merge_settings
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil, scans_shared
 from racecar_sim.raycast.shared_work import run_shared
-from racecar_sim.validation import check_action, check_options, short
+from racecar_sim.settings.config import EnvConfig, merge_settings
+from racecar_sim.settings.validation import check_action, check_options, short
 
 __all__ = ["PROBE_EVERY", "RacecarVectorEnv", "car_seeds"]
 
@@ -312,7 +312,7 @@ class RacecarVectorEnv(VectorEnv):
         and store them in the cars.
 
         Each car draws its scan's seed from its own generator, as its
-        [`measure()`][racecar_sim.sensors.Lidar.measure] would. In parallel, this thread and
+        [`measure()`][racecar_sim.sensors.lidar.Lidar.measure] would. In parallel, this thread and
         ``workers - 1`` pool threads take chunks of cars from one atomic counter
         (`racecar_sim.raycast.shared_work`): a thread that the OS runs late takes fewer
         chunks, and one that has not started when they run out is not waited for.

@@ -27,7 +27,7 @@ CLEAN_FROM = (84, 232)
 def main(argv: list[str] | None = None) -> int:
     from mcl.calibration.validation import MAX_RANGE, judge_bag, simulated_room, wall_follower_route
     from racecar_sim.maps import load_map
-    from racecar_sim.noise_profiles import profile_document
+    from racecar_sim.sensors.noise_profiles import profile_document
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--bags", type=Path, required=True, help="folder of the two shared bags")

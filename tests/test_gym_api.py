@@ -111,7 +111,7 @@ def test_the_race_passes_parallel_api_test_and_repeats_itself(localize: bool) ->
     def make():
         env = RaceEnv("basement_loop", n_cars=3, n_beams=61)
         if localize:
-            from mcl.race_wrapper import LocalizedRaceEnv
+            from mcl.wrappers.race import LocalizedRaceEnv
 
             env = LocalizedRaceEnv(env, FILTER, clock=lambda: 0.0)
         return env

@@ -34,14 +34,14 @@ import numpy as np
 from gymnasium import spaces
 
 from mcl.agents.track import Track, track_for_map
-from mcl.filter_params import ParticleFilterParams
-from mcl.localization import LocalizationConfig
-from mcl.sensor_model import SensorModel, SensorModelParams
-from mcl.wrapper import LocalizationWrapper
+from mcl.filter.params import ParticleFilterParams
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
+from mcl.wrappers.localization import LocalizationConfig
+from mcl.wrappers.single import LocalizationWrapper
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import DEFAULT_MAP
 from racecar_sim.race.single import DRIVERS
-from racecar_sim.validation import check_number
+from racecar_sim.settings.validation import check_number
 
 __all__ = ["POSE_SOURCES", "LapTask", "LapTaskConfig", "make_lap_env", "make_vector_env"]
 
@@ -172,7 +172,7 @@ class LapTask(gym.Wrapper):
     """The lap task on a ``RacecarSim-v0`` env (see the module docstring).
 
     Args:
-        env: the env, with a [`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] inside when the pose
+        env: the env, with a [`LocalizationWrapper`][mcl.wrappers.single.LocalizationWrapper] inside when the pose
             source is ``"estimate"``.
         config: the task.
         track: the loop (default: the wall follower's loop of ``config.map``).

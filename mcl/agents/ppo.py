@@ -33,7 +33,7 @@ import numpy as np
 from mcl.agents.lap_env import LapTaskConfig
 from mcl.agents.task_env import make_task_env
 from racecar_sim.file_guard import claim_folder, writable
-from racecar_sim.validation import check_number
+from racecar_sim.settings.validation import check_number
 
 __all__ = ["PPOSettings", "TrainReport", "load_policy", "require_sb3", "train"]
 

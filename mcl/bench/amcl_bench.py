@@ -6,7 +6,7 @@ seeds 0..N-1 (``--seeds``), in three worlds ([WORLDS][mcl.bench.amcl_bench.WORLD
 world (``mit_racecar`` lidar and odometry) with the ``cluttered`` scene and with the ``clean``
 one, and the ideal world (the simulator's own sensor settings, no scene). Each drive is recorded
 once ([record_drive][mcl.experiments.recorded.record_drive]) and fed to our filter (default
-[LocalizationConfig][mcl.localization.LocalizationConfig], through
+[LocalizationConfig][mcl.wrappers.localization.LocalizationConfig], through
 [localize_recorded][mcl.experiments.recorded.localize_recorded]) and to amcl twice
 ([mcl.bench.peer_amcl][]): nav2's defaults, and the same with the recovery on (alpha_slow 0.001,
 alpha_fast 0.1). All three start around the true start pose (standard deviations 0.25 m, 0.25 m,
@@ -34,7 +34,7 @@ import numpy as np
 
 from mcl.bench import shared_dir
 from mcl.experiments.recorded import LocalizedRun, RecordedDrive, localize_recorded, record_drive
-from mcl.localization import LocalizationConfig
+from mcl.wrappers.localization import LocalizationConfig
 
 __all__ = [
     "FILTERS",

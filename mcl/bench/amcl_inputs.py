@@ -11,7 +11,7 @@ nav2_amcl's C core works in the frames of a ROS robot, and these functions build
   occupancy of our map at the cell's centre; what lies off our map is occupied. Unknown cells are
   occupied in ours and stop amcl's rays too.
 * odometry: the pose of ``base`` in an ``odom`` frame, the VESC's twist integrated as our filter
-  moves its particles ([twist_to_odometry][mcl.motion_model.twist_to_odometry], composed step by
+  moves its particles ([twist_to_odometry][mcl.filter.motion_model.twist_to_odometry], composed step by
   step), starting at [0, 0, 0]. amcl uses only its differences.
 * the laser: ``[range m, bearing rad]`` pairs, bearings the lidar's beam angles, ``base`` being
   our rear axle and the laser ``mount_offset`` m ahead of it; a reading at or above the lidar's
@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mcl.angles import wrap_angle
+from mcl.filter.angles import wrap_angle
 from racecar_sim.maps import OccupancyMap
 
 __all__ = [
@@ -115,7 +115,7 @@ def odometry_poses(odom: np.ndarray, dt: np.ndarray | float) -> np.ndarray:
             k-1 to pose k (row 0 is not used: pose 0 is [0, 0, 0]).
         dt: seconds each twist is held (one number, or (n,) per step).
 
-    The displacement of each step is [twist_to_odometry][mcl.motion_model.twist_to_odometry]'s
+    The displacement of each step is [twist_to_odometry][mcl.filter.motion_model.twist_to_odometry]'s
     constant-twist arc; theta is wrapped to [-pi, pi).
     """
     tw = np.asarray(odom, dtype=np.float64)

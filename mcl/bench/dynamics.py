@@ -33,9 +33,9 @@ import numba as nb
 import numpy as np
 
 from mcl.bench import STATA
-from racecar_sim.config import CarParams
-from racecar_sim.free_steps import advance
-from racecar_sim.vehicle.manoeuvres import drive, skidpad
+from racecar_sim.car.free_steps import advance
+from racecar_sim.car.models.manoeuvres import drive, skidpad
+from racecar_sim.settings.config import CarParams
 
 __all__ = ["OPEN_LOOP", "main", "open_loop", "skidpad_table", "speed_cost"]
 
@@ -268,7 +268,7 @@ def _physics_cost(runs: int, steps: int = 20_000) -> dict[str, float]:
     ratio."""
     import time
 
-    from racecar_sim.free_steps import STATE_FIELDS, free_constants
+    from racecar_sim.car.free_steps import STATE_FIELDS, free_constants
 
     car = CarParams()
     t = np.arange(steps) * DT

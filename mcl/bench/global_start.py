@@ -45,9 +45,9 @@ def _ratio(num: list[float], den: list[float]) -> str:
 
 def global_cloud(grid: OccupancyMap, seed: int) -> np.ndarray:
     """(N, 3) world poses: the replay filter's global start on ``grid``
-    ([`initialize_global()`][mcl.particle_filter.ParticleFilter.initialize_global] at its density and cap)."""
+    ([`initialize_global()`][mcl.filter.particle_filter.ParticleFilter.initialize_global] at its density and cap)."""
     from mcl.experiments.replay import unknown_start_localization
-    from mcl.particle_filter import ParticleFilter
+    from mcl.filter.particle_filter import ParticleFilter
 
     loc = unknown_start_localization()
     pf = ParticleFilter(grid, loc.filter.n_particles, params=loc.filter, rng=seed)
@@ -65,9 +65,9 @@ def first_update(
 
     from mcl.bench.mcl import mcl_update
     from mcl.bench.peer_spread import glt_inputs
-    from mcl.particle_filter import ParticleFilter, ParticleFilterParams
-    from mcl.sensor_model import SensorModel, SensorModelParams
-    from racecar_sim.sensors import Lidar
+    from mcl.filter.particle_filter import ParticleFilter, ParticleFilterParams
+    from mcl.filter.sensor_model import SensorModel, SensorModelParams
+    from racecar_sim.sensors.lidar import Lidar
 
     rng = np.random.default_rng(seed)
     truth = grid.sample_free_poses(rng, 1, clearance=1.0)[0]

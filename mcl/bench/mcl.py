@@ -9,7 +9,7 @@ by stage, for
 * ``numpy``: a straightforward numpy update measured in the same run: ray marching on the distance
   field, ``table[z, d]`` fancy indexing with a product over beams, ``Generator.choice`` resampling.
 
-The scan comes from the simulator's exact, noisy lidar (``racecar_sim.sensors.Lidar``), so the model
+The scan comes from the simulator's exact, noisy lidar (``racecar_sim.sensors.lidar.Lidar``), so the model
 and the world never share a caster's errors. Every update resamples (the MIT lab's policy, the
 worst case). Ratios are against the numpy baseline of the same run.
 
@@ -30,12 +30,12 @@ from pathlib import Path
 import numpy as np
 
 from mcl.bench import missing_map, stata_map
-from mcl.motion_model import MotionModel, twist_to_odometry
-from mcl.particle_filter import ParticleFilter, ParticleFilterParams
-from mcl.sensor_model import SensorModel, SensorModelParams, beam_table
-from racecar_sim.config import LidarParams
+from mcl.filter.motion_model import MotionModel, twist_to_odometry
+from mcl.filter.particle_filter import ParticleFilter, ParticleFilterParams
+from mcl.filter.sensor_model import SensorModel, SensorModelParams, beam_table
 from racecar_sim.maps import OccupancyMap, load_map
-from racecar_sim.sensors import Lidar
+from racecar_sim.sensors.lidar import Lidar
+from racecar_sim.settings.config import LidarParams
 
 STAGES = ("predict", "cast", "weigh", "resample", "estimate")
 TWIST = np.array([2.0, 0.0, 0.5])  # m/s, m/s, rad/s

@@ -30,7 +30,7 @@ import time
 import numba as nb
 import numpy as np
 
-from mcl.sensor_model import SensorModelParams, beam_table
+from mcl.filter.sensor_model import SensorModelParams, beam_table
 from racecar_sim.maps import OccupancyMap
 
 __all__ = [
@@ -252,11 +252,11 @@ def compare(
     import numba
 
     from mcl.bench.mcl import DT, TWIST, mcl_update
-    from mcl.motion_model import twist_to_odometry
-    from mcl.particle_filter import ParticleFilter, ParticleFilterParams
-    from mcl.sensor_model import SensorModel
+    from mcl.filter.motion_model import twist_to_odometry
+    from mcl.filter.particle_filter import ParticleFilter, ParticleFilterParams
+    from mcl.filter.sensor_model import SensorModel
     from racecar_sim.raycast import RayCaster, clear_cache
-    from racecar_sim.sensors import Lidar
+    from racecar_sim.sensors.lidar import Lidar
 
     rng = np.random.default_rng(seed)
     truth = grid.sample_free_poses(rng, 1, clearance=1.0)[0]

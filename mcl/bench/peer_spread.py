@@ -49,12 +49,12 @@ def clouds(
 
 def glt_inputs(grid: OccupancyMap, sm, scan: np.ndarray, seed: int):
     """``(peer, idx, angles, odometry)``: range_libc's GLT update for the beam model of ``sm``
-    (a [`SensorModel`][mcl.sensor_model.SensorModel]; None when range_libc is not installed), the
+    (a [`SensorModel`][mcl.filter.sensor_model.SensorModel]; None when range_libc is not installed), the
     indexes of the scan's beams it uses and their car-frame angles (radians), and the odometry of
     one update (car frame, metres, radians)."""
     from mcl.bench import peer_rangelibc
     from mcl.bench.mcl import DT, TWIST
-    from mcl.motion_model import twist_to_odometry
+    from mcl.filter.motion_model import twist_to_odometry
 
     peer = (
         peer_rangelibc.GltUpdate(grid, sm.params, np.random.default_rng(seed + 1))
@@ -103,9 +103,9 @@ def compare_spread(
 
     from mcl.bench import peer_rangelibc
     from mcl.bench.mcl import mcl_update
-    from mcl.particle_filter import ParticleFilter, ParticleFilterParams
-    from mcl.sensor_model import SensorModel, SensorModelParams
-    from racecar_sim.sensors import Lidar
+    from mcl.filter.particle_filter import ParticleFilter, ParticleFilterParams
+    from mcl.filter.sensor_model import SensorModel, SensorModelParams
+    from racecar_sim.sensors.lidar import Lidar
 
     rng = np.random.default_rng(seed)
     truth = grid.sample_free_poses(rng, 1, clearance=1.0)[0]

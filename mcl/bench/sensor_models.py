@@ -21,9 +21,9 @@ from pathlib import Path
 
 from mcl.bench import SHARED, STATA
 from mcl.experiments.runs import RunSpec, run_one
-from mcl.localization import LocalizationConfig
-from mcl.sensor_model import SensorModelParams
-from racecar_sim.config import LidarParams
+from mcl.filter.sensor_model import SensorModelParams
+from mcl.wrappers.localization import LocalizationConfig
+from racecar_sim.settings.config import LidarParams
 
 MODELS = {
     "beam (lut, 100 beams)": SensorModelParams(parallel=False),

@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 
 from mcl.experiments.runs import RunSpec, run_one
-from mcl.filter_params import DEFAULT_PARTICLES
+from mcl.filter.params import DEFAULT_PARTICLES
 from racecar_sim.maps import DEFAULT_MAP
 
 _MIB = 2.0**20
@@ -73,7 +73,7 @@ def trimmed_rss_mib() -> float:
 _END_OF_RUN = """
 import sys
 from pathlib import Path
-from mcl.error_log import read_error_log
+from mcl.wrappers.error_log import read_error_log
 from mcl.experiments.metrics import error_stats
 from mcl.experiments.plots import plot_error_vs_time
 

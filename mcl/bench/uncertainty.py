@@ -25,11 +25,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from mcl.kld import KLDParams
-from mcl.particle_filter import ParticleFilter, ParticleFilterParams
-from mcl.sensor_model import SensorModel, SensorModelParams
+from mcl.filter.kld import KLDParams
+from mcl.filter.particle_filter import ParticleFilter, ParticleFilterParams
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
 from racecar_sim.maps import DEFAULT_MAP, resolve_map
-from racecar_sim.sensors import Lidar
+from racecar_sim.sensors.lidar import Lidar
 
 COUNTS = (1_000, 10_000, 100_000)
 

@@ -7,7 +7,7 @@ same time. Per component (vx, vy, omega) the error ``e = odom - reference`` is m
 
     e = scale_bias * true + offset + noise,   var(noise) = proportional² true² + additive²,
 
-the simulator's [`OdometryNoise`][racecar_sim.config.OdometryNoise] form plus a bias. The window errors are
+the simulator's [`OdometryNoise`][racecar_sim.settings.config.OdometryNoise] form plus a bias. The window errors are
 the average of the per-step noise over the window; the per-step standard deviations the simulator
 needs (independent draws every ``sim_dt`` seconds) follow by ``sd_step = sd_window * sqrt(T / sim_dt)``.
 """

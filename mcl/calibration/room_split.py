@@ -10,7 +10,7 @@ to a few beams) are the sensor's own (mixed pixels, speckle), and are kept in it
 
 The wide runs are the *room*: long ones are openings in the mapped walls (glass, open doors,
 things moved since the map was drawn), short ones are furniture and people. Their shares and
-sizes describe a scene (`racecar_sim.scenes`), not the sensor.
+sizes describe a scene (`racecar_sim.world.scenes`), not the sensor.
 """
 
 from __future__ import annotations

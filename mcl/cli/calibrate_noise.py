@@ -4,11 +4,11 @@ Reads ROS bags (``/scan`` LaserScan and ``/vesc/odom`` Odometry), finds the lida
 scan on the map (a global search for one scan, then scan-to-map tracking with the odometry),
 fits the beam model by expectation-maximisation (Probabilistic Robotics table 6.2), measures what
 it misses (failure runs, drop-outs by range, long returns, mixed pixels) and the odometry's bias
-and noise, and writes the profile YAML (``racecar_sim/noise_profiles/data/mit_racecar.yaml`` is
+and noise, and writes the profile YAML (``racecar_sim/sensors/noise_profiles/data/mit_racecar.yaml`` is
 this command's output on the two shared bags):
 
     racecar-sim calibrate-noise ../shared/bags/*.bag --map ../shared/maps/stata_basement.yaml \\
-        --out racecar_sim/noise_profiles/data/mit_racecar.yaml
+        --out racecar_sim/sensors/noise_profiles/data/mit_racecar.yaml
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from mcl.cli.common import Parser, check_file_out, path_arg
 EXAMPLES = """\
 examples:
   racecar-sim calibrate-noise ../shared/bags/*.bag --map ../shared/maps/stata_basement.yaml \\
-      --out racecar_sim/noise_profiles/data/mit_racecar.yaml
+      --out racecar_sim/sensors/noise_profiles/data/mit_racecar.yaml
   racecar-sim calibrate-noise BAG1 BAG2 --map MAP.yaml --out my_car.yaml \\
       --start=-19.34,5.74,1.136 --start=-20.49,-0.70,1.763     (skip the global searches)
 """

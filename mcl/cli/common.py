@@ -133,7 +133,7 @@ class Parser(NegativeValuesParser):
 
 
 def _env_names() -> str:
-    from racecar_sim.config import EnvConfig
+    from racecar_sim.settings.config import EnvConfig
 
     return ", ".join(f.name for f in dataclasses.fields(EnvConfig) if f.name != "map")
 
@@ -148,7 +148,7 @@ MAP_HELP = f"a bundled map ({_map_names()}) or a map_server YAML path"
 """Help of every ``--map``."""
 ENV_HELP = (
     "a RacecarEnv setting for the run, repeatable, e.g. --env lidar_rate=20 --env range_sigma=0.05; "
-    f"NAME is one of {_env_names()} (racecar_sim.config.EnvConfig)"
+    f"NAME is one of {_env_names()} (racecar_sim.settings.config.EnvConfig)"
 )
 """Help of every ``--env``."""
 
@@ -186,8 +186,8 @@ def non_negative_int(text: str) -> int:
 
 def duration_seconds(text: str) -> float:
     """argparse type: simulated seconds within the run bound (a day;
-    [RUN_BOUNDS][mcl.run_bounds.RUN_BOUNDS])."""
-    from mcl.run_bounds import RUN_BOUNDS
+    [RUN_BOUNDS][mcl.experiments.run_bounds.RUN_BOUNDS])."""
+    from mcl.experiments.run_bounds import RUN_BOUNDS
 
     b = RUN_BOUNDS["run.duration"]
     return _number(text, float, "a number", lambda v: b.low < v <= b.high, f"seconds in {b.text()}")
@@ -196,7 +196,7 @@ def duration_seconds(text: str) -> float:
 def duration_or_zero(text: str) -> float:
     """argparse type: 0 (none) or simulated seconds as
     [duration_seconds][mcl.cli.common.duration_seconds]."""
-    from mcl.run_bounds import RUN_BOUNDS
+    from mcl.experiments.run_bounds import RUN_BOUNDS
 
     b = RUN_BOUNDS["run.duration"]
     ok = lambda v: 0 <= v <= b.high  # noqa: E731
@@ -205,8 +205,8 @@ def duration_or_zero(text: str) -> float:
 
 def live_speed(text: str) -> float:
     """argparse type: 0 (unpaced) or times real time within the run bound
-    ([RUN_BOUNDS][mcl.run_bounds.RUN_BOUNDS]; at least 0.01)."""
-    from mcl.run_bounds import RUN_BOUNDS
+    ([RUN_BOUNDS][mcl.experiments.run_bounds.RUN_BOUNDS]; at least 0.01)."""
+    from mcl.experiments.run_bounds import RUN_BOUNDS
 
     b = RUN_BOUNDS["live.speed"]
     ok = lambda v: v == 0 or b.low <= v <= b.high  # noqa: E731
@@ -258,7 +258,7 @@ def check_map(
 
 def _env_fields() -> dict[str, tuple[str, Any]]:
     """RacecarEnv setting name -> (its annotation, its default) (the map is set with ``--map``)."""
-    from racecar_sim.config import EnvConfig
+    from racecar_sim.settings.config import EnvConfig
 
     out: dict[str, tuple[str, Any]] = {}
     for f in dataclasses.fields(EnvConfig):
@@ -277,7 +277,7 @@ def _env_fields() -> dict[str, tuple[str, Any]]:
 def _env_value(text: str, kind: str, default: Any) -> Any:
     """A setting's value from its text, by its annotation ``kind`` (or the type of its default);
     ValueError says what was expected."""
-    from racecar_sim.validation import YAMLRefused, load_yaml, short
+    from racecar_sim.settings.validation import YAMLRefused, load_yaml, short
 
     try:
         value = load_yaml(text)  # no aliases; 1e12 is a number
@@ -319,11 +319,11 @@ def check_env(
     """``NAME=VALUE`` texts -> validated RacecarEnv settings, or stop with ``--env NAME: problem``.
 
     Each value is read as YAML and must have the type of the setting's default; then the settings
-    are checked by [`racecar_sim.config.EnvConfig`][racecar_sim.config.EnvConfig], one by one (so a bad value is named) and
+    are checked by [`racecar_sim.settings.config.EnvConfig`][racecar_sim.settings.config.EnvConfig], one by one (so a bad value is named) and
     together.
     """
-    from racecar_sim.config import EnvConfig
-    from racecar_sim.validation import short
+    from racecar_sim.settings.config import EnvConfig
+    from racecar_sim.settings.validation import short
 
     fields = _env_fields()
     settings: dict[str, Any] = {}

@@ -54,16 +54,16 @@ from mcl.cli.live_options import (
     start_live_view,
     stop_live_view,
 )
-from mcl.error_log import read_error_log
 from mcl.experiments.frame_text import draw_legend
 from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.plots import plot_error_vs_time
 from mcl.experiments.runs import DRIVERS, RunSpec, run_one
 from mcl.experiments.video import FrameWriter
-from mcl.filter_params import DEFAULT_PARTICLES
+from mcl.filter.motion_model import MotionModelParams
+from mcl.filter.params import DEFAULT_PARTICLES
 from mcl.io import DriveRecorder
 from mcl.io.live import LiveServer
-from mcl.motion_model import MotionModelParams
+from mcl.wrappers.error_log import read_error_log
 from racecar_sim.maps import DEFAULT_MAP
 from racecar_sim.render import CAR_COLOUR, ESTIMATE_COLOUR, PARTICLE_COLOUR, SCAN_COLOUR
 

@@ -44,7 +44,7 @@ from mcl.experiments.recovery import (
 from mcl.experiments.runner import EXECUTORS, make_executor
 from mcl.experiments.runs import DRIVERS, RunResult
 from mcl.experiments.scenarios import SCENARIOS
-from mcl.filter_params import DEFAULT_PARTICLES
+from mcl.filter.params import DEFAULT_PARTICLES
 from racecar_sim.maps import DEFAULT_MAP
 
 EXAMPLES = """\

@@ -1,5 +1,5 @@
 """The ``--filter-map`` flag of ``drive`` and ``experiment``: the map must cover the world
-``--map`` ([check_filter_map][mcl.wrapper_checks.check_filter_map]), checked before any run."""
+``--map`` ([check_filter_map][mcl.wrappers.checks.check_filter_map]), checked before any run."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ def check_filter_map(
 ) -> None:
     """Stop naming ``--filter-map`` (exit code 2) when it does not cover the world ``--map``;
     both specs load (``check_map`` passed), with the ``max_map_cells`` of the ``env`` settings."""
-    from mcl.wrapper_checks import check_filter_map as check_cover
+    from mcl.wrappers.checks import check_filter_map as check_cover
     from racecar_sim.maps import resolve_map
 
     cells = dict(env).get("max_map_cells")

@@ -31,7 +31,7 @@ from mcl.cli.common import (
 )
 from mcl.cli.compile_notice import compile_notice
 from mcl.experiments.lost_flag import LostFlagConfig, default_worlds, run_lost_flag
-from mcl.localization import as_localization_config
+from mcl.wrappers.localization import as_localization_config
 
 EXAMPLES = """\
 examples:
@@ -69,7 +69,7 @@ def build_parser() -> Parser:
 
 
 def filter_settings(parser: Parser, items: list[str]) -> dict[str, Any]:
-    """``KEY=VALUE`` items as a nested mapping of [`LocalizationConfig`][mcl.localization.LocalizationConfig]
+    """``KEY=VALUE`` items as a nested mapping of [`LocalizationConfig`][mcl.wrappers.localization.LocalizationConfig]
     fields (values read as YAML); a malformed item fails naming ``--filter``."""
     settings: dict[str, Any] = {}
     for item in items:

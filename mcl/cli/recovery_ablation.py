@@ -33,8 +33,8 @@ from mcl.cli.common import (
 )
 from mcl.cli.compile_notice import compile_notice
 from mcl.experiments.recovery import RecoveryConfig, recovery_localization, run_recovery_experiment
-from mcl.localization import LocalizationConfig
-from mcl.sensor_model import SensorModelParams
+from mcl.filter.sensor_model import SensorModelParams
+from mcl.wrappers.localization import LocalizationConfig
 from racecar_sim.maps import DEFAULT_MAP
 
 EXAMPLES = """\

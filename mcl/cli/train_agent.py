@@ -37,8 +37,8 @@ from mcl.cli.common import (
     positive_float,
     positive_int,
 )
+from racecar_sim.car.models import CAR_MODELS
 from racecar_sim.race.single import DRIVERS
-from racecar_sim.vehicle import CAR_MODELS
 
 EXAMPLES = """\
 examples (the first is the README's run, about 12 + 25 minutes of training on 2 busy cores):

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mcl.error_log import ErrorLog
+from mcl.wrappers.error_log import ErrorLog
 
 __all__ = ["ConvergenceCriteria", "RecoveryStats", "convergence_time", "recovery_stats"]
 

@@ -1,5 +1,5 @@
 """Localization on fast laps: the lab's constant motion noise against the alpha model that grows
-with the motion (`mcl.alpha_motion`), on a car that may slide.
+with the motion (`mcl.filter.alpha_motion`), on a car that may slide.
 
 Each run is a [`RunSpec`][mcl.experiments.runs.RunSpec]: the ``racing`` driver (pure pursuit round
 the map's loop at ``speed`` m/s everywhere, on the true pose), the ``tracking`` scenario started on
@@ -24,11 +24,11 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from mcl.error_log import read_error_log
 from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.runner import run_pending
 from mcl.experiments.runs import RunResult, RunSpec
-from mcl.motion_model import MotionModelParams
+from mcl.filter.motion_model import MotionModelParams
+from mcl.wrappers.error_log import read_error_log
 from racecar_sim.file_guard import writable
 
 __all__ = ["FastLapConfig", "SeriesRow", "fast_lap_specs", "markdown_table", "run_fast_laps",

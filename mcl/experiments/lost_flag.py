@@ -31,11 +31,11 @@ from typing import TextIO
 
 import numpy as np
 
-from mcl.error_log import ErrorLog, read_error_log
 from mcl.experiments.recovery import run_recovery_safely
 from mcl.experiments.runner import run_pending
 from mcl.experiments.runs import RunResult, RunSpec
-from mcl.localization import LocalizationConfig
+from mcl.wrappers.error_log import ErrorLog, read_error_log
+from mcl.wrappers.localization import LocalizationConfig
 from racecar_sim.file_guard import writable
 
 __all__ = [

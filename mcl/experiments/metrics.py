@@ -7,7 +7,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from mcl.error_log import ErrorLog
+from mcl.wrappers.error_log import ErrorLog
 
 __all__ = ["DIVERGED_M", "ErrorStats", "error_stats"]
 

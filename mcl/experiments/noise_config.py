@@ -13,8 +13,8 @@ from typing import Any
 
 from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.runs import RunSpec
-from mcl.filter_params import DEFAULT_PARTICLES
-from mcl.motion_model import MotionModelParams, uniform_to_gaussian
+from mcl.filter.motion_model import MotionModelParams, uniform_to_gaussian
+from mcl.filter.params import DEFAULT_PARTICLES
 from racecar_sim.maps import DEFAULT_MAP
 
 __all__ = ["GAUSSIAN_SIGMAS", "UNIFORM_COEFFICIENTS", "ExperimentConfig"]

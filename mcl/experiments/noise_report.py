@@ -12,10 +12,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from mcl.error_log import read_error_log
 from mcl.experiments.metrics import ErrorStats
 from mcl.experiments.runs import RunResult
-from mcl.motion_model import uniform_to_gaussian
+from mcl.filter.motion_model import uniform_to_gaussian
+from mcl.wrappers.error_log import read_error_log
 from racecar_sim.file_guard import writable
 
 if TYPE_CHECKING:

@@ -13,7 +13,7 @@ can skip runs whose log is complete, and a run that crashes is reported while th
 Output folder layout::
 
     config.json                  the sweep's settings (checked by ``resume``)
-    logs/<run_id>.csv            one error log per run (mcl.error_log format)
+    logs/<run_id>.csv            one error log per run (mcl.wrappers.error_log format)
     runs.csv                     one line per run: status and its error statistics
     summary.csv, summary.md      per series and coefficient: statistics across seeds (mean, sd)
     plots/runs/<run_id>.png      error vs time of each run
@@ -30,11 +30,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
-from mcl.error_log import count_rows
 from mcl.experiments.noise_config import GAUSSIAN_SIGMAS, UNIFORM_COEFFICIENTS, ExperimentConfig
 from mcl.experiments.noise_report import SummaryRow, summarize, write_plots, write_summary
 from mcl.experiments.runner import Executor, run_pending, skipped_result
 from mcl.experiments.runs import RunResult, RunSpec
+from mcl.wrappers.error_log import count_rows
 
 __all__ = [
     "GAUSSIAN_SIGMAS",

@@ -5,7 +5,7 @@ metres) on the loop a few metres ahead of the car (``gaps``, metres of arc lengt
 rear axle to each box's centre), facing along the loop, in the car's own lane: they move with the
 car, so the sectors they shadow stay in front of it for the whole drive, as opponents driving
 close ahead at the car's speed do. They are the env's obstacle boxes (``obstacles={"boxes": n}``,
-[`racecar_sim.obstacles`][racecar_sim.obstacles]), placed before every step, so the lidar sees them exactly (their
+[`racecar_sim.world.obstacles`][racecar_sim.world.obstacles]), placed before every step, so the lidar sees them exactly (their
 edges cut the beams before the lidar's noise is drawn) and the filter's map does not.
 
 The loop is [`mcl.agents.track.track_for_map()`][mcl.agents.track.track_for_map] of the env's map; the direction along it is the

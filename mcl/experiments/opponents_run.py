@@ -2,7 +2,7 @@
 
 A run (`OpponentRun`) drives the car by pure pursuit (on its true pose, so that filter
 settings never change the trajectory) round the map's loop at ``speed``, starting at a point of
-the loop picked by the seed, with [`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] in the loop, and logs
+the loop picked by the seed, with [`LocalizationWrapper`][mcl.wrappers.single.LocalizationWrapper] in the loop, and logs
 the position error against the truth every step. The opponents are
 [`OpponentsScenario`][mcl.experiments.opponents.OpponentsScenario]'s car-sized boxes held ``gaps`` metres
 ahead on the same line (``backend="boxes"``), or ``RacecarRace-v0``'s scripted cars
@@ -27,14 +27,14 @@ from typing import Any
 
 import numpy as np
 
-from mcl.error_log import read_error_log
 from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.opponents import OpponentsScenario
-from mcl.filter_params import DEFAULT_PARTICLES
-from mcl.localization import LocalizationConfig
-from mcl.run_bounds import check_duration
-from mcl.sensor_params import SensorModelParams
-from mcl.wrapper import LocalizationWrapper
+from mcl.experiments.run_bounds import check_duration
+from mcl.filter.params import DEFAULT_PARTICLES
+from mcl.filter.sensor_params import SensorModelParams
+from mcl.wrappers.error_log import read_error_log
+from mcl.wrappers.localization import LocalizationConfig
+from mcl.wrappers.single import LocalizationWrapper
 
 __all__ = [
     "BACKENDS",
@@ -112,7 +112,7 @@ class OpponentRunResult:
 
     Attributes:
         run: the run.
-        log_path: its CSV error log (`mcl.error_log`).
+        log_path: its CSV error log (`mcl.wrappers.error_log`).
         collisions: steps with any contact.
         skipped_beams: beams left out over beams scored, over the corrected steps.
         converged: fraction of the corrected steps on which the cloud counted as converged.

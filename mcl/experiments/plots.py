@@ -16,7 +16,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from mcl.error_log import ErrorLog
+from mcl.wrappers.error_log import ErrorLog
 from racecar_sim.file_guard import writable
 
 __all__ = ["SeriesPoints", "plot_error_vs_coefficient", "plot_error_vs_time", "plot_overlay"]

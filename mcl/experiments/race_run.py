@@ -4,7 +4,7 @@ optional particle filter per car: what ``racecar-sim race`` runs.
 [`run_race`][mcl.experiments.race_run.run_race] builds a
 [`racecar_sim.RaceEnv`][racecar_sim.race.env.RaceEnv] (cars keep racing after a contact:
 ``terminate_on_collision=False``; contacts are counted), wraps it in
-``mcl.race_wrapper.LocalizedRaceEnv`` when ``localize`` (each car
+``mcl.wrappers.race.LocalizedRaceEnv`` when ``localize`` (each car
 then drives on its own MCL estimate, started around its true start pose), puts the cars on the
 track's start grid in the order ``grid`` asks for, builds each car's driver with
 [make_driver][mcl.experiments.race_drivers.make_driver] and steps the race for ``duration`` seconds,
@@ -207,9 +207,9 @@ def setup_race(spec: RaceSpec, render: bool = False) -> RaceSetup:
     ]
     if not spec.localize:
         return RaceSetup(race, race, drivers, traffic)
-    from mcl.localization import LocalizationConfig
-    from mcl.race_wrapper import LocalizedRaceEnv
-    from mcl.sensor_model import SensorModelParams
+    from mcl.filter.sensor_model import SensorModelParams
+    from mcl.wrappers.localization import LocalizationConfig
+    from mcl.wrappers.race import LocalizedRaceEnv
 
     config = LocalizationConfig(sensor=SensorModelParams(beam_skip=True))
     env = LocalizedRaceEnv(race, config.with_particles(spec.particles))

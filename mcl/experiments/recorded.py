@@ -7,9 +7,9 @@ true pose and the time, plus the lidar's geometry and the maps' paths, in a
 [RecordedDrive][mcl.experiments.recorded.RecordedDrive] (an ``.npz`` file with
 [save][mcl.experiments.recorded.RecordedDrive.save] / [load][mcl.experiments.recorded.RecordedDrive.load]).
 [localize_recorded][mcl.experiments.recorded.localize_recorded] feeds it through the same filter
-code as [LocalizationWrapper][mcl.wrapper.LocalizationWrapper]
-(``mcl.localization.start_filter``, ``predict`` with the step's odometry,
-``mcl.localization.correct_with_scan`` on a fresh scan): with the same seed it
+code as [LocalizationWrapper][mcl.wrappers.single.LocalizationWrapper]
+(``mcl.wrappers.localization.start_filter``, ``predict`` with the step's odometry,
+``mcl.wrappers.localization.correct_with_scan`` on a fresh scan): with the same seed it
 gives the online run's estimates bit for bit. A peer filter (nav2's amcl,
 ``mcl.bench.peer_amcl``) gets the very same drives.
 
@@ -34,17 +34,17 @@ from typing import Any
 
 import numpy as np
 
-from mcl.angles import wrap_angle
-from mcl.localization import (
+from mcl.experiments.run_bounds import check_duration
+from mcl.filter.angles import wrap_angle
+from mcl.filter.motion_model import MotionModel
+from mcl.filter.sensor_model import SensorModel
+from mcl.wrappers.localization import (
     LocalizationConfig,
     as_localization_config,
     correct_with_scan,
     filter_rng,
     start_filter,
 )
-from mcl.motion_model import MotionModel
-from mcl.run_bounds import check_duration
-from mcl.sensor_model import SensorModel
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import OccupancyMap, resolve_map
 
@@ -190,12 +190,12 @@ def record_drive(
     Args:
         world_map: the world (bundled name or map YAML).
         filter_map: the map a filter should hold (stored, not used here); None = the world.
-        scene: ``"clean"``, ``"cluttered"``, ``"none"`` or None (``racecar_sim.scenes``).
+        scene: ``"clean"``, ``"cluttered"``, ``"none"`` or None (``racecar_sim.world.scenes``).
         noise_profile: e.g. ``"mit_racecar"``; None = the env's own (ideal) settings.
         driver: a key of [DRIVERS][mcl.experiments.runs.DRIVERS].
         seed: the reset seed (start pose, sensor noise, obstacles).
         duration: simulated seconds.
-        env: further [EnvConfig][racecar_sim.config.EnvConfig] settings.
+        env: further [EnvConfig][racecar_sim.settings.config.EnvConfig] settings.
     """
     from mcl.experiments.runs import make_driver  # runs imports the wrapper; only needed here
 
@@ -273,11 +273,11 @@ def localize_recorded(
     seed: int | None = None,
 ) -> LocalizedRun:
     """Replay ``drive`` through our particle filter, as
-    [LocalizationWrapper][mcl.wrapper.LocalizationWrapper] runs it online.
+    [LocalizationWrapper][mcl.wrappers.single.LocalizationWrapper] runs it online.
 
     The filter starts on the reset's true pose (``config.init="pose"``, spread
     ``config.filter.init_spread``) or uniformly (``"global"``) with the generator
-    ``mcl.localization.filter_rng`` derives from ``seed``, is corrected by the reset's
+    ``mcl.wrappers.localization.filter_rng`` derives from ``seed``, is corrected by the reset's
     scan, then per step predicts with the odometry held for ``drive.dt`` and corrects on a fresh
     scan. With the drive's seed the estimates equal the online run's bit for bit.
 
@@ -323,7 +323,7 @@ def localized_run(
     estimate: np.ndarray, truth: np.ndarray, n_particles: np.ndarray | None = None
 ) -> LocalizedRun:
     """A [LocalizedRun][mcl.experiments.recorded.LocalizedRun] of estimates (n, 3) against the
-    truth (n, 3), errors as ``mcl.localization.pose_error`` takes them (vectorised)."""
+    truth (n, 3), errors as ``mcl.wrappers.localization.pose_error`` takes them (vectorised)."""
     estimate = np.asarray(estimate, dtype=np.float64)
     truth = np.asarray(truth, dtype=np.float64)
     position = np.hypot(estimate[:, 0] - truth[:, 0], estimate[:, 1] - truth[:, 1])

@@ -17,7 +17,7 @@ KLD-sampling down to 1000 particles (up to 20 000 while searching) and augmented
 Output folder layout::
 
     config.json                 the experiment's settings (checked by ``resume``)
-    logs/<run_id>.csv           one error log per run (mcl.error_log format)
+    logs/<run_id>.csv           one error log per run (mcl.wrappers.error_log format)
     logs/<run_id>.json          what the scenario recorded (kidnap poses, per-step flags)
     runs.csv                    one line per run: convergence time, success, honesty, particles
     summary.md                  summary table and the per-run table
@@ -39,7 +39,6 @@ from typing import TextIO
 
 import numpy as np
 
-from mcl.error_log import count_rows, read_error_log
 from mcl.experiments.convergence import recovery_stats
 from mcl.experiments.metrics import DIVERGED_M, error_stats
 from mcl.experiments.recovery_config import (
@@ -52,6 +51,7 @@ from mcl.experiments.recovery_plots import write_recovery_plots
 from mcl.experiments.recovery_report import write_tables
 from mcl.experiments.runner import Executor, run_pending, run_spec_safely
 from mcl.experiments.runs import RunResult, RunSpec
+from mcl.wrappers.error_log import count_rows, read_error_log
 from racecar_sim.file_guard import writable
 
 __all__ = [

@@ -17,8 +17,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from mcl.error_log import read_error_log
 from mcl.experiments.plots import plot_error_vs_time, plot_overlay, save_figure
+from mcl.wrappers.error_log import read_error_log
 
 if TYPE_CHECKING:
     from mcl.experiments.recovery_config import RecoveryConfig, RecoveryRun

@@ -1,7 +1,7 @@
 """Replay a recording ([`mcl.io.BagData`][mcl.io.BagData]) through the particle filter, in recorded order.
 
 Each odometry message's twist is held until the next message (or scan) and integrated exactly
-([`mcl.motion_model.twist_to_odometry()`][mcl.motion_model.twist_to_odometry]); at every scan the filter moves by the odometry
+([`mcl.filter.motion_model.twist_to_odometry()`][mcl.filter.motion_model.twist_to_odometry]); at every scan the filter moves by the odometry
 gathered since the previous scan (one predict per scan, as in the simulator, 40 Hz), then weighs
 the scan. After every scan one row: the base_link estimate in the map's world frame, the cloud's
 size and spread, the ambiguity flag and ``scan_fit``, the fraction of valid beams within
@@ -9,7 +9,7 @@ size and spread, the ambiguity flag and ``scan_fit``, the fraction of valid beam
 explains the scan that needs no ground truth). When the bag carries ``/ground_truth`` (a recorded
 simulated drive), also the position and heading error against it.
 
-The filter is `unknown_start_localization()`: [`mcl.adaptive.AdaptiveParticleFilter`][mcl.adaptive.AdaptiveParticleFilter],
+The filter is `unknown_start_localization()`: [`mcl.filter.adaptive.AdaptiveParticleFilter`][mcl.filter.adaptive.AdaptiveParticleFilter],
 which searches from a global start and tracks once converged, without switching anything.
 
 No-returns (NaN from [`mcl.io.read_bag()`][mcl.io.read_bag]) are given to the beam model as max-range readings by
@@ -27,16 +27,16 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from mcl.adaptive import AdaptiveParams, AdaptiveParticleFilter
-from mcl.angles import wrap_angle
-from mcl.augmented import AugmentedParams
-from mcl.filter_params import ParticleFilterParams
+from mcl.filter.adaptive import AdaptiveParams, AdaptiveParticleFilter
+from mcl.filter.angles import wrap_angle
+from mcl.filter.augmented import AugmentedParams
+from mcl.filter.kld import KLDParams
+from mcl.filter.motion_model import MotionModel, compose, twist_to_odometry
+from mcl.filter.params import ParticleFilterParams
+from mcl.filter.particle_filter import ParticleFilter
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
 from mcl.io.bag_reader import BagData
-from mcl.kld import KLDParams
-from mcl.localization import LocalizationConfig
-from mcl.motion_model import MotionModel, compose, twist_to_odometry
-from mcl.particle_filter import ParticleFilter
-from mcl.sensor_model import SensorModel, SensorModelParams
+from mcl.wrappers.localization import LocalizationConfig
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
 
@@ -80,7 +80,7 @@ FOUND_SD = 0.5
 
 
 def unknown_start_localization() -> LocalizationConfig:
-    """The one filter for an unknown start on real scans (module docstring of `mcl.adaptive`).
+    """The one filter for an unknown start on real scans (module docstring of `mcl.filter.adaptive`).
 
     Global start with 300 particles per m² of free floor (capped at 300 000), KLD-sampling (at
     most 20 000; 5 000 at least while searching, 1 000 once tracking), augmented MCL (0.001, 0.1),
@@ -113,7 +113,7 @@ class ReplayConfig:
         no_return: ``"max"`` (no-returns weigh as max-range readings) or ``"drop"``.
         fit_tolerance: metres, a beam within this of the exact cast counts in ``scan_fit``.
         localization: the filter (default `unknown_start_localization()`); without
-            ``adaptive`` settings it is a plain [`ParticleFilter`][mcl.particle_filter.ParticleFilter].
+            ``adaptive`` settings it is a plain [`ParticleFilter`][mcl.filter.particle_filter.ParticleFilter].
     """
 
     init: str | tuple[float, float, float] = "global"

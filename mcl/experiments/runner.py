@@ -19,10 +19,10 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any, TextIO
 
-from mcl.error_log import read_error_log
 from mcl.experiments.executors import Executor, Runner, worker_died
 from mcl.experiments.metrics import DIVERGED_M, error_stats
 from mcl.experiments.runs import RunResult, RunSpec, run_one
+from mcl.wrappers.error_log import read_error_log
 from racecar_sim.file_guard import claim_folder, writable
 
 __all__ = [

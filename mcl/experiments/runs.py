@@ -1,7 +1,7 @@
 """One localized drive: a run = (map, driver, scenario, filter settings, seed, duration).
 
 `run_one()` builds a ``RacecarSim-v0`` env on the map, wraps it in
-[`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] with an error log, lets the driver drive for the
+[`LocalizationWrapper`][mcl.wrappers.single.LocalizationWrapper] with an error log, lets the driver drive for the
 duration, and returns the run's error statistics. The experiment (`mcl.experiments`) and the
 main job (``scripts/drive.py``) are both made of such runs.
 
@@ -23,16 +23,16 @@ from typing import Any
 
 import numpy as np
 
-from mcl.error_log import read_error_log
 from mcl.experiments.heap import TRIM_EVERY_S, release_free_heap
 from mcl.experiments.metrics import DIVERGED_M, ErrorStats, error_stats
+from mcl.experiments.run_bounds import check_duration
 from mcl.experiments.scenarios import make_scenario
-from mcl.filter_params import DEFAULT_PARTICLES
-from mcl.localization import LocalizationConfig
-from mcl.motion_model import MotionModelParams
-from mcl.run_bounds import check_duration
-from mcl.sensor_model import SensorModel
-from mcl.wrapper import LocalizationWrapper
+from mcl.filter.motion_model import MotionModelParams
+from mcl.filter.params import DEFAULT_PARTICLES
+from mcl.filter.sensor_model import SensorModel
+from mcl.wrappers.error_log import read_error_log
+from mcl.wrappers.localization import LocalizationConfig
+from mcl.wrappers.single import LocalizationWrapper
 from racecar_sim.drivers import PurePursuit, WallFollower, waypoints_from_drive
 from racecar_sim.env import EnvConfig, RacecarEnv
 from racecar_sim.maps import DEFAULT_MAP, OccupancyMap, resolve_map
@@ -75,7 +75,7 @@ class RunSpec:
             default to ``terminate_on_collision=False`` so that each lasts its full duration.
         drive_on: ``"truth"`` or ``"estimate"``: the pose pure pursuit steers by.
         config: the filter's settings (sensor model, particle filter, ...) apart from ``motion``
-            and ``n_particles``; None for [`LocalizationConfig`][mcl.localization.LocalizationConfig] defaults.
+            and ``n_particles``; None for [`LocalizationConfig`][mcl.wrappers.localization.LocalizationConfig] defaults.
         scenario_settings: keyword arguments of the scenario as (name, value) pairs.
         filter_map: bundled name or YAML path of the map the filter holds, when it differs from
             the world ``map`` (same world frame; size and resolution may differ); None = ``map``.
@@ -117,7 +117,7 @@ class RunSpec:
         object.__setattr__(self, "driver_settings", drive)
         if self.config is not None and not isinstance(self.config, LocalizationConfig):
             raise ValueError(f"RunSpec.config = {self.config!r} must be a LocalizationConfig")
-        # the filter's bounds (mcl.filter_bounds) apply now, not when the run starts
+        # the filter's bounds (mcl.filter.bounds) apply now, not when the run starts
         (self.config or LocalizationConfig()).with_particles(n)
 
     @property
@@ -270,7 +270,7 @@ def run_one(
     on_step: Callable[[Any, dict[str, Any], dict[str, Any]], None] | None = None,
 ) -> RunResult:
     """Drive ``spec`` with MCL in the loop, logging the error to ``log_path`` (CSV, see
-    `mcl.error_log`); returns its statistics.
+    `mcl.wrappers.error_log`); returns its statistics.
 
     Args:
         spec: the run.

@@ -1,7 +1,7 @@
 """Localization scenarios: how a run starts the filter and what happens to the car on the way.
 
 A scenario is a small object with a ``name``, the reset options it gives
-[`LocalizationWrapper`][mcl.wrapper.LocalizationWrapper] (how the filter starts), and a ``before_step`` hook called
+[`LocalizationWrapper`][mcl.wrappers.single.LocalizationWrapper] (how the filter starts), and a ``before_step`` hook called
 before every step (a kidnapping scenario teleports the car there with
 ``env.unwrapped.teleport(pose)``). New scenarios register a factory in `SCENARIOS`; the
 experiment's ``--scenario`` choices are its keys.

@@ -14,7 +14,7 @@ import os
 from pathlib import Path
 
 from racecar_sim.file_guard import NotOurs, shown
-from racecar_sim.validation import load_yaml, read_text
+from racecar_sim.settings.validation import load_yaml, read_text
 
 __all__ = ["recording_problem", "remove_recording"]
 

@@ -308,7 +308,7 @@ def start_live(address: str | int) -> LiveServer:
 
 
 class DriveRecorder:
-    """Records a [LocalizationWrapper][mcl.wrapper.LocalizationWrapper] drive step by step (the
+    """Records a [LocalizationWrapper][mcl.wrappers.single.LocalizationWrapper] drive step by step (the
     ``on_step`` hook of [run_one][mcl.experiments.runs.run_one]): odometry every step, the scan,
     the estimate and the particles at every fresh scan, the true pose every step.
 
@@ -344,7 +344,7 @@ class DriveRecorder:
         self._first = True
 
     def __call__(self, wrapped, obs: dict, info: dict) -> None:
-        from mcl.motion_model import compose, twist_to_odometry
+        from mcl.filter.motion_model import compose, twist_to_odometry
 
         t = float(info["time"])
         rec = self.recorder

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from mcl.filter.motion_model import compose
 from mcl.io.bag_reader import BagData
 from mcl.io.bag_writer import EPOCH_NS, BagRecorder
 from mcl.io.live import LiveServer
-from mcl.motion_model import compose
 from racecar_sim.maps import OccupancyMap
 
 __all__ = ["ReplayStream"]

@@ -15,8 +15,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from mcl.filter_bounds import FILTER_BOUNDS
-from racecar_sim.bounds import BOUNDS
+from mcl.filter.bounds import FILTER_BOUNDS
+from racecar_sim.settings.bounds import BOUNDS
 
 __all__ = ["MAX_SCAN_BEAMS", "scan_problem", "scan_warning"]
 

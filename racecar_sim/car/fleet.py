@@ -4,7 +4,7 @@ A fleet holds N cars (each a [`RacecarEnv`][racecar_sim.env.RacecarEnv]: its phy
 settings, its generator) and does for all of them at once what the single env does for one: the
 physics step (the cars far from walls in one numba call, the others through pymunk), the seeds of
 the scans due (one raw draw from each car's generator, as
-[`Lidar.measure`][racecar_sim.sensors.Lidar.measure] draws it) and the odometry (six normals from
+[`Lidar.measure`][racecar_sim.sensors.lidar.Lidar.measure] draws it) and the odometry (six normals from
 each car's generator, then the VESC's twist and its noise in one numba call, the single env's
 doubles). The clocks are the car's ([`racecar_sim.car.clock`][racecar_sim.car.clock]).
 Frames: world (the map's), car (x forward, y left, origin at the rear axle).
@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from racecar_sim.free_batch import FreeStepBatch
-from racecar_sim.vesc import vesc_odometry
+from racecar_sim.car.free_batch import FreeStepBatch
+from racecar_sim.sensors.vesc import vesc_odometry
 
 if TYPE_CHECKING:  # the envs build fleets; a fleet only steps their cars
     from racecar_sim.env import RacecarEnv

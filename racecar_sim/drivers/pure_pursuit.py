@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from racecar_sim.config import CarParams
 from racecar_sim.drivers.base import as_action
+from racecar_sim.settings.config import CarParams
 
 __all__ = ["PurePursuit", "resample_polyline"]
 
@@ -49,7 +49,7 @@ class PurePursuit:
         speed: metres per second; without ``loop`` it falls to 0 over the last ``lookahead`` metres.
         loop: whether the path closes from the last waypoint back to the first.
         car: the car's ``wheelbase`` (metres) and ``max_steer`` (radians), as the env's
-            [`CarParams`][racecar_sim.config.CarParams] (default: the default car).
+            [`CarParams`][racecar_sim.settings.config.CarParams] (default: the default car).
     """
 
     def __init__(

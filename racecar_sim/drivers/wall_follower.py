@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from racecar_sim.config import CarParams, LidarParams, nested
 from racecar_sim.drivers.base import as_action, beam_step, despeckle, fit_line, scan_of
+from racecar_sim.settings.config import CarParams, LidarParams, nested
 
 __all__ = ["WallFollower"]
 
@@ -78,9 +78,9 @@ class WallFollower:
             ``stop_distance`` (0 never reverses); the car backs up, nose turning away from the
             wall, until an arc ahead is clear for ``check_distance``.
         car: the car's geometry and limits (wheelbase, max_steer, length, rear_overhang), as the
-            env's [`CarParams`][racecar_sim.config.CarParams]; `for_env()` takes the env's own.
+            env's [`CarParams`][racecar_sim.settings.config.CarParams]; `for_env()` takes the env's own.
         lidar: the lidar's ``fov`` (radians) and ``mount_offset`` (metres ahead of the rear axle),
-            as the env's [`LidarParams`][racecar_sim.config.LidarParams].
+            as the env's [`LidarParams`][racecar_sim.settings.config.LidarParams].
     """
 
     side: str = "right"

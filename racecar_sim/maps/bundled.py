@@ -13,7 +13,7 @@ from pathlib import Path
 from racecar_sim.maps.grid import MapError, OccupancyMap
 from racecar_sim.maps.limits import check_cells
 from racecar_sim.maps.loader import load_map
-from racecar_sim.validation import short
+from racecar_sim.settings.validation import short
 
 __all__ = ["DEFAULT_MAP", "bundled", "bundled_names", "maps_dir", "resolve_map"]
 

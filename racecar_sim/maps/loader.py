@@ -18,7 +18,7 @@ from racecar_sim.maps.limits import (
     check_cells,
     image_size,
 )
-from racecar_sim.validation import load_yaml, read_text, short, yaml_problem
+from racecar_sim.settings.validation import load_yaml, read_text, short, yaml_problem
 
 __all__ = ["load_map"]
 

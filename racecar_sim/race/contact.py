@@ -1,6 +1,6 @@
 """Cars touching cars: each car's pymunk space holds the cars near it as moving boxes.
 
-Every car keeps its own [`RacecarPhysics`][racecar_sim.physics.RacecarPhysics] (its space, its walls, its
+Every car keeps its own [`RacecarPhysics`][racecar_sim.car.physics.RacecarPhysics] (its space, its walls, its
 free steps), so the race's car is exactly the single env's car. Before a step, the cars that could
 touch within it (bounding circles closer than their reach) see each other: car ``j`` appears in
 car ``i``'s space as a kinematic box ("ghost") at ``j``'s pose, moving with ``j``'s velocity over
@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pymunk
 
-from racecar_sim.physics import CAR_COLLISION_TYPE, WALL_COLLISION_TYPE, RacecarPhysics
+from racecar_sim.car.physics import CAR_COLLISION_TYPE, WALL_COLLISION_TYPE, RacecarPhysics
 
 __all__ = ["GHOST_COLLISION_TYPE", "WALL", "CarContacts", "box_centres", "near_pairs"]
 

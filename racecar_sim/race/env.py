@@ -28,7 +28,6 @@ try:  # the race extra; without it RaceEnv still works (RacecarRace-v0 needs no 
 except ImportError:  # pragma: no cover - pettingzoo is in the dev extra
     ParallelEnv = object  # type: ignore[assignment,misc]
 
-from racecar_sim.config import EnvConfig, merge_settings
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.race.grid import start_grid
 from racecar_sim.race.laps import LapCounter
@@ -36,7 +35,14 @@ from racecar_sim.race.loops import centerline_for_map
 from racecar_sim.race.track import LOOP_STARTS, Track, resolve_track
 from racecar_sim.race.world import RaceWorld
 from racecar_sim.render import MapRenderer
-from racecar_sim.validation import check_action, check_number, check_options, describe, short
+from racecar_sim.settings.config import EnvConfig, merge_settings
+from racecar_sim.settings.validation import (
+    check_action,
+    check_number,
+    check_options,
+    describe,
+    short,
+)
 from racecar_sim.vector_env import car_seeds
 
 MAX_CARS = 100

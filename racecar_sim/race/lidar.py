@@ -3,7 +3,7 @@
 A race scan is the single env's scan ([`racecar_sim.raycast.scan`][racecar_sim.raycast.scan]: the mount pose, the exact
 cast on the grid, the four-part beam noise) with one stage between the cast and the noise: each
 other car's footprint (its ``length x width`` box at its pose at scan time, world frame) cuts the
-beams that hit it first, exactly ([`racecar_sim.obstacles.ray_segment()`][racecar_sim.obstacles.ray_segment] on the box's four
+beams that hit it first, exactly ([`racecar_sim.world.obstacles.ray_segment()`][racecar_sim.world.obstacles.ray_segment] on the box's four
 edges). The noise then treats a car like a wall.
 
 Culling keeps the cost linear in the beams a car actually covers, not cars x beams: a car whose
@@ -24,9 +24,9 @@ import math
 import numba as nb
 import numpy as np
 
-from racecar_sim.obstacles import ray_segment
 from racecar_sim.raycast.scan import add_beam_noise, exact_one
 from racecar_sim.raycast.shared_work import fetch_add
+from racecar_sim.world.obstacles import ray_segment
 
 __all__ = ["car_boxes", "race_scans_serial", "race_scans_shared"]
 
@@ -38,7 +38,7 @@ def car_boxes(poses: np.ndarray, local_corners: np.ndarray) -> np.ndarray:
     """(N, 4, 2) world corners of the cars' boxes at rear-axle world ``poses`` (N, 3).
 
     ``local_corners`` (4, 2): the box in the car frame (x forward, y left, origin at the rear
-    axle), as [`RacecarPhysics.local_corners`][racecar_sim.physics.RacecarPhysics.local_corners].
+    axle), as [`RacecarPhysics.local_corners`][racecar_sim.car.physics.RacecarPhysics.local_corners].
     """
     c = np.cos(poses[:, 2])[:, None]
     s = np.sin(poses[:, 2])[:, None]

@@ -53,11 +53,11 @@ from typing import Any
 import numpy as np
 
 from racecar_sim.drivers.base import as_action
-from racecar_sim.params import nested
 from racecar_sim.race import racing_kernels as kernels
 from racecar_sim.race.lanes import LaneRoom
 from racecar_sim.race.racing_rules import RacingRules
 from racecar_sim.race.traffic import Traffic
+from racecar_sim.settings.params import nested
 
 __all__ = ["RacingDriver"]
 

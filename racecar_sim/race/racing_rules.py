@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from racecar_sim.bounds import Bound, check
+from racecar_sim.settings.bounds import Bound, check
 
 __all__ = ["RACING_BOUNDS", "RacingRules"]
 
@@ -44,7 +44,7 @@ RACING_BOUNDS: dict[str, Bound] = {
     "horizon": Bound(1.0, 100.0, "m", "track ahead and behind in which cars count; room is "
                      "checked over the pass's length up to this"),
 }
-"""Field -> its bound (the racing rules' table, as ``racecar_sim.bounds.BOUNDS`` is the env's)."""
+"""Field -> its bound (the racing rules' table, as ``racecar_sim.settings.bounds.BOUNDS`` is the env's)."""
 
 
 @dataclass(frozen=True)

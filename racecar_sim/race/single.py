@@ -23,7 +23,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from racecar_sim.config import EnvConfig
 from racecar_sim.drivers import PurePursuit, WallFollower
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.race.env import RaceEnv
@@ -32,6 +31,7 @@ from racecar_sim.race.racing_driver import RacingDriver
 from racecar_sim.race.racing_rules import RacingRules
 from racecar_sim.race.track import Track, with_widths
 from racecar_sim.race.traffic import Traffic
+from racecar_sim.settings.config import EnvConfig
 
 __all__ = ["DRIVERS", "RacecarRaceEnv"]
 

@@ -30,7 +30,6 @@ import numpy as np
 
 from racecar_sim.car.clock import CarClocks
 from racecar_sim.car.fleet import CarFleet
-from racecar_sim.config import EnvConfig
 from racecar_sim.env import RacecarEnv
 from racecar_sim.race.contact import (
     WALL,
@@ -42,7 +41,8 @@ from racecar_sim.race.contact import (
 from racecar_sim.race.lidar import car_boxes, race_scans_serial, race_scans_shared
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.shared_work import run_shared
-from racecar_sim.validation import check_poses
+from racecar_sim.settings.config import EnvConfig
+from racecar_sim.settings.validation import check_poses
 
 __all__ = ["RaceWorld", "boxes_overlap"]
 

@@ -46,7 +46,7 @@ from racecar_sim.raycast.lut_table import LutTable
 from racecar_sim.raycast.morton import spread_order
 from racecar_sim.raycast.prefetch import prefetch
 from racecar_sim.raycast.shared_work import fetch_add, run_shared
-from racecar_sim.validation import check_number
+from racecar_sim.settings.validation import check_number
 
 __all__ = ["PARALLEL_MIN_ENTRIES", "LutParams", "LutTable", "build_lut", "lut_rays", "lut_score"]
 

@@ -4,7 +4,7 @@ The simulated lidar casts a single scan (1080 beams) per step. Through [`RayCast
 is a dozen numpy operations on one pose, a kernel call and a second kernel call for the noise; here
 it is one call whose arithmetic is the same, operation for operation, as
 [`cast_ray()`][racecar_sim.raycast.kernels.cast_ray] after [`RayCaster.cast()`][RayCaster.cast]'s frame change, and as
-the noise of [`racecar_sim.sensors.Lidar.add_noise()`][racecar_sim.sensors.Lidar.add_noise] (`add_beam_noise()`, which draws its
+the noise of [`racecar_sim.sensors.lidar.Lidar.add_noise()`][racecar_sim.sensors.lidar.Lidar.add_noise] (`add_beam_noise()`, which draws its
 uniforms and normals itself from a `racecar_sim.rand` stream seeded once per scan): the ranges
 are the same doubles and the noisy scan the same floats (tested).
 
@@ -46,7 +46,7 @@ cos and sin of the yaw; metres per cell; lidar mount offset ahead of the rear ax
 range limit in cells and in metres)."""
 
 NOISE_FIELDS = ("sigma", "max_range", "p_rand", "p_max", "p_short", "short_lambda")
-"""Layout of the float64 ``noise`` array (see [`LidarParams`][racecar_sim.config.LidarParams])."""
+"""Layout of the float64 ``noise`` array (see [`LidarParams`][racecar_sim.settings.config.LidarParams])."""
 
 
 def scan_geometry(occupancy_map, max_range: float, mount_offset: float) -> np.ndarray:
@@ -202,7 +202,7 @@ def _exact_scan(field, gu, gv, cos_h, sin_h, cos_a, sin_a, max_t, limits, scale,
 
 @nb.njit(cache=True, error_model="numpy")
 def add_beam_noise(ranges, seed, noise, out) -> int:
-    """The four-part beam noise ([`racecar_sim.sensors`][racecar_sim.sensors]) of true ``ranges`` into ``out``.
+    """The four-part beam noise ([`racecar_sim.sensors.lidar`][racecar_sim.sensors.lidar]) of true ``ranges`` into ``out``.
 
     Args:
         ranges: float64 (M,) true ranges, metres.
@@ -298,7 +298,7 @@ def scan_with_noise(field, pose, geometry, cos_a, sin_a, seed, noise, ranges, ou
         seed: int64 seed of the scan's random stream (see `add_beam_noise()`).
         noise: float64 array laid out as `NOISE_FIELDS`.
         ranges: float64 (M,) output, exact ranges in metres.
-        out: float32 (M,) output, the noisy scan in metres (see [`racecar_sim.sensors`][racecar_sim.sensors]).
+        out: float32 (M,) output, the noisy scan in metres (see [`racecar_sim.sensors.lidar`][racecar_sim.sensors.lidar]).
 
     Returns:
         0 on success, 1 when the pose is not finite (outputs untouched), 2 when an exact range

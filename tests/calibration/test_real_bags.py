@@ -138,7 +138,7 @@ def test_calibrate_noise_reproduces_the_shipped_profile(tmp_path):
     0.25 s, to 25 %.
     """
     from mcl.cli.calibrate_noise import main
-    from racecar_sim.noise_profiles import profile_document
+    from racecar_sim.sensors.noise_profiles import profile_document
 
     bags = [str(_bag(n)) for n in NAMES]
     maps = Path(__file__).resolve().parents[2] / ".." / "shared" / "maps" / "stata_basement.yaml"

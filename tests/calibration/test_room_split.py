@@ -14,7 +14,7 @@ from mcl.calibration.room_split import (
     sensor_beams,
     wide_runs,
 )
-from racecar_sim.scan_effects import ScanEffects
+from racecar_sim.sensors.scan_effects import ScanEffects
 
 
 @settings(max_examples=80)

@@ -21,7 +21,7 @@ from mcl.bench.amcl_inputs import (
     update_steps,
 )
 from mcl.experiments.recorded import RecordedDrive, record_drive
-from mcl.motion_model import compose, twist_to_odometry
+from mcl.filter.motion_model import compose, twist_to_odometry
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.raycast import RayCaster
 from tests.conftest import lidar_pose, room_map

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from mcl.bench import dynamics
-from racecar_sim.config import CarParams
 from racecar_sim.maps import bundled
+from racecar_sim.settings.config import CarParams
 
 
 def test_skidpad_without_the_peer_shows_ours(capsys) -> None:

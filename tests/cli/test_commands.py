@@ -18,7 +18,7 @@ from mcl.cli import drive, experiment, fast_laps, recovery_ablation
 from mcl.cli.bench import BENCHMARKS
 from mcl.cli.common import Parser, check_env, output_folder
 from mcl.cli.main import SUBCOMMANDS, main
-from mcl.error_log import read_error_log
+from mcl.wrappers.error_log import read_error_log
 
 REPO = Path(__file__).resolve().parents[2]
 PARSERS = {

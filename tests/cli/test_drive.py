@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import mcl.experiments.video
-from mcl.error_log import read_error_log
 from mcl.experiments.video import FrameWriter
+from mcl.wrappers.error_log import read_error_log
 from racecar_sim.file_guard import MARKER
 
 REPO = Path(__file__).resolve().parents[2]

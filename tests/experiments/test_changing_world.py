@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from mcl.error_log import read_error_log
 from mcl.experiments.runs import RunSpec, run_one
-from mcl.filter_params import ParticleFilterParams
-from mcl.localization import LocalizationConfig
-from mcl.motion_model import MotionModelParams
-from mcl.odometry_scale import OdometryScaleParams
-from mcl.sensor_params import SensorModelParams
+from mcl.filter.motion_model import MotionModelParams
+from mcl.filter.odometry_scale import OdometryScaleParams
+from mcl.filter.params import ParticleFilterParams
+from mcl.filter.sensor_params import SensorModelParams
+from mcl.wrappers.error_log import read_error_log
+from mcl.wrappers.localization import LocalizationConfig
 from tests.skips import need_shared
 
 HONEST = (("noise_profile", "mit_racecar"), ("scene", "cluttered"))

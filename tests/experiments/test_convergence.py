@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.error_log import ErrorLog
 from mcl.experiments.convergence import ConvergenceCriteria, convergence_time, recovery_stats
+from mcl.wrappers.error_log import ErrorLog
 
 DT = 0.025
 

@@ -18,14 +18,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import mcl.experiments.runner as runner
-from mcl.error_log import count_rows, read_error_log
 from mcl.experiments.metrics import ErrorStats
 from mcl.experiments.noise_report import METRICS, summarize
 from mcl.experiments.noise_sweep import ExperimentConfig, run_experiment
 from mcl.experiments.runner import execute_runs
 from mcl.experiments.runs import RunResult, RunSpec, run_one
 from mcl.experiments.scenarios import SCENARIOS, TrackingScenario, make_scenario
-from mcl.motion_model import MotionModelParams
+from mcl.filter.motion_model import MotionModelParams
+from mcl.wrappers.error_log import count_rows, read_error_log
 
 REPO = Path(__file__).resolve().parents[2]
 FAST_ENV = (("n_beams", 181),)

@@ -10,8 +10,8 @@ import tracemalloc
 
 import numpy as np
 
-from mcl.error_log import HEADER, ErrorLogWriter, read_error_log
 from mcl.experiments.runs import RunSpec, run_one
+from mcl.wrappers.error_log import HEADER, ErrorLogWriter, read_error_log
 
 
 def _write_log(path, n: int) -> None:

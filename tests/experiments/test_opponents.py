@@ -11,9 +11,9 @@ import pytest
 import mcl.cli.opponents
 from mcl.agents.track import track_for_map
 from mcl.cli.main import main
-from mcl.error_log import read_error_log
 from mcl.experiments.opponents import CAR_LENGTH, OpponentsScenario, box_corners
 from mcl.experiments.opponents_run import OpponentRun, opponents_table, run_opponents
+from mcl.wrappers.error_log import read_error_log
 from racecar_sim.env import EnvConfig, RacecarEnv
 
 

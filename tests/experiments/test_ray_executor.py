@@ -13,11 +13,11 @@ from pathlib import Path
 
 import pytest
 
-from mcl.error_log import count_rows
 from mcl.experiments import runner
 from mcl.experiments.noise_sweep import ExperimentConfig, run_experiment
 from mcl.experiments.runner import execute_runs, make_executor, run_spec_safely
 from mcl.experiments.runs import RunSpec
+from mcl.wrappers.error_log import count_rows
 
 ray = pytest.importorskip("ray", reason="Ray is not installed (pip install -e '.[ray]')")
 
@@ -126,16 +126,16 @@ def _dying_runner(spec: RunSpec, log_path: Path, diverged_m: float):
     tries = int(tries_file.read_text()) + 1 if tries_file.is_file() else 1
     tries_file.write_text(str(tries))
     if spec.seed == 1 or (spec.seed == 2 and tries == 1):
-        import mcl.wrapper
+        import mcl.wrappers.single
 
-        step = mcl.wrapper.LocalizationWrapper.step
+        step = mcl.wrappers.single.LocalizationWrapper.step
 
         def dying_step(self, action):
             if self._step >= DIE_AFTER:
                 os.kill(os.getpid(), signal.SIGKILL)
             return step(self, action)
 
-        mcl.wrapper.LocalizationWrapper.step = dying_step
+        mcl.wrappers.single.LocalizationWrapper.step = dying_step
     return run_spec_safely(spec, log_path, diverged_m)
 
 

@@ -8,8 +8,8 @@ import pytest
 
 from mcl.experiments.recorded import RecordedDrive, localize_recorded, record_drive
 from mcl.experiments.runs import make_driver
-from mcl.localization import LocalizationConfig
-from mcl.wrapper import LocalizationWrapper
+from mcl.wrappers.localization import LocalizationConfig
+from mcl.wrappers.single import LocalizationWrapper
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import resolve_map
 

@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mcl.error_log import read_error_log
 from mcl.experiments.recovery import RecoveryConfig, run_recovery_experiment
 from mcl.experiments.runs import RunSpec, run_one
 from mcl.experiments.scenarios import GlobalScenario, KidnapScenario, make_scenario
-from mcl.wrapper import LocalizationWrapper
+from mcl.wrappers.error_log import read_error_log
+from mcl.wrappers.single import LocalizationWrapper
 from racecar_sim.env import RacecarEnv
 
 REPO = Path(__file__).resolve().parents[2]

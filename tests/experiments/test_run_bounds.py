@@ -1,5 +1,5 @@
 """A run drives at most a day of simulated time and a live view is paced at 0 or 0.01-1000 times
-real time (mcl.run_bounds): 31 simulated years, or a pace that never passes the first step, are
+real time (mcl.experiments.run_bounds): 31 simulated years, or a pace that never passes the first step, are
 refused in one line before anything runs."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from mcl.experiments.opponents_run import OpponentRun
+from mcl.experiments.run_bounds import MAX_DURATION, check_live_speed
 from mcl.experiments.runs import RunSpec
-from mcl.run_bounds import MAX_DURATION, check_live_speed
 
 
 @given(st.floats(allow_nan=True, allow_infinity=True))

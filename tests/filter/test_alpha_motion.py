@@ -1,4 +1,4 @@
-"""Tests of the alpha motion model (mcl.alpha_motion, MotionModelParams(scheme="alpha"))."""
+"""Tests of the alpha motion model (mcl.filter.alpha_motion, MotionModelParams(scheme="alpha"))."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.alpha_motion import alpha_odometry_into
-from mcl.motion_model import MotionModel, MotionModelParams, compose
-from racecar_sim.config import from_mapping
+from mcl.filter.alpha_motion import alpha_odometry_into
+from mcl.filter.motion_model import MotionModel, MotionModelParams, compose
 from racecar_sim.rand import normals
+from racecar_sim.settings.config import from_mapping
 
 
 def numpy_alpha(odo, alphas, floor, z):

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.augmented import AugmentedParams, LikelihoodAverages
+from mcl.filter.augmented import AugmentedParams, LikelihoodAverages
 
 ON = AugmentedParams(alpha_slow=0.01, alpha_fast=0.2)
 

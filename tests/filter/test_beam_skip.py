@@ -8,11 +8,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.beam_skip import beam_skip_mask, cloud_converged
-from mcl.localization import LocalizationConfig, as_localization_config
-from mcl.sensor_model import SensorModel, SensorModelParams
-from racecar_sim.config import LidarParams
+from mcl.filter.beam_skip import beam_skip_mask, cloud_converged
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
+from mcl.wrappers.localization import LocalizationConfig, as_localization_config
 from racecar_sim.raycast import RayCaster
+from racecar_sim.settings.config import LidarParams
 
 LIDAR = LidarParams()
 POSE = np.array([6.0, 1.0, 0.3])  # rear axle, free in the room fixture (world frame)

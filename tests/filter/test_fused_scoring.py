@@ -7,9 +7,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.sensor_model import SensorModel, SensorModelParams
-from racecar_sim.config import LidarParams
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
 from racecar_sim.raycast import RayCaster
+from racecar_sim.settings.config import LidarParams
 
 LIDAR = LidarParams()
 

@@ -8,13 +8,13 @@ import math
 import numpy as np
 import pytest
 
-from mcl.angles import wrap_angle
-from mcl.augmented import AugmentedParams
-from mcl.kld import KLDParams
-from mcl.particle_filter import ParticleFilter, ParticleFilterParams
-from mcl.sensor_model import SensorModel, SensorModelParams
+from mcl.filter.angles import wrap_angle
+from mcl.filter.augmented import AugmentedParams
+from mcl.filter.kld import KLDParams
+from mcl.filter.particle_filter import ParticleFilter, ParticleFilterParams
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.sensors import Lidar
+from racecar_sim.sensors.lidar import Lidar
 
 TRUTH = np.array([6.0, 0.0, 0.4])  # free, 1.95 m from the nearest wall of the room map
 ELSEWHERE = np.array([3.0, 3.5, -2.0])  # another free pose of the room map

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.kld import KLDParams, bin_keys, kld_bound, kld_stop
+from mcl.filter.kld import KLDParams, bin_keys, kld_bound, kld_stop
 
 BINS = (0.5, 0.5, math.radians(10.0))
 

@@ -13,9 +13,9 @@ import math
 import numpy as np
 import pytest
 
-from mcl.angles import wrap_angle
-from mcl.particle_filter import ParticleFilter
-from mcl.sensor_model import SensorModel, SensorModelParams
+from mcl.filter.angles import wrap_angle
+from mcl.filter.particle_filter import ParticleFilter
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
 from racecar_sim.drivers import WallFollower
 from racecar_sim.env import RacecarEnv
 

@@ -1,4 +1,4 @@
-"""The lost flag ([mcl.lost][]): its settings, the scan fit, the flag after a kidnap and on a
+"""The lost flag ([mcl.filter.lost][]): its settings, the scan fit, the flag after a kidnap and on a
 clean drive, recovery by the default filter, and the flag in every wrapper's info and the CSV."""
 
 from __future__ import annotations
@@ -12,13 +12,13 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
-from mcl.error_log import read_error_log
 from mcl.experiments.lost_flag import kidnap_times
 from mcl.experiments.scenarios import KidnapScenario
-from mcl.localization import LocalizationConfig, as_localization_config
-from mcl.lost import LostParams, scan_agreement
-from mcl.vector_wrapper import LocalizedVectorEnv
-from mcl.wrapper import LocalizationWrapper
+from mcl.filter.lost import LostParams, scan_agreement
+from mcl.wrappers.error_log import read_error_log
+from mcl.wrappers.localization import LocalizationConfig, as_localization_config
+from mcl.wrappers.single import LocalizationWrapper
+from mcl.wrappers.vector import LocalizedVectorEnv
 from racecar_sim.drivers import WallFollower
 from racecar_sim.env import RacecarEnv
 
@@ -125,7 +125,7 @@ def test_lost_stays_down_on_a_clean_ideal_drive(tmp_path) -> None:
 
 
 def test_kidnap_times_from_a_log_made_by_hand(tmp_path) -> None:
-    from mcl.error_log import ErrorLogWriter
+    from mcl.wrappers.error_log import ErrorLogWriter
 
     path = tmp_path / "log.csv"
     with ErrorLogWriter(path) as w:
@@ -161,7 +161,7 @@ def test_the_flag_is_in_the_single_and_the_vector_wrappers_info() -> None:
 
 def test_the_flag_is_in_the_race_wrappers_info() -> None:
     pytest.importorskip("pettingzoo", reason="the race env needs the [race] extra (pettingzoo)")
-    from mcl.race_wrapper import LocalizedRaceEnv
+    from mcl.wrappers.race import LocalizedRaceEnv
     from racecar_sim import RaceEnv
 
     race = LocalizedRaceEnv(RaceEnv("basement_loop", n_cars=2), {"filter": {"n_particles": 300}})
@@ -175,7 +175,7 @@ def test_the_flag_is_in_the_race_wrappers_info() -> None:
 
 
 def test_a_log_written_before_the_lost_column_reads_as_never_lost(tmp_path) -> None:
-    from mcl.error_log import HEADER
+    from mcl.wrappers.error_log import HEADER
 
     path = tmp_path / "old.csv"
     path.write_text(",".join(HEADER[:-1]) + "\n1,0.025,0,0,0,0,0,0,0,0,1500,0.001\n")

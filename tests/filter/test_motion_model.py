@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from mcl.angles import circular_mean, wrap_angle
-from mcl.motion_model import (
+from mcl.filter.angles import circular_mean, wrap_angle
+from mcl.filter.motion_model import (
     MotionModel,
     MotionModelParams,
     compose,
@@ -19,7 +19,7 @@ from mcl.motion_model import (
     twist_to_odometry,
     uniform_to_gaussian,
 )
-from racecar_sim.config import from_mapping
+from racecar_sim.settings.config import from_mapping
 
 finite = st.floats(-50, 50, allow_nan=False, allow_infinity=False)
 angle = st.floats(-10, 10, allow_nan=False, allow_infinity=False)

@@ -1,4 +1,4 @@
-"""The learned odometry speed scale (mcl.odometry_scale) and its place in the particle filter."""
+"""The learned odometry speed scale (mcl.filter.odometry_scale) and its place in the particle filter."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.filter_params import ParticleFilterParams
-from mcl.motion_model import MotionModel, MotionModelParams
-from mcl.odometry_scale import OdometryScale, OdometryScaleParams
-from mcl.particle_filter import ParticleFilter
-from racecar_sim.config import from_mapping
+from mcl.filter.motion_model import MotionModel, MotionModelParams
+from mcl.filter.odometry_scale import OdometryScale, OdometryScaleParams
+from mcl.filter.params import ParticleFilterParams
+from mcl.filter.particle_filter import ParticleFilter
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.settings.config import from_mapping
 
 
 def _drive(

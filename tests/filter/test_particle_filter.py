@@ -10,12 +10,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from mcl.angles import wrap_angle
-from mcl.motion_model import MotionModel, MotionModelParams, compose, twist_to_odometry
-from mcl.particle_filter import ParticleFilter, ParticleFilterParams
-from mcl.sensor_model import SensorModel, SensorModelParams
-from racecar_sim.config import from_mapping
-from racecar_sim.sensors import Lidar, Odometry
+from mcl.filter.angles import wrap_angle
+from mcl.filter.motion_model import MotionModel, MotionModelParams, compose, twist_to_odometry
+from mcl.filter.particle_filter import ParticleFilter, ParticleFilterParams
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
+from racecar_sim.sensors.lidar import Lidar
+from racecar_sim.sensors.odometry import Odometry
+from racecar_sim.settings.config import from_mapping
 
 TRUTH = np.array([6.0, 0.0, 0.4])  # free, 1.95 m from the nearest wall of the room map
 

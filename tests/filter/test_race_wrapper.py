@@ -9,7 +9,7 @@ pytest.importorskip("pettingzoo", reason="the race env needs the [race] extra (p
 
 from pettingzoo.test import parallel_api_test
 
-from mcl.race_wrapper import LocalizedRaceEnv
+from mcl.wrappers.race import LocalizedRaceEnv
 from racecar_sim import RaceEnv
 
 CONFIG = {"filter": {"n_particles": 300}}
@@ -65,7 +65,7 @@ def test_bad_init_pose_is_refused() -> None:
 def test_localization_wrapper_localizes_car_0_of_racecar_race() -> None:
     import gymnasium as gym
 
-    from mcl.wrapper import LocalizationWrapper
+    from mcl.wrappers.single import LocalizationWrapper
     from tests.gym_checks import check_env_as_designed
 
     env = LocalizationWrapper(

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from mcl.resampling import (
+from mcl.filter.resampling import (
     RESAMPLERS,
     effective_sample_size,
     multinomial,

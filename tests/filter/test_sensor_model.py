@@ -9,9 +9,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.sensor_model import SensorModel, SensorModelParams, beam_table
-from racecar_sim.config import LidarParams, from_mapping, from_yaml
+from mcl.filter.sensor_model import SensorModel, SensorModelParams, beam_table
 from racecar_sim.raycast import RayCaster
+from racecar_sim.settings.config import LidarParams, from_mapping, from_yaml
 
 P = SensorModelParams()
 LIDAR = LidarParams()
@@ -261,7 +261,7 @@ def test_params_validation_and_yaml(tmp_path) -> None:
 
 
 def test_parallel_and_serial_scoring_agree(room, model: SensorModel) -> None:
-    from mcl.sensor_model import PARALLEL_MIN_LOOKUPS
+    from mcl.filter.sensor_model import PARALLEL_MIN_LOOKUPS
 
     rng = np.random.default_rng(8)
     n = PARALLEL_MIN_LOOKUPS // 50 + 1

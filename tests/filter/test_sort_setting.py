@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from mcl.localization import LocalizationConfig
-from mcl.sensor_model import SensorModel, SensorModelParams
-from racecar_sim.config import from_yaml
-from racecar_sim.sensors import Lidar
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
+from mcl.wrappers.localization import LocalizationConfig
+from racecar_sim.sensors.lidar import Lidar
+from racecar_sim.settings.config import from_yaml
 
 
 def test_yaml_sets_the_casters_sort_extent(tmp_path, room) -> None:

@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 
-from mcl.particle_filter import ParticleFilter
-from mcl.sensor_model import SensorModel, SensorModelParams
-from racecar_sim.sensors import Lidar
+from mcl.filter.particle_filter import ParticleFilter
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
+from racecar_sim.sensors.lidar import Lidar
 
 TRUTH = np.array([6.0, 0.0, 0.4])  # a free pose of the room map
 

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from mcl.angles import circular_mean, wrap_angle
-from mcl.step_kernels import (
+from mcl.filter.angles import circular_mean, wrap_angle
+from mcl.filter.step_kernels import (
     compose_into,
     covariance_about,
     exp_shifted_into,
@@ -100,7 +100,7 @@ def test_compose_into_matches_the_formula(p, odo):
 def test_bayes_update_matches_the_numpy_formulas(old, data):
     """Normalised log-weights, weights, the log mean likelihood and Kish's sum of squares as the
     numpy code computed them; NaN and +inf likelihoods count as impossible."""
-    from mcl.step_kernels import bayes_step, bayes_update
+    from mcl.filter.step_kernels import bayes_step, bayes_update
 
     n = old.size
     old = old - np.log(np.exp(old).sum())  # normalised, as the filter keeps them
@@ -278,8 +278,8 @@ def test_systematic_resample_is_the_merge_on_its_cumulative_weights(w, offset, n
 def test_resample_particles_keeps_systematic_counts(w, seed, n):
     """Any float weights: every particle drawn floor or ceil of n w_i / sum(w) times (the
     systematic invariant), zero weights never, from one draw of the generator as
-    :func:`mcl.resampling.systematic`; the other methods are their function plus the copy."""
-    from mcl.resampling import resample, resample_particles
+    :func:`mcl.filter.resampling.systematic`; the other methods are their function plus the copy."""
+    from mcl.filter.resampling import resample, resample_particles
 
     if w.sum() <= 0:
         w[0] = 1.0
@@ -357,7 +357,7 @@ def test_sincos_is_libm_within_one_ulp_densely_and_near_multiples_of_half_pi():
 
 def test_sincos_outside_its_range_is_libm():
     """Beyond SINCOS_LIMIT and for inf and NaN: libm's values (what numba's math.sin gives)."""
-    from mcl.step_kernels import SINCOS_LIMIT
+    from mcl.filter.step_kernels import SINCOS_LIMIT
 
     big = [2 * SINCOS_LIMIT, -3e7, 1e300, -1e300]
     theta = np.array([*big, math.inf, -math.inf, math.nan])

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.angles import wrap_angle
-from mcl.uncertainty import ClusterParams, assess, cluster_particles
+from mcl.filter.angles import wrap_angle
+from mcl.filter.uncertainty import ClusterParams, assess, cluster_particles
 
 PARAMS = ClusterParams()
 

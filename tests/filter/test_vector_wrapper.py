@@ -1,4 +1,4 @@
-"""Tests of mcl.vector_wrapper: one filter per car of the vector env equals N single wrappers."""
+"""Tests of mcl.wrappers.vector: one filter per car of the vector env equals N single wrappers."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import pytest
 from gymnasium.error import ResetNeeded
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
-from mcl.localization import LocalizationConfig
-from mcl.vector_wrapper import LocalizedVectorEnv
-from mcl.wrapper import LocalizationWrapper
+from mcl.wrappers.localization import LocalizationConfig
+from mcl.wrappers.single import LocalizationWrapper
+from mcl.wrappers.vector import LocalizedVectorEnv
 
 SETTINGS = {"map": "corridor", "dt": 0.03, "terminate_on_collision": True, "max_range": 12.0}
 CONFIG = LocalizationConfig().with_particles(300)

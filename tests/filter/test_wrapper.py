@@ -1,4 +1,4 @@
-"""Tests of mcl.LocalizationWrapper and its CSV error log (mcl.error_log)."""
+"""Tests of mcl.LocalizationWrapper and its CSV error log (mcl.wrappers.error_log)."""
 
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ from hypothesis import strategies as st
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
 from mcl import LocalizationConfig, LocalizationWrapper, ParticleFilter
-from mcl.error_log import HEADER, ErrorLogWriter, count_rows, read_error_log
-from mcl.localization import filter_rng
+from mcl.wrappers.error_log import HEADER, ErrorLogWriter, count_rows, read_error_log
+from mcl.wrappers.localization import filter_rng
 from racecar_sim.env import RacecarEnv
 from racecar_sim.render import ESTIMATE_COLOUR, PARTICLE_COLOUR
 
@@ -369,7 +369,7 @@ def test_reader_names_what_is_wrong(tmp_path) -> None:
 
 
 def test_config_loads_from_yaml_with_nested_sections(tmp_path) -> None:
-    from racecar_sim.config import from_yaml
+    from racecar_sim.settings.config import from_yaml
 
     path = tmp_path / "mcl.yaml"
     path.write_text(

@@ -263,9 +263,9 @@ def _filter_map(how: str | None, world: Any) -> Any:
 
 
 def _wrap(case: dict[str, Any], inner: Any) -> Any:
-    from mcl.race_wrapper import LocalizedRaceEnv
-    from mcl.vector_wrapper import LocalizedVectorEnv
-    from mcl.wrapper import LocalizationWrapper
+    from mcl.wrappers.race import LocalizedRaceEnv
+    from mcl.wrappers.single import LocalizationWrapper
+    from mcl.wrappers.vector import LocalizedVectorEnv
 
     wrapper = case["wrapper"]
     if wrapper == "single":

@@ -210,7 +210,7 @@ def _drive(steps: int, live: Any = None, clients: _Clients | None = None, case=N
     """The drive's estimates and errors, step by step; with ``clients``, the case's actions are
     posted at their steps (the server ``live`` is the caller's to close)."""
     from mcl.cli.live_options import Pacer
-    from mcl.wrapper import LocalizationWrapper
+    from mcl.wrappers.single import LocalizationWrapper
     from racecar_sim.env import RacecarEnv
 
     env = LocalizationWrapper(RacecarEnv(**_SMALL), {"filter": {"n_particles": 100}}, live=live)

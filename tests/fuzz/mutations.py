@@ -72,7 +72,7 @@ def decode(v: Any) -> Any:
 
 
 def _env_fields() -> dict[str, Any]:
-    from racecar_sim.config import EnvConfig
+    from racecar_sim.settings.config import EnvConfig
 
     out: dict[str, Any] = {}
     for f in dataclasses.fields(EnvConfig):

@@ -163,7 +163,7 @@ def test_start_clearance_the_map_cannot_give_is_refused() -> None:
 
 
 def test_a_number_written_1e12_is_a_number(tmp_path: Path) -> None:
-    from racecar_sim.config import load_config
+    from racecar_sim.settings.config import load_config
 
     path = tmp_path / "env.yaml"
     path.write_text("lidar_rate: 2e1\nodom_additive: [1e-3, 0, 1e-3]\n")

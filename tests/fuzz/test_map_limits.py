@@ -14,7 +14,7 @@ import pytest
 
 from racecar_sim.maps import MapError, OccupancyMap, load_map, resolve_map
 from racecar_sim.maps.limits import MAX_MAP_CELLS, check_cells, image_size
-from racecar_sim.validation import YAMLRefused, load_yaml, short
+from racecar_sim.settings.validation import YAMLRefused, load_yaml, short
 from tests.fuzz.hostile_maps import alias_bomb, fake_png, map_yaml, small_png
 
 ROOT = Path(__file__).resolve().parents[2]

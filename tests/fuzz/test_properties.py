@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from racecar_sim.validation import check_action, load_yaml, short
+from racecar_sim.settings.validation import check_action, load_yaml, short
 
 
 @given(st.floats(allow_nan=False, allow_infinity=False))

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mcl.filter_bounds import FILTER_BOUNDS
-from mcl.run_bounds import RUN_BOUNDS
-from racecar_sim.bounds import RULES, markdown_table
+from mcl.experiments.run_bounds import RUN_BOUNDS
+from mcl.filter.bounds import FILTER_BOUNDS
+from racecar_sim.settings.bounds import RULES, markdown_table
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "settings.md"
 

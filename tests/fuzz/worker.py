@@ -64,8 +64,8 @@ def run_setting(case: dict[str, Any], tmp: Path) -> None:
 
 
 def run_filter(case: dict[str, Any], tmp: Path) -> None:
-    from mcl.localization import LocalizationConfig
-    from mcl.wrapper import LocalizationWrapper
+    from mcl.wrappers.localization import LocalizationConfig
+    from mcl.wrappers.single import LocalizationWrapper
     from racecar_sim.env import RacecarEnv
 
     config = LocalizationConfig(**{case["section"]: {case["name"]: decode(case["value"])}})

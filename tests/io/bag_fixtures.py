@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mcl.filter.motion_model import compose, twist_to_odometry
 from mcl.io import BagRecorder
-from mcl.motion_model import compose, twist_to_odometry
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
 from tests.skips import shared_missing

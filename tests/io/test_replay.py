@@ -10,12 +10,12 @@ import cv2
 import numpy as np
 import pytest
 
-from mcl.adaptive import AdaptiveParams, AdaptiveParticleFilter
 from mcl.cli.main import main
 from mcl.experiments.replay import COLUMNS, ReplayConfig, replay
 from mcl.experiments.replay_output import write_outputs
+from mcl.filter.adaptive import AdaptiveParams, AdaptiveParticleFilter
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
 from mcl.io import read_bag
-from mcl.sensor_model import SensorModel, SensorModelParams
 from tests.io.bag_fixtures import BAG1, BAG2, START, recorded_fixture, shared_bag
 
 recorded = recorded_fixture()

@@ -12,11 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from race_helpers import hall_map
 
-from racecar_sim.config import EnvConfig
-from racecar_sim.obstacles import ray_segment
 from racecar_sim.race.lidar import race_scans_serial
 from racecar_sim.race.world import RaceWorld
 from racecar_sim.raycast.scan import exact_one
+from racecar_sim.settings.config import EnvConfig
+from racecar_sim.world.obstacles import ray_segment
 
 # A narrow hall (3 m wide) so that walls are often nearer than a car a beam would hit.
 WORLD = RaceWorld(8, EnvConfig(map=hall_map(12.0, 3.0), n_beams=541, max_range=30.0))

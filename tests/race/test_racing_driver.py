@@ -11,7 +11,6 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from racecar_sim.config import CarParams
 from racecar_sim.maps import resolve_map
 from racecar_sim.race.lanes import LaneRoom
 from racecar_sim.race.loops import centerline_for_map
@@ -19,6 +18,7 @@ from racecar_sim.race.racing_driver import RacingDriver
 from racecar_sim.race.racing_rules import RacingRules
 from racecar_sim.race.track import Track, with_widths
 from racecar_sim.race.traffic import Traffic
+from racecar_sim.settings.config import CarParams
 
 CAR = CarParams()
 RADIUS = 10.0

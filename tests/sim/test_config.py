@@ -8,7 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from racecar_sim.config import CarParams, LidarParams, OdometryNoise, from_mapping, from_yaml
+from racecar_sim.settings.config import (
+    CarParams,
+    LidarParams,
+    OdometryNoise,
+    from_mapping,
+    from_yaml,
+)
 
 
 def test_car_defaults_are_a_tenth_scale_racecar() -> None:
@@ -61,7 +67,7 @@ def test_from_yaml_reads_a_section(tmp_path: Path) -> None:
 
 
 def test_nested_takes_an_instance_or_a_mapping_and_names_the_owner() -> None:
-    from racecar_sim.config import nested
+    from racecar_sim.settings.config import nested
 
     car = CarParams(mass=4.0)
     assert nested(car, CarParams, "Outer.car") is car

@@ -13,7 +13,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
-from racecar_sim.config import LidarParams, from_mapping
 from racecar_sim.drivers import (
     PurePursuit,
     WallFollower,
@@ -22,7 +21,8 @@ from racecar_sim.drivers import (
     waypoints_from_drive,
 )
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.sensors import Lidar
+from racecar_sim.sensors.lidar import Lidar
+from racecar_sim.settings.config import LidarParams, from_mapping
 
 RES = 0.05
 NOISE_FREE = {"sigma": 0.0, "p_short": 0.0, "p_max": 0.0, "p_rand": 0.0}

@@ -386,7 +386,7 @@ def test_config_errors_name_the_setting(tmp_path, map_spec) -> None:
 
 
 def test_env_config_defaults_match_the_parameter_classes() -> None:
-    from racecar_sim.config import LidarParams, OdometryNoise
+    from racecar_sim.settings.config import LidarParams, OdometryNoise
 
     cfg = EnvConfig()
     assert cfg.lidar_params() == LidarParams()

@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mcl.error_log import HEADER, ErrorLogWriter
 from mcl.experiments.video import FrameWriter
+from mcl.wrappers.error_log import HEADER, ErrorLogWriter
 from racecar_sim.file_guard import (
     MARKER,
     MAX_DEPTH,

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import racecar_sim  # noqa: F401
-from racecar_sim.config import EnvConfig, merge_settings
-from racecar_sim.noise_profiles import load_profile, profile_document, profile_names
-from racecar_sim.scan_effects import OdometryBias, ScanEffects
+from racecar_sim.sensors.noise_profiles import load_profile, profile_document, profile_names
+from racecar_sim.sensors.scan_effects import OdometryBias, ScanEffects
+from racecar_sim.settings.config import EnvConfig, merge_settings
 
 
 def test_bundled_profiles():

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import racecar_sim  # noqa: F401
-from racecar_sim.obstacles import ObstacleParams, obstacle_ranges
+from racecar_sim.world.obstacles import ObstacleParams, obstacle_ranges
 
 SETTINGS = {"boxes": 8, "people": 4}
 

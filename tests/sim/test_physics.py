@@ -1,4 +1,4 @@
-"""Tests of racecar_sim.physics: walls on the grid's cell edges, bicycle kinematics, limits, contact."""
+"""Tests of racecar_sim.car.physics: walls on the grid's cell edges, bicycle kinematics, limits, contact."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from racecar_sim.config import CarParams
+from racecar_sim.car.physics import RacecarPhysics, wall_segments
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.physics import RacecarPhysics, wall_segments
+from racecar_sim.settings.config import CarParams
 
 RES = 0.05
 

@@ -13,10 +13,10 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from racecar_sim.config import from_mapping
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import METHODS, LutParams, MarchParams, RayCaster, clear_cache, table_cache
 from racecar_sim.raycast.lut_table import FLAG, FLAG_ABOVE, RANGE_MASK
+from racecar_sim.settings.config import from_mapping
 
 # Documented in the racecar_sim.raycast module docstring (metres, default parameters).
 ERROR_BOUNDS = {"lut": (0.02, 0.10), "march": (0.03, 0.10)}

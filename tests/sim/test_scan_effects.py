@@ -1,4 +1,4 @@
-"""Correlated lidar failures (racecar_sim.scan_effects) and the odometry bias."""
+"""Correlated lidar failures (racecar_sim.sensors.scan_effects) and the odometry bias."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from racecar_sim.scan_effects import OdometryBias, ScanEffects
+from racecar_sim.sensors.scan_effects import OdometryBias, ScanEffects
 
 MAX = 30.0
 

@@ -12,9 +12,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import racecar_sim  # noqa: F401
-from racecar_sim.config import EnvConfig, merge_settings
-from racecar_sim.scenes import SCENES
-from racecar_sim.wall_features import opening_ranges
+from racecar_sim.settings.config import EnvConfig, merge_settings
+from racecar_sim.world.scenes import SCENES
+from racecar_sim.world.wall_features import opening_ranges
 
 
 def _env(**kw):

@@ -1,4 +1,4 @@
-"""Tests of racecar_sim.sensors: beam noise statistics, lidar geometry, odometry noise.
+"""Tests of racecar_sim.sensors.lidar: beam noise statistics, lidar geometry, odometry noise.
 
 Statistical tests compare sample statistics with the model's analytic values; every bound is
 ``Z`` standard errors computed from the sample size, so a correct model fails about once in 1.7
@@ -14,9 +14,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from racecar_sim.config import LidarParams, OdometryNoise
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.sensors import Lidar, Odometry
+from racecar_sim.sensors.lidar import Lidar
+from racecar_sim.sensors.odometry import Odometry
+from racecar_sim.settings.config import LidarParams, OdometryNoise
 
 Z = 5.0  # standard errors allowed in statistical checks
 N = 200_000  # beams per statistical sample

@@ -1,4 +1,4 @@
-"""Tests of racecar_sim.validation: one checker for numbers and one reader for YAML settings files."""
+"""Tests of racecar_sim.settings.validation: one checker for numbers and one reader for YAML settings files."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from racecar_sim.config import EnvConfig, LidarParams, from_yaml, load_config
-from racecar_sim.validation import check_number, read_yaml_mapping
+from racecar_sim.settings.config import EnvConfig, LidarParams, from_yaml, load_config
+from racecar_sim.settings.validation import check_number, read_yaml_mapping
 
 
 @given(
@@ -87,7 +87,7 @@ def test_yaml_files_are_read_by_one_reader_that_names_the_file(tmp_path: Path) -
 
 
 def test_a_masked_array_is_refused_as_an_action_even_with_nothing_masked() -> None:
-    from racecar_sim.validation import check_action
+    from racecar_sim.settings.validation import check_action
 
     for masked in (np.ma.array([0.1, 1.0], mask=[True, False]), np.ma.array([0.1, 1.0])):
         with pytest.raises(ValueError, match="masked float64 array"):
@@ -97,7 +97,7 @@ def test_a_masked_array_is_refused_as_an_action_even_with_nothing_masked() -> No
 
 @pytest.mark.parametrize("options", [[1, 2], "pose", 3, (("pose", 1),), {1: 2}])
 def test_reset_options_that_are_not_a_dict_of_names_are_refused_naming_the_owner(options) -> None:
-    from racecar_sim.validation import check_options
+    from racecar_sim.settings.validation import check_options
 
     with pytest.raises(ValueError, match=r"^Owner.reset: options"):
         check_options("Owner.reset", options)
@@ -106,7 +106,7 @@ def test_reset_options_that_are_not_a_dict_of_names_are_refused_naming_the_owner
 def test_reset_options_none_or_a_mapping_become_a_new_dict() -> None:
     from types import MappingProxyType
 
-    from racecar_sim.validation import check_options
+    from racecar_sim.settings.validation import check_options
 
     given = {"pose": [1, 2, 3]}
     out = check_options("x", given)
@@ -122,7 +122,7 @@ def test_reset_options_none_or_a_mapping_become_a_new_dict() -> None:
      (np.array(["1", "2", "3"]), "<U1")],
 )  # fmt: skip
 def test_a_pose_that_is_not_three_finite_numbers_is_refused_naming_it(value, said) -> None:
-    from racecar_sim.validation import check_poses
+    from racecar_sim.settings.validation import check_poses
 
     with pytest.raises(ValueError, match=rf"^init_pose must be three finite numbers.*{said}"):
         check_poses("init_pose", value)
@@ -131,7 +131,7 @@ def test_a_pose_that_is_not_three_finite_numbers_is_refused_naming_it(value, sai
 @given(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=2, max_size=4),
        st.sampled_from([None, 1]))  # fmt: skip
 def test_poses_pass_exactly_when_they_are_finite_of_the_shape(values, rows) -> None:
-    from racecar_sim.validation import check_poses
+    from racecar_sim.settings.validation import check_poses
 
     value = values if rows is None else [values]
     shape_ok = len(values) == 3
@@ -143,7 +143,7 @@ def test_poses_pass_exactly_when_they_are_finite_of_the_shape(values, rows) -> N
 
 
 def test_a_list_holding_a_masked_value_is_refused_as_an_action() -> None:
-    from racecar_sim.validation import check_action
+    from racecar_sim.settings.validation import check_action
 
     with pytest.raises(ValueError, match=r"got list \[masked, 1.0\]"):
         check_action([np.ma.masked, 1.0], (2,))
@@ -155,14 +155,14 @@ def test_a_list_holding_a_masked_value_is_refused_as_an_action() -> None:
 
 @pytest.mark.parametrize("seed", [-1, 2.5, "1", True, np.bool_(True), [1]])
 def test_a_seed_that_is_not_a_non_negative_int_is_refused_naming_the_owner(seed) -> None:
-    from racecar_sim.validation import check_seed
+    from racecar_sim.settings.validation import check_seed
 
     with pytest.raises(ValueError, match=r"^Owner.reset: seed must be a non-negative int or None"):
         check_seed("Owner.reset", seed)
 
 
 def test_a_seed_that_is_a_non_negative_int_or_none_passes() -> None:
-    from racecar_sim.validation import check_seed
+    from racecar_sim.settings.validation import check_seed
 
     assert check_seed("x", None) is None
     assert check_seed("x", np.int64(3)) == 3 and check_seed("x", 2**70) == 2**70

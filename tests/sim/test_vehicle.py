@@ -1,4 +1,4 @@
-"""Tests of the car models (racecar_sim.vehicle): the single-track car's analytic limits, its
+"""Tests of the car models (racecar_sim.car.models): the single-track car's analytic limits, its
 integration error, and both models selectable everywhere a car is made."""
 
 from __future__ import annotations
@@ -12,12 +12,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
-from racecar_sim.config import CarParams, EnvConfig, load_config
+from racecar_sim.car.models.manoeuvres import drive, skidpad
+from racecar_sim.car.physics import RacecarPhysics
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.physics import RacecarPhysics
+from racecar_sim.settings.config import CarParams, EnvConfig, load_config
 from racecar_sim.vector_env import RacecarVectorEnv
-from racecar_sim.vehicle.manoeuvres import drive, skidpad
 from tests.gym_checks import check_env_as_designed
 
 G = 9.81

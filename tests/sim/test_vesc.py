@@ -1,4 +1,4 @@
-"""Tests of the VESC's view of the car (racecar_sim.vesc): wheel odometry, its lead, the IMU."""
+"""Tests of the VESC's view of the car (racecar_sim.sensors.vesc): wheel odometry, its lead, the IMU."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ from gymnasium.utils.env_checker import check_env
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from racecar_sim.config import CarParams, EnvConfig, merge_settings
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import OccupancyMap
+from racecar_sim.sensors.vesc import ImuParams, actuate, lead_steps, wheel_twist
+from racecar_sim.settings.config import CarParams, EnvConfig, merge_settings
 from racecar_sim.vector_env import RacecarVectorEnv
-from racecar_sim.vesc import ImuParams, actuate, lead_steps, wheel_twist
 
 QUIET = {
     "range_sigma": 0.0, "p_short": 0.0, "p_max": 0.0, "p_rand": 0.0,
@@ -257,8 +257,8 @@ def test_beyond_the_friction_limit_the_odometry_turns_far_more_than_the_car() ->
 def test_vesc_odometry_of_many_cars_is_each_cars_own_measurement(cars, seed):
     # The race's batched odometry against the single env's: wheel_twist, then Odometry.noisy
     # drawing its six normals from the same generator state: the same float32s.
-    from racecar_sim.sensors import Odometry, OdometryNoise
-    from racecar_sim.vesc import vesc_odometry
+    from racecar_sim.sensors.odometry import Odometry, OdometryNoise
+    from racecar_sim.sensors.vesc import vesc_odometry
 
     odo = Odometry(OdometryNoise(proportional=(0.05, 0.02, 0.1), additive=(0.01, 0.003, 0.02)))
     wheelbase = CarParams().wheelbase

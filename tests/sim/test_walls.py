@@ -9,9 +9,9 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
+from racecar_sim.car.physics import RacecarPhysics
+from racecar_sim.car.walls import TILE, tiles_for, wall_segments
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.physics import RacecarPhysics
-from racecar_sim.walls import TILE, tiles_for, wall_segments
 
 RES = 0.05
 

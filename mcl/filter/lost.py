@@ -1,0 +1,314 @@
+"""The ``lost`` flag: when the filter's estimate should not be trusted, and the recovery it asks for.
+
+What the filter can see, measured once per used scan (no truth involved):
+
+- **Scan fit**: the fraction of the scan's beams (``LostParams.beams`` of them, evenly spaced) whose
+  measured range agrees, within ``fit_tolerance`` metres, with the range cast in the *filter's*
+  map from the estimated pose's lidar. It is a count of beams, not a likelihood, so it does not
+  depend on the sensor model's tempering or on its ``sigma_hit``. Beams at or beyond the filter's
+  range agree with a cast that finds no wall within it. One cast of ``beams`` rays from one pose
+  (the sensor model's caster; the distance field at the beam end points for the likelihood field,
+  which has no caster): tens of microseconds per scan. Beams that return short of the cast
+  (``skip_short``: something the map lacks stands in front) are left out of the fraction: they
+  neither confirm nor refute the pose, and the honest world's furniture and people would
+  otherwise pull the fit at the true pose down to that of a wrong one.
+- **Smoothing and hysteresis**: the fit is averaged exponentially with a time constant of
+  ``window_s`` seconds of driving; the flag is raised when the average falls below ``raise_below``
+  and cleared only once it climbs above ``clear_above``.
+- **Against the car's own record**: a slower average of the smoothed fit, over ``reference_s``
+  seconds of the time the flag was down, is the fit this world usually gives at the right pose.
+  The flag is also raised when the misfit (1 - smoothed fit) grows beyond ``misfit_ratio`` times
+  the reference's misfit (at least 0.02), and cleared only once it is back under half that;
+  this test waits until the record holds ``reference_s`` of driving. A
+  clean world, where the right pose explains 98 % of the beams, flags a wrong pose that explains
+  85 %; a cluttered one, whose right pose explains 85 %, falls back on ``raise_below``.
+- **Spread**: the flag is also up while the cloud's position standard deviation (largest axis of
+  the weighted covariance) exceeds ``max_position_sd`` metres, e.g. after a global start or while
+  the cloud holds two distant modes.
+
+Recovery (``recover``): while the fit says lost, the filter is asked
+([ParticleFilter.request_recovery][mcl.filter.particle_filter.ParticleFilter.request_recovery]) to
+replace ``inject_share`` of every resampling's draws by uniform free-space poses, and every
+``burst_every_s`` seconds to weigh a burst of uniform free-space poses (``burst_density`` per m² of
+the filter map's free floor, at most ``burst_max``) together with the cloud, after which the cloud
+is resampled back to its count. The cloud is kept, and the burst's outcome is kept only when the
+scan fits the new estimate better (``burst_accept``) than the cloud's before the burst, so a false
+alarm costs time, not the track.
+
+Frames and units: world frame; metres, radians, seconds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from mcl.filter.particle_filter import ParticleFilter
+from mcl.filter.step_kernels import pose_moments
+from racecar_sim.settings.validation import short
+
+__all__ = ["LostDetector", "LostParams", "scan_agreement"]
+
+_MIN_MISFIT = 0.02
+"""The smallest usual misfit the relative test assumes (a perfect record would flag any beam)."""
+
+
+@dataclass(frozen=True)
+class LostParams:
+    """Thresholds of the ``lost`` flag and the recovery it triggers (module docstring).
+
+    Attributes:
+        enabled: compute the flag (False: ``lost`` is always False and nothing is injected).
+        fit_tolerance: metres; a beam agrees when its measured range is this close to the cast.
+        skip_short: leave out of the fit the beams that return more than ``fit_tolerance``
+            short of the cast (furniture, people, other cars: what the map lacks).
+        beams: beams of the scan compared (evenly spaced).
+        window_s: seconds of driving over which the fit is averaged (exponential time constant).
+        raise_below: the flag goes up when the averaged fit falls below this fraction.
+        clear_above: the flag goes down when the averaged fit rises above this fraction
+            (at least ``raise_below``: hysteresis).
+        misfit_ratio: the flag also goes up when the averaged misfit exceeds this many times
+            the reference's (at least 1; ``.inf``: never).
+        reference_s: seconds (of time not lost) over which the reference fit is averaged.
+        max_position_sd: metres; the flag is also up while the cloud's position standard
+            deviation exceeds this (``math.inf``: never).
+        recover: inject free-space particles while the fit says lost (off by default: in the
+            honest world it moved the cloud to wrong places that fit 62-86 % of the beams and lost
+            runs the plain filter keeps, docs/recovery.md).
+        inject_share: fraction of each resampling's draws replaced by uniform free-space poses
+            while lost, in [0, 0.5].
+        burst_every_s: seconds between two bursts of uniform poses while lost (the first one as
+            soon as the flag goes up).
+        burst_density: burst particles per m² of the filter map's free floor.
+        burst_max: most particles of one burst (0: no bursts).
+        burst_accept: a burst's outcome is kept only when the scan fit at the new estimate
+            beats the fit at the cloud's estimate before the burst by this much; else the
+            cloud before the burst is restored (the beam model may prefer a wrong place that a
+            cluttered, out-of-date world happens to fit).
+    """
+
+    enabled: bool = True
+    fit_tolerance: float = 0.2
+    skip_short: bool = True
+    beams: int = 100
+    window_s: float = 0.75
+    raise_below: float = 0.5
+    clear_above: float = 0.65
+    misfit_ratio: float = 6.0
+    reference_s: float = 20.0
+    max_position_sd: float = 2.0
+    recover: bool = False
+    inject_share: float = 0.02
+    burst_every_s: float = 1.0
+    burst_density: float = 20.0
+    burst_max: int = 20_000
+    burst_accept: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("enabled", "recover", "skip_short"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(
+                    f"LostParams.{name} = {short(getattr(self, name))} must be true or false"
+                )
+        for name in ("beams", "burst_max"):
+            v = getattr(self, name)
+            low = 1 if name == "beams" else 0
+            if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
+                raise ValueError(
+                    f"LostParams.{name} = {short(v)} must be an integer in [{low}, 1000000]"
+                )
+
+        def number(name: str) -> float:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or math.isnan(v):
+                raise ValueError(f"LostParams.{name} = {short(v)} must be a number")
+            return float(v)
+
+        checks = {
+            "fit_tolerance": (0.0, 10.0, "metres"),
+            "window_s": (0.0, 60.0, "seconds"),
+            "reference_s": (0.0, 3600.0, "seconds"),
+            "burst_every_s": (0.0, 600.0, "seconds"),
+            "burst_density": (0.0, 10_000.0, "particles per m²"),
+        }
+        for name, (low, high, unit) in checks.items():
+            v = number(name)
+            if not low < v <= high:
+                raise ValueError(
+                    f"LostParams.{name} = {short(v)} must lie in ({low:g}, {high:g}] {unit}"
+                )
+        for name in ("raise_below", "clear_above", "burst_accept"):
+            if not 0.0 <= number(name) <= 1.0:
+                raise ValueError(
+                    f"LostParams.{name} = {short(getattr(self, name))} must be a fraction in [0, 1]"
+                )
+        if self.clear_above < self.raise_below:
+            raise ValueError(
+                f"LostParams.clear_above = {self.clear_above} must be at least raise_below = "
+                f"{self.raise_below} (hysteresis)"
+            )
+        if not 0.0 <= number("inject_share") <= 0.5:
+            raise ValueError(
+                f"LostParams.inject_share = {short(self.inject_share)} must lie in [0, 0.5]"
+            )
+        if not number("misfit_ratio") >= 1.0:
+            raise ValueError(
+                f"LostParams.misfit_ratio = {short(self.misfit_ratio)} must be >= 1 (.inf: off)"
+            )
+        if not number("max_position_sd") > 0.0:
+            raise ValueError(
+                f"LostParams.max_position_sd = {short(self.max_position_sd)} must be > 0 metres (.inf: never)"
+            )
+
+
+def scan_agreement(
+    expected: np.ndarray,
+    measured: np.ndarray,
+    tolerance: float,
+    max_range: float,
+    skip_short: bool = False,
+) -> float:
+    """Fraction of beams whose measured range (metres) lies within ``tolerance`` of the expected
+    one, both clipped to ``max_range`` (so a no-return agrees with a cast that finds no wall);
+    NaN when no beam counts.
+
+    Args:
+        expected: (K,) ranges cast in the filter's map (metres).
+        measured: (K,) measured ranges (metres; NaN/inf beams are left out).
+        tolerance: metres.
+        max_range: metres, the filter's range.
+        skip_short: leave out the beams that return more than ``tolerance`` short of the cast
+            (something the map lacks stands in front: they neither confirm nor refute the pose).
+    """
+    z = np.asarray(measured, dtype=np.float64)
+    ok = np.isfinite(z)
+    if not ok.any():
+        return math.nan
+    diff = np.minimum(z[ok], max_range) - np.minimum(
+        np.asarray(expected, dtype=np.float64)[ok], max_range
+    )
+    agree = np.abs(diff) <= tolerance
+    counted = agree.size - (int(np.count_nonzero(diff < -tolerance)) if skip_short else 0)
+    return float(np.count_nonzero(agree) / counted) if counted > 0 else math.nan
+
+
+class LostDetector:
+    """The ``lost`` flag of one filter (module docstring); one per car, restarted with its filter.
+
+    Args:
+        params: [LostParams][mcl.filter.lost.LostParams].
+
+    Attributes:
+        fit: the last scan's fit (fraction of beams, NaN before the first scan).
+        smoothed_fit: its exponential average over ``window_s`` (NaN before the first scan).
+        reference_fit: the slow average of ``smoothed_fit`` while not lost (``reference_s``).
+        fit_lost: the hysteresis flag of the fit alone.
+        position_sd: metres, the cloud's position standard deviation at the last scan.
+        lost: the flag: ``fit_lost`` or a spread cloud.
+    """
+
+    def __init__(self, params: LostParams | None = None) -> None:
+        self.params = params if params is not None else LostParams()
+        self.fit = math.nan
+        self.smoothed_fit = math.nan
+        self.reference_fit = math.nan
+        self.fit_lost = False
+        self.position_sd = 0.0
+        self.lost = False
+        self._since_scan = 0.0  # seconds of driving since the last scan observed
+        self._reference_age = 0.0  # seconds of driving folded into reference_fit
+        self._since_burst = math.inf
+
+    def restart(self) -> None:
+        """Forget the history (a new belief: a reset or a new start)."""
+        self.__init__(self.params)
+
+    def advance(self, dt: float) -> None:
+        """``dt`` seconds of driving passed (called on every step, with or without a scan)."""
+        self._since_scan += dt
+        self._since_burst += dt
+
+    def observe(self, pf: ParticleFilter, scan: np.ndarray) -> bool:
+        """Measure the fit of ``scan`` (metres, the filter's beams) at ``pf``'s estimate, update
+        the flag, ask ``pf`` for recovery while lost; returns the flag."""
+        p = self.params
+        if not p.enabled:
+            return False
+        estimate = pf.estimate()
+        fit = self._fit(pf, estimate, scan)
+        prior = pf.burst_prior
+        if prior is not None:  # a burst: keep its winner only when the scan fits it better
+            before = self._fit(pf, pose_moments(prior[0], prior[1], False)[0], scan)
+            if not fit >= before + p.burst_accept:
+                pf.undo_burst()
+                estimate = pf.estimate()
+                fit = self._fit(pf, estimate, scan)
+            elif math.isfinite(fit):  # a new estimate: the average of the old one's fit is moot
+                self.smoothed_fit = fit
+        self.fit = fit
+        if math.isfinite(fit):
+            if math.isnan(self.smoothed_fit):
+                self.smoothed_fit = self.reference_fit = fit
+            else:
+                dt = max(self._since_scan, 0.0)
+                self.smoothed_fit += (1.0 - math.exp(-dt / p.window_s)) * (fit - self.smoothed_fit)
+                if not self.fit_lost:
+                    a = 1.0 - math.exp(-dt / p.reference_s)
+                    self.reference_fit += a * (self.smoothed_fit - self.reference_fit)
+                    self._reference_age += dt
+        self._since_scan = 0.0
+        s = self.smoothed_fit
+        if math.isfinite(s):
+            # the usual misfit, once the record holds reference_s of driving (inf before)
+            usual = max(1.0 - self.reference_fit, _MIN_MISFIT)
+            if self._reference_age < p.reference_s:
+                usual = math.inf
+            if self.fit_lost and s > p.clear_above and 1.0 - s < 0.5 * p.misfit_ratio * usual:
+                self.fit_lost = False
+            elif not self.fit_lost and (s < p.raise_below or 1.0 - s > p.misfit_ratio * usual):
+                self.fit_lost = True
+        cov = pf.covariance()
+        self.position_sd = float(math.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
+        self.lost = self.fit_lost or self.position_sd > p.max_position_sd
+        if p.recover:
+            burst = 0
+            if self.fit_lost and self._since_burst >= p.burst_every_s and p.burst_max > 0:
+                burst = min(p.burst_max, math.ceil(p.burst_density * pf.map.free_area))
+                self._since_burst = 0.0
+            if not self.fit_lost:
+                self._since_burst = math.inf  # the next loss bursts at once
+            pf.request_recovery(p.inject_share if self.fit_lost else 0.0, burst)
+        return self.lost
+
+    def _fit(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> float:
+        """The scan fit at ``estimate`` (module docstring)."""
+        p = self.params
+        sm = pf.sensor_model
+        z = np.asarray(scan, dtype=np.float64).reshape(-1)
+        n = z.size
+        idx = np.unique(np.floor(np.linspace(0, n - 1, min(p.beams, n)) + 0.5).astype(np.int64))
+        if sm.beam_angles is not None and sm.beam_angles.size == n:
+            angles = sm.beam_angles[idx]
+        else:
+            fov = float(sm.params.fov)
+            angles = np.linspace(-fov / 2, fov / 2, n)[idx] if n > 1 else np.zeros(1)
+        z = z[idx]
+        lidar = sm.lidar_poses(estimate[None, :])[0]
+        max_range = float(sm.max_range)
+        if sm.caster is not None:
+            expected = sm.caster.cast(lidar, angles)[0]
+            return scan_agreement(expected, z, p.fit_tolerance, max_range, p.skip_short)
+        # likelihood field: no caster; a beam agrees when its end point lies within the
+        # tolerance of a wall on the filter's map (no-returns agree only with open space)
+        ok = np.isfinite(z)
+        if not ok.any():
+            return math.nan
+        z, angles = z[ok], angles[ok]
+        far = z >= max_range - p.fit_tolerance
+        ends = lidar[:2] + z[:, None] * np.column_stack(
+            [np.cos(lidar[2] + angles), np.sin(lidar[2] + angles)]
+        )
+        near_wall = pf.map.distance_at(ends) <= p.fit_tolerance
+        return float(np.mean(np.where(far, True, near_wall)))

@@ -1,0 +1,537 @@
+"""Monte Carlo Localization: a particle filter over world poses [x, y, theta] on an occupancy map.
+
+One update is ``predict(twist, dt)`` (motion model) then ``correct(scan)`` (sensor model ->
+weights -> resampling when the effective sample size is low), then ``estimate()``. ``correct`` is the
+composition of public steps so that variants (augmented MCL, KLD-sampling) can replace one of them:
+
+    log_lik = pf.sensor_model.log_evaluate(pf.particles, scan)   # (N,) log-likelihoods
+    pf.update_weights(log_lik)                                    # Bayes rule in log space
+    if pf.needs_resampling():
+        pf.resample()                                             # or pf.set_particles(...)
+
+Frames and units: particles are world-frame rear-axle poses (metres, radians, theta in [-pi, pi));
+the twist is car-frame [vx, vy, omega] (m/s, m/s, rad/s) of the rear axle; dt in seconds; scans in
+metres.
+
+Degenerate weights: when every particle's weight is zero or not finite after a correction (e.g. the
+scan matches nothing, or the filter is lost), the filter does not produce NaN. It counts the event in
+``n_degenerate`` and, by ``ParticleFilterParams.on_degenerate``, keeps the particles with uniform
+weights (``"keep"``) or re-spreads as many uniformly over free space (``"global"``).
+
+Global localization and recovery (KLD-sampling, augmented MCL and scan spacing are off by default,
+so the plain filter's draws are unchanged):
+
+- [`ParticleFilter.initialize_global()`][ParticleFilter.initialize_global] spreads [`global_particle_count()`][ParticleFilter.global_particle_count]
+  particles over free space, by default ``global_density`` per square metre of free floor
+  (at least ``n_particles``, at most ``global_max_particles``).
+- KLD-sampling ([`mcl.filter.kld`][mcl.filter.kld], ``params.kld``) picks the particle count at every resampling, so the
+  many particles of a global start shrink to a few hundred once the cloud has converged.
+- Augmented MCL ([`mcl.filter.augmented`][mcl.filter.augmented], ``params.augmented``) follows the slow and fast averages of
+  the scan likelihood; while ``p = max(0, 1 - w_fast / w_slow)`` is above 0 the filter resamples,
+  and each draw of the resampling is a random free-space pose with probability p (Table 8.3). With
+  KLD-sampling on, each random draw counts as a bin of its own, so a lost filter grows its set (as
+  ROS amcl). The random poses join the particles at the start of the next correction instead of
+  right away, so that a scan weighs them before any estimate sees them (a fraction p of uniformly
+  weighted random poses would otherwise drag the mean pose across the map).
+- [`ParticleFilter.uncertainty()`][ParticleFilter.uncertainty] gives the covariance, the clusters of the cloud and an
+  ambiguity flag ([`mcl.filter.uncertainty`][mcl.filter.uncertainty]).
+- ``update_min_distance`` / ``update_min_angle`` skip scans until the car has moved so far (as
+  ROS amcl's ``update_min_d`` / ``update_min_a``): scans taken at 40 Hz from almost the same pose
+  are far from independent, and weighing them all makes the filter overconfident before the car
+  has seen what tells similar places apart.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from mcl.filter.angles import wrap_angle
+from mcl.filter.augmented import LikelihoodAverages
+from mcl.filter.kld import kld_count
+from mcl.filter.motion_model import MotionModel, twist_to_odometry
+from mcl.filter.odometry_scale import OdometryScale
+from mcl.filter.params import ParticleFilterParams, spread_sd
+from mcl.filter.resampling import resample_particles
+from mcl.filter.sensor_model import SensorModel
+from mcl.filter.step_kernels import bayes_step, covariance_about, pose_moments
+from mcl.filter.uncertainty import Uncertainty, assess
+from racecar_sim.maps import OccupancyMap
+
+__all__ = ["ParticleFilter", "ParticleFilterParams"]
+
+
+class ParticleFilter:
+    """Monte Carlo Localization on an occupancy map (see the module docstring).
+
+    Args:
+        occupancy_map: the map (world frame).
+        n_particles: overrides ``params.n_particles`` when given.
+        motion_model: defaults to [`MotionModel`][mcl.filter.motion_model.MotionModel] with default parameters.
+        sensor_model: defaults to [`SensorModel`][mcl.filter.sensor_model.SensorModel] on ``occupancy_map``.
+        params: `ParticleFilterParams`.
+        rng: the filter's only source of randomness (a Generator, or a seed for one).
+
+    The filter starts empty: call `initialize()` or `initialize_global()` first.
+
+    Attributes:
+        n_updates: corrections applied.
+        n_resamples: resampling steps.
+        n_degenerate: corrections after which every weight was zero or not finite (see the
+            module docstring).
+        last_log_mean_likelihood: log of the weighted mean likelihood of the last scan,
+            ``log sum_i w_i p(z | x_i)`` with the weights before the correction (for augmented MCL).
+        last_effective_sample_size: Kish's effective sample size right after the last weight
+            update, before any resampling (NaN before the first).
+        averages: the [`LikelihoodAverages`][mcl.filter.augmented.LikelihoodAverages] of augmented MCL.
+        pending_random: random particles drawn by the last resampling that join the particles at
+            the next correction (augmented MCL).
+        n_injected: random particles injected by augmented MCL so far; last_injected: by the last
+            correction. n_skipped: scans `correct()` skipped (``update_min_distance``).
+        recovery_share: the least share of each resampling's draws that are uniform poses, as
+            the lost flag's recovery asked (`request_recovery()`; 0 when not lost).
+    """
+
+    def __init__(
+        self,
+        occupancy_map: OccupancyMap,
+        n_particles: int | None = None,
+        motion_model: MotionModel | None = None,
+        sensor_model: SensorModel | None = None,
+        params: ParticleFilterParams | None = None,
+        rng: np.random.Generator | int | None = None,
+    ) -> None:
+        params = params if params is not None else ParticleFilterParams()
+        if n_particles is not None:
+            params = replace(params, n_particles=n_particles)
+        self.params = params
+        self.map = occupancy_map
+        self.motion_model = motion_model if motion_model is not None else MotionModel()
+        self.sensor_model = sensor_model if sensor_model is not None else SensorModel(occupancy_map)
+        self.rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        self._particles: np.ndarray | None = None
+        self._log_weights: np.ndarray | None = None
+        self._weights: np.ndarray | None = None
+        self._mean_memo: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._ess_memo: tuple[np.ndarray | None, float] = (None, math.nan)  # weights, their ESS
+        self._uniform = (np.empty(0), np.empty(0))  # the weights, log-weights of the last draw
+        self.n_updates = 0
+        self.n_resamples = 0
+        self.n_degenerate = 0
+        self.last_log_mean_likelihood = math.nan
+        self.last_effective_sample_size = math.nan
+        self.averages = LikelihoodAverages(params.augmented)
+        self.n_injected = 0
+        self.last_injected = 0
+        self.pending_random = 0
+        self.n_skipped = 0
+        self.recovery_share = 0.0
+        self._shrink_to: int | None = None  # the count to resample back to after a burst
+        self._before_burst: tuple[np.ndarray, np.ndarray, int] | None = None  # for undo_burst
+        self._moved = [math.inf, math.inf]  # metres, radians of odometry since the last used scan
+        self._global_count: int | None = None
+        self.odometry_scale = OdometryScale(params.odometry_scale)
+        self.searching = False  # whether the last correction scored with the wide search hit
+        self._search_motion: MotionModel | None = None
+
+    # ------------------------------------------------------------------ state
+    def _require(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._particles is None or self._weights is None:
+            raise RuntimeError("the particle filter has no particles: call initialize() first")
+        return self._particles, self._weights
+
+    @property
+    def particles(self) -> np.ndarray:
+        """(N, 3) world poses [x, y, theta] (metres, radians), read-only view."""
+        p = self._require()[0].view()
+        p.flags.writeable = False
+        return p
+
+    @property
+    def weights(self) -> np.ndarray:
+        """(N,) normalised weights (sum 1), read-only view."""
+        w = self._require()[1].view()
+        w.flags.writeable = False
+        return w
+
+    @property
+    def n_particles(self) -> int:
+        """Current number of particles."""
+        return int(self._require()[0].shape[0])
+
+    @property
+    def effective_sample_size(self) -> float:
+        """Kish's 1 / sum(w^2), in [1, N] (the last weight update's while its weights stand)."""
+        w = self._require()[1]
+        return self._ess_memo[1] if w is self._ess_memo[0] else float(1.0 / np.dot(w, w))
+
+    def set_particles(self, particles: np.ndarray, weights: np.ndarray | None = None) -> None:
+        """Replace the particles (M, 3) world frame and their weights (uniform when None).
+
+        Theta is wrapped to [-pi, pi); the weights are normalised.
+
+        Raises:
+            ValueError: wrong shapes, non-finite poses, or weights that are negative, not finite or
+                all zero.
+        """
+        p = np.array(particles, dtype=np.float64)
+        if p.ndim != 2 or p.shape[1] != 3 or p.shape[0] == 0:
+            raise ValueError(f"particles must have shape (M, 3) with M >= 1, got {p.shape}")
+        if not np.isfinite(p).all():
+            raise ValueError("particles must be finite")
+        p[:, 2] = wrap_angle(p[:, 2])
+        if weights is None:
+            lw = np.full(p.shape[0], -math.log(p.shape[0]))
+        else:
+            w = np.asarray(weights, dtype=np.float64)
+            if w.shape != (p.shape[0],):
+                raise ValueError(f"weights must have shape ({p.shape[0]},), got {w.shape}")
+            if not (np.isfinite(w).all() and (w >= 0).all() and w.sum() > 0):
+                raise ValueError("weights must be finite, non-negative and not all zero")
+            with np.errstate(divide="ignore"):
+                lw = np.log(w / w.sum())
+        self._particles = p
+        self._set_log_weights(lw)
+
+    def _set_log_weights(self, log_weights: np.ndarray) -> None:
+        """Store log-weights normalised so that the weights sum to 1 (max must be finite)."""
+        top = log_weights.max()
+        w = np.exp(log_weights - top)
+        total = w.sum()
+        self._weights = w / total
+        self._log_weights = log_weights - (top + math.log(total))
+
+    # ------------------------------------------------------------------ initialisation
+    def initialize(
+        self,
+        pose: np.ndarray,
+        spread: float | tuple[float, float, float] | np.ndarray | None = None,
+    ) -> None:
+        """Particles drawn from a Gaussian around ``pose`` [x, y, theta] (world, metres, radians).
+
+        Args:
+            pose: the centre.
+            spread: standard deviations (x m, y m, theta rad), one number for all three, or None for
+                ``params.init_spread``.
+        """
+        centre = np.asarray(pose, dtype=np.float64)
+        if centre.shape != (3,) or not np.isfinite(centre).all():
+            raise ValueError(f"pose must be three finite numbers [x, y, theta], got {pose!r}")
+        sd = np.asarray(spread_sd(self.params.init_spread if spread is None else spread, "spread"))
+        n = self.params.n_particles
+        self.set_particles(centre + self.rng.standard_normal((n, 3)) * sd)
+        self._restart()
+
+    def global_particle_count(self) -> int:
+        """Particles of a global start: ``params.global_particles`` when given, else
+        ``global_density`` x the map's free area (m²), at least ``n_particles``, at most
+        ``global_max_particles`` (or ``n_particles`` when that is larger)."""
+        p = self.params
+        if p.global_particles is not None:
+            return p.global_particles
+        if self._global_count is None:
+            by_area = math.ceil(p.global_density * self.map.free_area)
+            self._global_count = max(p.n_particles, min(by_area, p.global_max_particles))
+        return self._global_count
+
+    @property
+    def max_particles(self) -> int:
+        """Most particles KLD-sampling may keep: ``kld.max_particles`` or the global count."""
+        kld_max = self.params.kld.max_particles
+        return kld_max if kld_max is not None else self.global_particle_count()
+
+    def initialize_global(self, n_particles: int | None = None) -> None:
+        """Particles uniform over the map's free space, headings uniform in [-pi, pi).
+
+        Args:
+            n_particles: how many; None for `global_particle_count()`.
+        """
+        n = self.global_particle_count() if n_particles is None else n_particles
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
+            raise ValueError(f"n_particles must be a positive integer, got {n_particles!r}")
+        self.set_particles(self.random_free_poses(int(n)))
+        self._restart()
+
+    def random_free_poses(self, n: int) -> np.ndarray:
+        """(n, 3) world poses uniform over free space (``global_clearance``), from the filter's rng."""
+        return self.map.sample_free_poses(self.rng, n, clearance=self.params.global_clearance)
+
+    def _restart(self) -> None:
+        """A new initial belief: forget the likelihood history; the next scan is always used."""
+        self.averages.reset()
+        self.pending_random = 0
+        self.recovery_share, self._shrink_to, self._before_burst = 0.0, None, None
+        self._moved = [math.inf, math.inf]
+        self.odometry_scale.restart()
+        self.searching = False
+
+    # ------------------------------------------------------------------ update steps
+    def predict(self, twist: np.ndarray, dt: float) -> None:
+        """Move the particles by a car-frame twist [vx, vy, omega] held for ``dt`` seconds (its
+        forward speed times the learned [odometry_scale][mcl.filter.odometry_scale.OdometryScale])."""
+        self._require()
+        twist = np.asarray(twist, dtype=np.float64)
+        if twist.shape != (3,) or not all(map(math.isfinite, twist.tolist())):
+            raise ValueError(f"twist must be three finite numbers [vx, vy, omega], got {twist!r}")
+        if not (math.isfinite(dt) and dt >= 0):
+            raise ValueError(f"dt must be a non-negative number of seconds, got {dt!r}")
+        scale = self.odometry_scale
+        if scale.needs_estimate() and self._particles is not None:
+            covariance = self.covariance()
+            spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
+            scale.observe(twist, dt, self.estimate(), spread)
+        else:
+            scale.observe(twist, dt)
+        self.move(twist_to_odometry(scale.scaled(twist).tolist(), dt))
+
+    def move(self, odometry: np.ndarray) -> None:
+        """Move the particles by a car-frame displacement [dx, dy, dtheta] (metres, radians)."""
+        particles, _ = self._require()
+        self._particles = self._motion().evaluate(particles, odometry, self.rng)
+        dx, dy, dtheta = np.asarray(odometry, dtype=np.float64).tolist()
+        self._moved[0] += math.hypot(dx, dy)
+        self._moved[1] += abs(dtheta)
+
+    def _motion(self) -> MotionModel:
+        """The motion model, with its search coefficients while the filter searches."""
+        mp = self.motion_model.params
+        if not self.searching or mp.search_coefficients is None or mp.scheme == "none":
+            return self.motion_model
+        if (
+            self._search_motion is None
+            or self._search_motion.params.coefficients != mp.search_coefficients
+        ):
+            self._search_motion = MotionModel(replace(mp, coefficients=mp.search_coefficients))
+        return self._search_motion
+
+    def update_weights(self, log_likelihood: np.ndarray) -> None:
+        """Multiply the weights by ``exp(log_likelihood)`` (N,) and normalise (Bayes rule).
+
+        NaN and +inf log-likelihoods count as impossible (-inf). When no particle keeps a positive
+        weight the filter recovers as ``params.on_degenerate`` says and counts the event.
+        """
+        particles, _ = self._require()
+        ll = np.asarray(log_likelihood, dtype=np.float64)
+        if ll.shape != (particles.shape[0],):
+            raise ValueError(
+                f"log_likelihood must have shape ({particles.shape[0]},), got {ll.shape}"
+            )
+        self.n_updates += 1
+        assert self._log_weights is not None
+        lw, w, top, total, sum_w2 = bayes_step(self._log_weights, ll)  # one numba call
+        if not math.isfinite(top):
+            self.n_degenerate += 1
+            self.last_log_mean_likelihood = -math.inf
+            if self.params.on_degenerate == "global":
+                self.initialize_global(particles.shape[0])  # same count (KLD may grow it)
+            else:
+                self.set_particles(particles)
+            self.last_effective_sample_size = self.effective_sample_size
+            return
+        self.last_log_mean_likelihood = float(top + math.log(total))
+        self._log_weights = lw
+        self._weights = w
+        self.last_effective_sample_size = float(1.0 / sum_w2)
+        self._ess_memo = (w, self.last_effective_sample_size)
+
+    def needs_resampling(self) -> bool:
+        """Whether the effective sample size is at most ``resample_threshold`` x N, or augmented
+        MCL wants to inject random particles (its injection probability is above 0)."""
+        if self.averages.injection_probability > 0.0 or self.recovery_share > 0.0:
+            return True
+        return self.effective_sample_size <= self.params.resample_threshold * self.n_particles
+
+    def resample(self, n: int | None = None) -> np.ndarray:
+        """Draw ``n`` particles by ``params.resampling``; the weights become uniform.
+
+        The default count is the current one, or with ``params.kld.enabled`` the count
+        KLD-sampling asks for (`kld_count()`). With augmented MCL on, each of the ``n`` draws
+        is a random free-space pose with the injection probability p instead: those are kept
+        aside in `pending_random` and join the particles at the start of the next
+        `correct()`, so that its scan weighs them before any estimate sees them.
+
+        Returns the chosen indexes of the old particles (the drawn, non-random ones).
+        """
+        particles, weights = self._require()
+        p_random = max(self.averages.injection_probability, self.recovery_share)
+        if n is None and self.params.kld.enabled:
+            n, n_random = self.kld_count(p_random)
+        else:
+            n = particles.shape[0] if n is None else n
+            n_random = int(self.rng.binomial(n, p_random)) if p_random > 0.0 else 0
+        n_random = min(n_random, n - 1)  # keep at least one particle of the belief
+        n, how = n - n_random, self.params.resampling  # drawn: valid and wrapped, set directly
+        idx, self._particles = resample_particles(how, particles, weights, self.rng, n)
+        if self._uniform[0].shape[0] != n:  # never written in place, so shared across draws
+            self._uniform = (np.full(n, 1.0 / n), np.full(n, -math.log(n)))
+        self._weights, self._log_weights = self._uniform
+        self.pending_random = n_random
+        self.n_resamples += 1
+        return idx
+
+    def kld_count(self, p_random: float = 0.0) -> tuple[int, int]:
+        """(particles, of which random) that KLD-sampling asks for ([`mcl.filter.kld`][mcl.filter.kld]).
+
+        Draws batches of the weighted particles (multinomial, independent), each draw replaced with
+        probability ``p_random`` by a random pose that counts as a bin of its own, doubling the
+        batch until Fox's rule stops or `max_particles` draws are made.
+        """
+        particles, weights = self._require()
+        return kld_count(
+            particles, weights, self.params.kld, self.max_particles, self.rng, p_random
+        )
+
+    def _join_pending_random(self) -> None:
+        """Add the random particles kept aside by `resample()`, each with the mean weight."""
+        k = self.pending_random
+        if k <= 0:
+            return
+        particles, weights = self._require()
+        n = particles.shape[0]
+        total = n + k
+        new = self.random_free_poses(k)
+        w = np.concatenate([weights * (n / total), np.full(k, 1.0 / total)])
+        self.set_particles(np.concatenate([particles, new]), w)
+        self.pending_random = 0
+        self.last_injected = k
+        self.n_injected += k
+
+    def is_searching(self) -> bool:
+        """Whether the next correction scores with the sensor model's wide search hit: random
+        particles just joined, or the cloud's position spread exceeds ``search_start_spread``
+        metres (a tracking filter) or ``search_spread`` (a searching one: hysteresis)."""
+        if self.last_injected > 0:
+            return True
+        covariance = self.covariance()
+        spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
+        params = self.sensor_model.params
+        return spread > (params.search_spread if self.searching else params.search_start_spread)
+
+    def request_recovery(self, share: float, burst: int = 0) -> None:
+        """Recovery asked for by the lost flag ([LostDetector][mcl.filter.lost.LostDetector]).
+
+        Args:
+            share: from now on (until asked again) each resampling replaces at least this
+                fraction of its draws by uniform free-space poses (as augmented MCL's injection),
+                and every correction resamples; 0 stops it.
+            burst: uniform free-space poses that join the cloud at the next correction, are
+                weighed by its scan with the cloud, after which the cloud is resampled back to
+                its present count (KLD-sampling's count when it is on).
+        """
+        self.recovery_share = float(share)
+        if burst > 0:
+            if self._shrink_to is None:  # the count the next correction would have had
+                self._shrink_to = self.n_particles + self.pending_random
+            self.pending_random += int(burst)
+
+    @property
+    def burst_prior(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(particles, weights) as they were before the last correction's recovery burst joined
+        them, or None when that correction had no burst (read-only views)."""
+        if self._before_burst is None:
+            return None
+        p, w = self._before_burst[0].view(), self._before_burst[1].view()
+        p.flags.writeable = w.flags.writeable = False
+        return p, w
+
+    def undo_burst(self) -> None:
+        """Go back to the cloud of `burst_prior` (moved and weighed as it was before the
+        burst), resampled to the count the burst's correction resampled to."""
+        if self._before_burst is None:
+            raise RuntimeError("undo_burst: the last correction had no recovery burst")
+        particles, weights, count = self._before_burst
+        self._before_burst = None
+        self.set_particles(particles, weights)
+        self.resample(None if self.params.kld.enabled else count)
+
+    def should_correct(self) -> bool:
+        """Whether the car moved ``update_min_distance`` or turned ``update_min_angle`` since the
+        last used scan (always True when both are 0)."""
+        p = self.params
+        if p.update_min_distance <= 0.0 and p.update_min_angle <= 0.0:
+            return True
+        moved, turned = self._moved
+        return (p.update_min_distance > 0.0 and moved >= p.update_min_distance) or (
+            p.update_min_angle > 0.0 and turned >= p.update_min_angle
+        )
+
+    def correct(self, scan: np.ndarray) -> bool:
+        """Weigh the particles by a scan (metres) and resample if needed; returns whether it did.
+
+        The steps: skip the scan unless `should_correct()`; add the random particles of
+        augmented MCL drawn at the last resampling; `update_weights()` with the sensor model's
+        log-likelihoods; fold the scan's per-beam likelihood into `averages`;
+        `resample()` when `needs_resampling()`.
+
+        See [`SensorModel`][mcl.filter.sensor_model.SensorModel] for the scan's treatment (NaN/inf beams
+        dropped, wrong length or negative ranges rejected with ``ValueError``).
+        """
+        self._require()
+        if not self.should_correct():
+            self.n_skipped += 1
+            return False
+        n_beams = self.sensor_model.observe(scan)[1].size  # checks the scan before any change
+        self._moved = [0.0, 0.0]
+        self.last_injected = 0
+        shrink_to, self._shrink_to = self._shrink_to, None
+        self._before_burst = None if shrink_to is None else (*self._require(), shrink_to)
+        self._join_pending_random()
+        log_likelihood = self.sensor_model.log_evaluate(self.particles, scan)
+        self.searching = self.is_searching()
+        if self.sensor_model.has_search_hit and self.searching:
+            # weigh by the wide hit; the likelihood averages (augmented MCL) keep the narrow one
+            _, _, top, total, _ = bayes_step(self._log_weights, log_likelihood)
+            self.update_weights(self.sensor_model.log_evaluate(self.particles, scan, True))
+            if math.isfinite(self.last_log_mean_likelihood):
+                self.last_log_mean_likelihood = (
+                    float(top + math.log(total)) if total > 0 else -math.inf
+                )
+        else:
+            self.update_weights(log_likelihood)
+        if shrink_to is not None:  # a recovery burst: back to the cloud's count (or KLD's)
+            self.resample(None if self.params.kld.enabled else shrink_to)
+            return True
+        squash = float(self.sensor_model.params.squash_exponent)
+        self.averages.update(self.last_log_mean_likelihood, int(n_beams), squash)
+        if self.needs_resampling():
+            self.resample()
+            return True
+        return False
+
+    def update(self, twist: np.ndarray, dt: float, scan: np.ndarray | None) -> np.ndarray:
+        """``predict``, then ``correct`` when a scan is given, then return ``estimate()``."""
+        self.predict(twist, dt)
+        if scan is not None:
+            self.correct(scan)
+        return self.estimate()
+
+    # ------------------------------------------------------------------ outputs
+    def estimate(self) -> np.ndarray:
+        """(3,) weighted mean pose [x, y, theta]: arithmetic mean of x, y, circular mean of theta."""
+        return self._mean().copy()
+
+    def covariance(self) -> np.ndarray:
+        """(3, 3) weighted covariance of the particles about `estimate()` (metres, radians).
+
+        Heading deviations are wrapped to [-pi, pi) around the circular mean, so a cloud straddling
+        +-pi has a small theta variance. Normalised by sum(w) = 1 (the maximum-likelihood form).
+        """
+        p, w = self._require()
+        return covariance_about(p, w, self._mean())
+
+    def _mean(self) -> np.ndarray:
+        """The weighted mean pose, computed once per set of particles and weights (both are only
+        ever replaced, never written in place, so their identity tells)."""
+        p, w = self._require()
+        memo = self._mean_memo
+        if memo is None or memo[0] is not p or memo[1] is not w:
+            memo = (p, w, pose_moments(p, w, False)[0])
+            self._mean_memo = memo
+        return memo[2]
+
+    def uncertainty(self) -> Uncertainty:
+        """Covariance, clusters and ambiguity flag of the cloud ([`mcl.filter.uncertainty.assess()`][mcl.filter.uncertainty.assess])."""
+        p, w = self._require()
+        return assess(p, w, self.covariance(), self.params.clusters)

@@ -1,0 +1,64 @@
+"""Building the parameter dataclasses: from a mapping or a YAML file (unknown keys raise a
+``ValueError`` naming them), nested parameter classes, and the positive-number check they share."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+from typing import Any, TypeVar
+
+from racecar_sim.settings.validation import check_number, read_yaml_mapping, short
+
+__all__ = ["from_mapping", "from_yaml", "nested", "positive"]
+
+T = TypeVar("T")
+
+
+def from_mapping(cls: type[T], mapping: dict[str, Any] | None) -> T:
+    """Build dataclass ``cls`` from a mapping, defaults for missing keys.
+
+    Raises:
+        ValueError: a key is not a field of ``cls``, or a value is rejected by its validation.
+    """
+    mapping = dict(mapping or {})
+    names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    unknown = sorted(set(mapping) - names)
+    if unknown:
+        raise ValueError(f"unknown {cls.__name__} parameter(s) {short(unknown, 200)}; known: {sorted(names)}")
+    return cls(**mapping)
+
+
+def nested(value: Any, cls: type[T], owner: str) -> T:
+    """A nested parameter dataclass from an instance of ``cls`` or a mapping of its fields.
+
+    ``owner`` names the field in errors (e.g. ``"ParticleFilterParams.kld"``).
+
+    Raises:
+        ValueError: the mapping has an unknown key or a rejected value, or ``value`` is neither.
+    """
+    if isinstance(value, cls):
+        return value
+    if isinstance(value, dict) or hasattr(value, "keys"):
+        try:
+            return from_mapping(cls, dict(value))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{owner}: {exc}") from exc
+    raise ValueError(f"{owner} must be a {cls.__name__} or a mapping, got {short(value)}")
+
+
+def from_yaml(cls: type[T], path: str | os.PathLike[str], section: str | None = None) -> T:
+    """Build dataclass ``cls`` from a YAML file (optionally from one top-level ``section``)."""
+    path = Path(path)
+    data = read_yaml_mapping(path)
+    if section is not None:
+        data = data.get(section, {}) or {}
+    try:
+        return from_mapping(cls, data)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"parameter file {path}: {exc}") from exc
+
+
+def positive(owner: str, obj: Any, *names: str) -> None:
+    for name in names:
+        check_number(owner, name, getattr(obj, name), low=0.0, low_open=True)
