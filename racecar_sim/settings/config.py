@@ -30,7 +30,7 @@ from racecar_sim.sensors.scan_effects import OdometryBias, ScanEffects
 from racecar_sim.settings.bounds import MAX_SUBSTEPS, check
 from racecar_sim.settings.params import from_mapping, from_yaml, nested
 from racecar_sim.settings.validation import check_number, read_yaml_mapping, short
-from racecar_sim.world.obstacles import ObstacleParams
+from racecar_sim.world.obstacle_params import ObstacleParams
 from racecar_sim.world.scenes import scene_obstacles
 
 __all__ = [
@@ -80,7 +80,7 @@ class EnvConfig:
             ([`racecar_sim.sensors.scan_effects.ScanEffects`][racecar_sim.sensors.scan_effects.ScanEffects] or a mapping of its fields); None = off.
         odom_bias: systematic odometry error ([`racecar_sim.sensors.scan_effects.OdometryBias`][racecar_sim.sensors.scan_effects.OdometryBias] or a
             mapping ``{scale, offset}``); None = none.
-        obstacles: unmapped boxes and walking people ([`racecar_sim.world.obstacles.ObstacleParams`][racecar_sim.world.obstacles.ObstacleParams]
+        obstacles: unmapped boxes and walking people ([`racecar_sim.world.obstacle_params.ObstacleParams`][racecar_sim.world.obstacle_params.ObstacleParams]
             or a mapping of its fields); None = none.
         odom_lead: seconds by which the wheel odometry leads the body's motion (the body gets each
             command this much later, rounded to whole steps; [`racecar_sim.sensors.vesc`][racecar_sim.sensors.vesc]); 0 = none.

@@ -1,5 +1,5 @@
 """Named scenes: what the room puts in front of (and behind) the map's walls, as geometry the
-filter's map does not have ([`racecar_sim.world.obstacles.ObstacleParams`][racecar_sim.world.obstacles.ObstacleParams] settings).
+filter's map does not have ([`racecar_sim.world.obstacle_params.ObstacleParams`][racecar_sim.world.obstacle_params.ObstacleParams] settings).
 
 * ``"none"``: the map and nothing else (the ideal world; also what ``scene=None`` means).
 * ``"clean"``: a clean corridor, like the clean stretches of the shared recordings: no people and
@@ -33,7 +33,7 @@ SCENES: dict[str, dict[str, Any]] = {
         "crowd": 1.5,
     },
 }
-"""Scene name -> obstacle settings (fields of [`racecar_sim.world.obstacles.ObstacleParams`][racecar_sim.world.obstacles.ObstacleParams])."""
+"""Scene name -> obstacle settings (fields of [`racecar_sim.world.obstacle_params.ObstacleParams`][racecar_sim.world.obstacle_params.ObstacleParams])."""
 
 
 def scene_obstacles(scene: str | None, obstacles: Any) -> Any:

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import racecar_sim  # noqa: F401
-from racecar_sim.world.obstacles import ObstacleParams, obstacle_ranges
+from racecar_sim.world.obstacle_params import ObstacleParams
+from racecar_sim.world.obstacles import obstacle_ranges
 
 SETTINGS = {"boxes": 8, "people": 4}
 
