@@ -5,8 +5,7 @@ from __future__ import annotations
 import functools
 import math
 import os
-import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -19,10 +18,11 @@ from racecar_sim.car.physics import RacecarPhysics
 from racecar_sim.car.start_poses import random_start, shared_start_cells
 from racecar_sim.compile_log import install as log_first_compile
 from racecar_sim.maps import OccupancyMap, resolve_map
-from racecar_sim.render import MapRenderer
+from racecar_sim.render import CarRendering, MapRenderer, RenderHook
 from racecar_sim.sensors.lidar import Lidar
 from racecar_sim.sensors.odometry import Odometry
-from racecar_sim.sensors.vesc import CommandDelay, lead_steps, wheel_twist
+from racecar_sim.sensors.onboard import CarSensors
+from racecar_sim.sensors.vesc import CommandDelay, lead_steps
 from racecar_sim.settings.config import (
     CarParams,
     EnvConfig,
@@ -46,11 +46,9 @@ __all__ = ["EnvConfig", "RacecarEnv", "RenderHook", "load_config"]
 
 _OBSTACLE_REACH = 2.5  # metres: obstacles this close to the rear axle make physics use pymunk
 
-RenderHook = Callable[[np.ndarray, MapRenderer], None]
-"""``fn(img, renderer) -> None``: draws overlays in place on the RGB frame being rendered."""
 
 
-class RacecarEnv(gym.Env):
+class RacecarEnv(CarSensors, CarRendering, gym.Env):
     """A 1/10-scale racecar with a planar lidar and wheel odometry on a 2D occupancy-grid map.
 
     ## Description
@@ -221,11 +219,6 @@ class RacecarEnv(gym.Env):
         return self.clock.time
 
     @property
-    def last_scan(self) -> np.ndarray:
-        """(n_beams,) float32 the last scan, metres (the array the car keeps: do not write it)."""
-        return self._scan
-
-    @property
     def pose(self) -> np.ndarray:
         """True rear-axle world pose [x, y, theta] (metres, radians in [-pi, pi))."""
         return self.physics.pose
@@ -316,56 +309,6 @@ class RacecarEnv(gym.Env):
         terminated = collided and self._terminate
         return obs, progress + penalty, terminated, False, info
 
-    def render(self) -> np.ndarray | None:
-        """RGB uint8 (H, W, 3) frame: map, last scan's hits, car footprint, then the render hooks.
-
-        Returns None (with a warning) when the env was made without ``render_mode="rgb_array"``.
-        """
-        if self.render_mode is None:
-            warnings.warn(  # a plain warning: gym.logger.warn's colour codes end up in logs
-                "render() called without a render_mode; make the env with render_mode='rgb_array'",
-                UserWarning,
-                stacklevel=2,
-            )
-            return None
-        renderer = self.renderer
-        img = renderer.base()
-        renderer.draw_scan(
-            img,
-            self.lidar.mount_pose(self._scan_car_pose),
-            self._scan,
-            self.lidar.angles,
-            max_range=self.lidar_params.max_range,
-        )
-        if self.obstacles is not None:
-            self.obstacles.draw(img, renderer)
-        renderer.draw_car(img, self.physics.footprint())
-        for hook in self._render_hooks:
-            hook(img, renderer)
-        return img
-
-    def close(self) -> None:
-        """Release the renderer (the env stays usable)."""
-        self._renderer = None
-
-    # ------------------------------------------------------------------ rendering hooks
-    @property
-    def renderer(self) -> MapRenderer:
-        """The `MapRenderer` of this env's map (made on first use)."""
-        if self._renderer is None:
-            self._renderer = MapRenderer(self.map)
-        return self._renderer
-
-    def add_render_hook(self, fn: RenderHook) -> None:
-        """Call ``fn(img, renderer)`` at the end of every `render()` to draw overlays."""
-        if not callable(fn):
-            raise TypeError(f"render hook must be callable fn(img, renderer), got {fn!r}")
-        self._render_hooks.append(fn)
-
-    def remove_render_hook(self, fn: RenderHook) -> None:
-        """Stop calling a hook added with `add_render_hook()`."""
-        self._render_hooks.remove(fn)
-
     # ------------------------------------------------------------------ internals
     def _advance(self, steer: float, speed: float) -> tuple[bool, bool]:
         """Physics and clock of one step (clipped command); returns (collided, a scan is due)."""
@@ -376,55 +319,6 @@ class RacecarEnv(gym.Env):
             physics.free_steps = not self.obstacles.near(physics.pose, _OBSTACLE_REACH)
         collided = physics.step((steer, speed), self.dt)
         return collided, self.clock.tick()
-
-    def observation(self, twist: np.ndarray) -> dict[str, np.ndarray]:
-        """The observation of the car now: the last scan, then the odometry and (if on) the IMU's
-        yaw rate from the true car-frame ``twist`` (m/s, m/s, rad/s), their noise drawn from
-        ``np_random`` in this order, as [`step`][racecar_sim.env.RacecarEnv.step] returns it
-        (for cars that the race steps)."""
-        obs = {"scan": self._scan.copy(), "odom": self._measure_odometry()}
-        imu = self.imu
-        if imu is not None:
-            rate = float(twist[2]) + imu.bias + imu.sigma * float(self.np_random.standard_normal())
-            obs["imu"] = np.array([rate], dtype=np.float32)
-        return obs
-
-    def _measure_odometry(self) -> np.ndarray:
-        """The VESC's noisy (and, with a profile, biased) twist from the wheels' state now."""
-        physics = self.physics
-        steer, speed = physics.steer, physics.wheel_speed
-        if self.command_delay.n:  # the wheels already have the commands the body has not
-            steer, speed = self.command_delay.wheels_ahead(steer, speed)
-        vx, vy, om = wheel_twist(speed, steer, self._wheelbase)
-        odom = self.odometry.noisy(vx, vy, om, self.np_random)
-        return odom if self.odom_bias is None else self.odom_bias.apply(odom)
-
-    def _take_scan(self, pose: np.ndarray) -> None:
-        """Scan from the car's current rear-axle ``pose`` and schedule the next scan one lidar
-        period later."""
-        self.keep_scan(pose, self._measure_scan(pose))
-
-    def _measure_scan(self, pose: np.ndarray) -> np.ndarray:
-        """A scan from rear-axle ``pose``: the map's ranges, cut by obstacles, then the noise
-        (the four-part beam model, or the profile's scan effects)."""
-        if self.obstacles is None and self.scan_effects is None:
-            return self.lidar.measure(pose, self.np_random)
-        ranges = self.lidar.true_ranges(pose)
-        max_range = self.lidar_params.max_range
-        if self.obstacles is not None:
-            mount = self.lidar.mount_pose(pose)
-            ranges = self.obstacles.clip_ranges(mount, self.lidar.angles, ranges, max_range)
-        if self.scan_effects is None:
-            return self.lidar.add_noise(ranges, self.np_random)
-        return self.scan_effects.apply(ranges, max_range, self.np_random)
-
-    def keep_scan(self, pose: np.ndarray, scan: np.ndarray) -> None:
-        """Keep ``scan`` (float32 (n_beams,), metres, taken now at rear-axle world ``pose``) as the
-        car's last scan and schedule the next one: for scans cast outside the env (the vector
-        env casts every car's in one call)."""
-        self._scan = scan
-        self._scan_car_pose = tuple(pose.tolist())  # for render; info["pose"] is the array
-        self.clock.scanned()
 
     def _info(
         self,

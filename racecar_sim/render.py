@@ -8,6 +8,9 @@ coordinates are OpenCV points ``(x, y)`` = (column, row) of the image.
 from __future__ import annotations
 
 import math
+import warnings
+from collections.abc import Callable
+from typing import Any
 
 import cv2
 import numpy as np
@@ -21,7 +24,9 @@ __all__ = [
     "OCCUPIED_COLOUR",
     "PARTICLE_COLOUR",
     "SCAN_COLOUR",
+    "CarRendering",
     "MapRenderer",
+    "RenderHook",
 ]
 
 Colour = tuple[int, int, int]
@@ -166,3 +171,74 @@ class MapRenderer:
         radius = max(2, round(0.1 * self._px_per_m))
         cv2.circle(img, tuple(p0), radius, colour, thickness=-1, lineType=cv2.LINE_8)
         cv2.arrowedLine(img, tuple(p0), tuple(p1), colour, thickness=1, tipLength=0.3)
+
+
+RenderHook = Callable[[np.ndarray, MapRenderer], None]
+"""``fn(img, renderer) -> None``: draws overlays in place on the RGB frame being rendered."""
+
+
+class CarRendering:
+    """A car env's ``render()``: the map, the last scan's hits, obstacles, the car's footprint,
+    then the render hooks; the base of [`RacecarEnv`][racecar_sim.env.RacecarEnv], which sets the
+    fields (``map``, ``lidar``, ``physics``, ``obstacles``, the last scan and its pose)."""
+
+    render_mode: str | None
+    map: OccupancyMap
+    lidar: Any
+    lidar_params: Any
+    physics: Any
+    obstacles: Any
+    _scan: np.ndarray
+    _scan_car_pose: tuple[float, float, float]
+    _render_hooks: list[RenderHook]
+    _renderer: MapRenderer | None
+
+    def render(self) -> np.ndarray | None:
+        """RGB uint8 (H, W, 3) frame: map, last scan's hits, car footprint, then the render hooks.
+
+        Returns None (with a warning) when the env was made without ``render_mode="rgb_array"``.
+        """
+        if self.render_mode is None:
+            warnings.warn(  # a plain warning: gym.logger.warn's colour codes end up in logs
+                "render() called without a render_mode; make the env with render_mode='rgb_array'",
+                UserWarning,
+                stacklevel=2,
+            )
+            return None
+        renderer = self.renderer
+        img = renderer.base()
+        renderer.draw_scan(
+            img,
+            self.lidar.mount_pose(self._scan_car_pose),
+            self._scan,
+            self.lidar.angles,
+            max_range=self.lidar_params.max_range,
+        )
+        if self.obstacles is not None:
+            self.obstacles.draw(img, renderer)
+        renderer.draw_car(img, self.physics.footprint())
+        for hook in self._render_hooks:
+            hook(img, renderer)
+        return img
+
+    def close(self) -> None:
+        """Release the renderer (the env stays usable)."""
+        self._renderer = None
+
+    # ------------------------------------------------------------------ rendering hooks
+    @property
+    def renderer(self) -> MapRenderer:
+        """The `MapRenderer` of this env's map (made on first use)."""
+        if self._renderer is None:
+            self._renderer = MapRenderer(self.map)
+        return self._renderer
+
+    def add_render_hook(self, fn: RenderHook) -> None:
+        """Call ``fn(img, renderer)`` at the end of every `render()` to draw overlays."""
+        if not callable(fn):
+            raise TypeError(f"render hook must be callable fn(img, renderer), got {fn!r}")
+        self._render_hooks.append(fn)
+
+    def remove_render_hook(self, fn: RenderHook) -> None:
+        """Stop calling a hook added with `add_render_hook()`."""
+        self._render_hooks.remove(fn)
