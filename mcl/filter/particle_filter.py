@@ -9,6 +9,10 @@ composition of public steps so that variants (augmented MCL, KLD-sampling) can r
     if pf.needs_resampling():
         pf.resample()                                             # or pf.set_particles(...)
 
+Global localization and recovery (global starts, KLD-sampling, augmented MCL, the lost flag's
+bursts) are [`mcl.filter.recovery`][mcl.filter.recovery]; ``uncertainty()`` gives the covariance,
+the clusters of the cloud and an ambiguity flag ([`mcl.filter.uncertainty`][mcl.filter.uncertainty]).
+
 Frames and units: particles are world-frame rear-axle poses (metres, radians, theta in [-pi, pi));
 the twist is car-frame [vx, vy, omega] (m/s, m/s, rad/s) of the rear axle; dt in seconds; scans in
 metres.
@@ -18,27 +22,10 @@ scan matches nothing, or the filter is lost), the filter does not produce NaN. I
 ``n_degenerate`` and, by ``ParticleFilterParams.on_degenerate``, keeps the particles with uniform
 weights (``"keep"``) or re-spreads as many uniformly over free space (``"global"``).
 
-Global localization and recovery (KLD-sampling, augmented MCL and scan spacing are off by default,
-so the plain filter's draws are unchanged):
-
-- [`ParticleFilter.initialize_global()`][ParticleFilter.initialize_global] spreads [`global_particle_count()`][ParticleFilter.global_particle_count]
-  particles over free space, by default ``global_density`` per square metre of free floor
-  (at least ``n_particles``, at most ``global_max_particles``).
-- KLD-sampling ([`mcl.filter.kld`][mcl.filter.kld], ``params.kld``) picks the particle count at every resampling, so the
-  many particles of a global start shrink to a few hundred once the cloud has converged.
-- Augmented MCL ([`mcl.filter.augmented`][mcl.filter.augmented], ``params.augmented``) follows the slow and fast averages of
-  the scan likelihood; while ``p = max(0, 1 - w_fast / w_slow)`` is above 0 the filter resamples,
-  and each draw of the resampling is a random free-space pose with probability p (Table 8.3). With
-  KLD-sampling on, each random draw counts as a bin of its own, so a lost filter grows its set (as
-  ROS amcl). The random poses join the particles at the start of the next correction instead of
-  right away, so that a scan weighs them before any estimate sees them (a fraction p of uniformly
-  weighted random poses would otherwise drag the mean pose across the map).
-- [`ParticleFilter.uncertainty()`][ParticleFilter.uncertainty] gives the covariance, the clusters of the cloud and an
-  ambiguity flag ([`mcl.filter.uncertainty`][mcl.filter.uncertainty]).
-- ``update_min_distance`` / ``update_min_angle`` skip scans until the car has moved so far (as
-  ROS amcl's ``update_min_d`` / ``update_min_a``): scans taken at 40 Hz from almost the same pose
-  are far from independent, and weighing them all makes the filter overconfident before the car
-  has seen what tells similar places apart.
+``update_min_distance`` / ``update_min_angle`` skip scans until the car has moved so far (as
+ROS amcl's ``update_min_d`` / ``update_min_a``): scans taken at 40 Hz from almost the same pose
+are far from independent, and weighing them all makes the filter overconfident before the car
+has seen what tells similar places apart.
 """
 
 from __future__ import annotations
@@ -50,20 +37,20 @@ import numpy as np
 
 from mcl.filter.angles import wrap_angle
 from mcl.filter.augmented import LikelihoodAverages
-from mcl.filter.kld import kld_count
+from mcl.filter.belief import Belief
 from mcl.filter.motion_model import MotionModel, twist_to_odometry
 from mcl.filter.odometry_scale import OdometryScale
 from mcl.filter.params import ParticleFilterParams, spread_sd
+from mcl.filter.recovery import GlobalRecovery
 from mcl.filter.resampling import resample_particles
 from mcl.filter.sensor_model import SensorModel
-from mcl.filter.step_kernels import bayes_step, covariance_about, pose_moments
-from mcl.filter.uncertainty import Uncertainty, assess
+from mcl.filter.step_kernels import bayes_step
 from racecar_sim.maps import OccupancyMap
 
 __all__ = ["ParticleFilter", "ParticleFilterParams"]
 
 
-class ParticleFilter:
+class ParticleFilter(Belief, GlobalRecovery):
     """Monte Carlo Localization on an occupancy map (see the module docstring).
 
     Args:
@@ -137,36 +124,6 @@ class ParticleFilter:
         self._search_motion: MotionModel | None = None
 
     # ------------------------------------------------------------------ state
-    def _require(self) -> tuple[np.ndarray, np.ndarray]:
-        if self._particles is None or self._weights is None:
-            raise RuntimeError("the particle filter has no particles: call initialize() first")
-        return self._particles, self._weights
-
-    @property
-    def particles(self) -> np.ndarray:
-        """(N, 3) world poses [x, y, theta] (metres, radians), read-only view."""
-        p = self._require()[0].view()
-        p.flags.writeable = False
-        return p
-
-    @property
-    def weights(self) -> np.ndarray:
-        """(N,) normalised weights (sum 1), read-only view."""
-        w = self._require()[1].view()
-        w.flags.writeable = False
-        return w
-
-    @property
-    def n_particles(self) -> int:
-        """Current number of particles."""
-        return int(self._require()[0].shape[0])
-
-    @property
-    def effective_sample_size(self) -> float:
-        """Kish's 1 / sum(w^2), in [1, N] (the last weight update's while its weights stand)."""
-        w = self._require()[1]
-        return self._ess_memo[1] if w is self._ess_memo[0] else float(1.0 / np.dot(w, w))
-
     def set_particles(self, particles: np.ndarray, weights: np.ndarray | None = None) -> None:
         """Replace the particles (M, 3) world frame and their weights (uniform when None).
 
@@ -223,40 +180,6 @@ class ParticleFilter:
         n = self.params.n_particles
         self.set_particles(centre + self.rng.standard_normal((n, 3)) * sd)
         self._restart()
-
-    def global_particle_count(self) -> int:
-        """Particles of a global start: ``params.global_particles`` when given, else
-        ``global_density`` x the map's free area (m²), at least ``n_particles``, at most
-        ``global_max_particles`` (or ``n_particles`` when that is larger)."""
-        p = self.params
-        if p.global_particles is not None:
-            return p.global_particles
-        if self._global_count is None:
-            by_area = math.ceil(p.global_density * self.map.free_area)
-            self._global_count = max(p.n_particles, min(by_area, p.global_max_particles))
-        return self._global_count
-
-    @property
-    def max_particles(self) -> int:
-        """Most particles KLD-sampling may keep: ``kld.max_particles`` or the global count."""
-        kld_max = self.params.kld.max_particles
-        return kld_max if kld_max is not None else self.global_particle_count()
-
-    def initialize_global(self, n_particles: int | None = None) -> None:
-        """Particles uniform over the map's free space, headings uniform in [-pi, pi).
-
-        Args:
-            n_particles: how many; None for `global_particle_count()`.
-        """
-        n = self.global_particle_count() if n_particles is None else n_particles
-        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
-            raise ValueError(f"n_particles must be a positive integer, got {n_particles!r}")
-        self.set_particles(self.random_free_poses(int(n)))
-        self._restart()
-
-    def random_free_poses(self, n: int) -> np.ndarray:
-        """(n, 3) world poses uniform over free space (``global_clearance``), from the filter's rng."""
-        return self.map.sample_free_poses(self.rng, n, clearance=self.params.global_clearance)
 
     def _restart(self) -> None:
         """A new initial belief: forget the likelihood history; the next scan is always used."""
@@ -371,81 +294,6 @@ class ParticleFilter:
         self.n_resamples += 1
         return idx
 
-    def kld_count(self, p_random: float = 0.0) -> tuple[int, int]:
-        """(particles, of which random) that KLD-sampling asks for ([`mcl.filter.kld`][mcl.filter.kld]).
-
-        Draws batches of the weighted particles (multinomial, independent), each draw replaced with
-        probability ``p_random`` by a random pose that counts as a bin of its own, doubling the
-        batch until Fox's rule stops or `max_particles` draws are made.
-        """
-        particles, weights = self._require()
-        return kld_count(
-            particles, weights, self.params.kld, self.max_particles, self.rng, p_random
-        )
-
-    def _join_pending_random(self) -> None:
-        """Add the random particles kept aside by `resample()`, each with the mean weight."""
-        k = self.pending_random
-        if k <= 0:
-            return
-        particles, weights = self._require()
-        n = particles.shape[0]
-        total = n + k
-        new = self.random_free_poses(k)
-        w = np.concatenate([weights * (n / total), np.full(k, 1.0 / total)])
-        self.set_particles(np.concatenate([particles, new]), w)
-        self.pending_random = 0
-        self.last_injected = k
-        self.n_injected += k
-
-    def is_searching(self) -> bool:
-        """Whether the next correction scores with the sensor model's wide search hit: random
-        particles just joined, or the cloud's position spread exceeds ``search_start_spread``
-        metres (a tracking filter) or ``search_spread`` (a searching one: hysteresis)."""
-        if self.last_injected > 0:
-            return True
-        covariance = self.covariance()
-        spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
-        params = self.sensor_model.params
-        return spread > (params.search_spread if self.searching else params.search_start_spread)
-
-    def request_recovery(self, share: float, burst: int = 0) -> None:
-        """Recovery asked for by the lost flag ([LostDetector][mcl.filter.lost.LostDetector]).
-
-        Args:
-            share: from now on (until asked again) each resampling replaces at least this
-                fraction of its draws by uniform free-space poses (as augmented MCL's injection),
-                and every correction resamples; 0 stops it.
-            burst: uniform free-space poses that join the cloud at the next correction, are
-                weighed by its scan with the cloud, after which the cloud is resampled back to
-                its present count (KLD-sampling's count when it is on).
-        """
-        self.recovery_share = float(share)
-        if burst > 0:
-            if self._shrink_to is None:  # the count the next correction would have had
-                self._shrink_to = self.n_particles + self.pending_random
-            self.pending_random += int(burst)
-
-    @property
-    def burst_prior(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """(particles, weights) as they were before the last correction's recovery burst joined
-        them, or None when that correction had no burst (read-only views)."""
-        if self._before_burst is None:
-            return None
-        p, w = self._before_burst[0].view(), self._before_burst[1].view()
-        p.flags.writeable = w.flags.writeable = False
-        return p, w
-
-    def undo_burst(self) -> None:
-        """Go back to the cloud of `burst_prior` (moved and weighed as it was before the
-        burst), resampled to the count the burst's correction resampled to."""
-        if self._before_burst is None:
-            raise RuntimeError("undo_burst: the last correction had no recovery burst")
-        particles, weights, count = self._before_burst
-        self._before_burst = None
-        self.set_particles(particles, weights)
-        self.resample(None if self.params.kld.enabled else count)
-
     def should_correct(self) -> bool:
         """Whether the car moved ``update_min_distance`` or turned ``update_min_angle`` since the
         last used scan (always True when both are 0)."""
@@ -506,32 +354,3 @@ class ParticleFilter:
         if scan is not None:
             self.correct(scan)
         return self.estimate()
-
-    # ------------------------------------------------------------------ outputs
-    def estimate(self) -> np.ndarray:
-        """(3,) weighted mean pose [x, y, theta]: arithmetic mean of x, y, circular mean of theta."""
-        return self._mean().copy()
-
-    def covariance(self) -> np.ndarray:
-        """(3, 3) weighted covariance of the particles about `estimate()` (metres, radians).
-
-        Heading deviations are wrapped to [-pi, pi) around the circular mean, so a cloud straddling
-        +-pi has a small theta variance. Normalised by sum(w) = 1 (the maximum-likelihood form).
-        """
-        p, w = self._require()
-        return covariance_about(p, w, self._mean())
-
-    def _mean(self) -> np.ndarray:
-        """The weighted mean pose, computed once per set of particles and weights (both are only
-        ever replaced, never written in place, so their identity tells)."""
-        p, w = self._require()
-        memo = self._mean_memo
-        if memo is None or memo[0] is not p or memo[1] is not w:
-            memo = (p, w, pose_moments(p, w, False)[0])
-            self._mean_memo = memo
-        return memo[2]
-
-    def uncertainty(self) -> Uncertainty:
-        """Covariance, clusters and ambiguity flag of the cloud ([`mcl.filter.uncertainty.assess()`][mcl.filter.uncertainty.assess])."""
-        p, w = self._require()
-        return assess(p, w, self.covariance(), self.params.clusters)
