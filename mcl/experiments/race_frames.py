@@ -14,7 +14,7 @@ import numpy as np
 from mcl.experiments.frame_text import draw_legend, put_label
 from mcl.experiments.race_run import RaceSpec, RaceState
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.race.env import CAR_COLOURS
+from racecar_sim.race.drawing import CAR_COLOURS
 from racecar_sim.render import MapRenderer
 
 __all__ = ["PANEL_WIDTH", "RaceFrames"]

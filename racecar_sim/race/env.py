@@ -29,6 +29,7 @@ except ImportError:  # pragma: no cover - pettingzoo is in the dev extra
     ParallelEnv = object  # type: ignore[assignment,misc]
 
 from racecar_sim.maps import OccupancyMap, resolve_map
+from racecar_sim.race.drawing import CAR_COLOURS, draw_race
 from racecar_sim.race.grid import start_grid
 from racecar_sim.race.laps import LapCounter
 from racecar_sim.race.loops import centerline_for_map
@@ -51,11 +52,6 @@ contact each step)."""
 
 __all__ = ["CAR_COLOURS", "RaceEnv"]
 
-CAR_COLOURS: tuple[tuple[int, int, int], ...] = (
-    (31, 119, 180), (214, 39, 40), (44, 160, 44), (255, 127, 14), (148, 103, 189),
-    (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207),
-)  # fmt: skip
-"""RGB colour of car ``i`` is ``CAR_COLOURS[i % 10]`` (matplotlib's tab10)."""
 
 
 class RaceEnv(ParallelEnv):
@@ -342,23 +338,7 @@ class RaceEnv(ParallelEnv):
             return None
         if self._renderer is None:
             self._renderer = MapRenderer(self.map)
-        renderer = self._renderer
-        img = renderer.base()
-        if self.track is not None:
-            import cv2
-
-            line = renderer.world_to_pixel(self.track.points)
-            cv2.polylines(img, [line], True, (200, 200, 200), 1)
-        world = self.world
-        lidar = world.cars[0].lidar
-        for i in range(world.n_cars):
-            colour = CAR_COLOURS[i % len(CAR_COLOURS)]
-            light = tuple(int(c + (255 - c) * 0.5) for c in colour)
-            renderer.draw_scan(img, lidar.mount_pose(world.scan_poses[i]), world.scans[i], lidar.angles,
-                               colour=light, max_range=self.lidar_params.max_range)  # fmt: skip
-        for i, box in enumerate(world.boxes()):
-            renderer.draw_car(img, box, CAR_COLOURS[i % len(CAR_COLOURS)])
-        return img
+        return draw_race(self._renderer, self.world, self.track, self.lidar_params.max_range)
 
     def close(self) -> None:
         """Release the renderer (the env stays usable)."""

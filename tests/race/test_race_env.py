@@ -250,7 +250,7 @@ def test_the_same_seed_gives_the_same_race():
 
 
 def test_render_draws_every_car_in_its_own_colour():
-    from racecar_sim.race.env import CAR_COLOURS
+    from racecar_sim.race.drawing import CAR_COLOURS
 
     env = RaceEnv(HALL, n_cars=3, n_beams=61, render_mode="rgb_array")
     env.reset(seed=0, options={"poses": [[5.0, 5.0, 0.0], [10.0, 5.0, 0.0], [15.0, 5.0, 0.0]]})
