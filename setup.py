@@ -12,7 +12,7 @@ MAPS = Path(__file__).resolve().parent / "maps"
 
 
 class BuildPyWithMaps(build_py):
-    """build_py, then ``maps/*.yaml`` and ``maps/*.png`` copied into the built package."""
+    """build_py, then ``maps/*.yaml``, ``*.png`` and ``*.csv`` (the loop maps' tracks) copied into the built package."""
 
     def run(self) -> None:
         super().run()
@@ -20,7 +20,7 @@ class BuildPyWithMaps(build_py):
             return  # an editable install reads the checkout's maps/ directly
         target = Path(self.build_lib) / "racecar_sim" / "maps" / "data"
         target.mkdir(parents=True, exist_ok=True)
-        files = sorted(p for p in MAPS.glob("*") if p.suffix in (".yaml", ".png"))
+        files = sorted(p for p in MAPS.glob("*") if p.suffix in (".yaml", ".png", ".csv"))
         if not files:
             raise RuntimeError(f"no bundled maps in {MAPS}: run racecar-sim make-maps")
         for path in files:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import math
 import os
 from collections.abc import Mapping
@@ -38,6 +37,8 @@ from racecar_sim.settings.validation import (
     check_seed,
     short,
 )
+from racecar_sim.world.centerline import resolve_track
+from racecar_sim.world.laps import LapCounter
 from racecar_sim.world.obstacles import Obstacles
 
 log_first_compile()  # the first compile of a kernel of ours is logged (racecar_sim.compile_log)
@@ -106,7 +107,7 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
     ``new_scan`` (bool); ``rewards`` (dict of named terms). With a ``track`` setting also
     ``progress`` (m along its centerline since the start), ``lap`` (completed laps, counted when
     crossing the start line forwards), ``lap_times`` (s) and ``rank`` (1), as in a race
-    (`racecar_sim.race.laps`).
+    (`racecar_sim.world.laps`).
 
     ## Arguments
     ``gymnasium.make("RacecarSim-v0", map=..., render_mode="rgb_array", **settings)`` where
@@ -197,13 +198,7 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
         self.track = None
         self._laps = None
         if cfg.track is not None:
-            from racecar_sim.race.laps import LapCounter
-            from racecar_sim.race.loop_drive import drive_centerline
-            from racecar_sim.race.track import resolve_track
-
-            # "auto": the loop map's derived centerline, driven in this class (as RaceEnv's)
-            auto = functools.partial(drive_centerline, env_class=RacecarEnv)
-            self.track = resolve_track(cfg.track, self.map, auto=auto)
+            self.track = resolve_track(cfg.track, self.map)
             self._laps = LapCounter(self.track, 1)
         self._start_cells: np.ndarray | None = None  # flat cell indices (K,), shared per map
         self._render_hooks: list[RenderHook] = []

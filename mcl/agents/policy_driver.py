@@ -26,7 +26,7 @@ import gymnasium as gym
 import numpy as np
 
 from mcl.agents.lap_env import LapTask, LapTaskConfig
-from racecar_sim.race.track import Track
+from racecar_sim.world.track import Track
 
 __all__ = ["PolicyDriver", "load_policy_driver", "task_of_model"]
 

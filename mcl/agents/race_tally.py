@@ -5,7 +5,7 @@ The counts are read from the race's per-step info of the agent's car (``RacecarR
 
 * **overtakes**: the sum over steps of the agent's *rank gains*, ``max(0, rank_before -
   rank_after)``. ``rank`` is the race order by distance along the centerline since the start line,
-  unwrapped (`racecar_sim.race.laps`), so passing a car ahead in race order is one overtake,
+  unwrapped (`racecar_sim.world.laps`), so passing a car ahead in race order is one overtake,
   lapping a car that is already behind in race order is none, and passing a car that stopped
   (crashed) counts like any other. **overtaken** is the same for rank losses. Their difference is
   the rank gained over the episode (``start_rank - rank``). Two changes in one step (the agent

@@ -12,7 +12,7 @@ race's track (the map's centerline), with these differences:
   behind the start line when ``start_s`` is 0 (the tests), or behind a uniformly drawn point of
   the track when ``start_s`` is None (training: every part of the track, with the pack ahead).
   Drawn points keep the grid off the half-lap point, where the race order
-  wraps (`racecar_sim.race.laps`), and a point where the track has no room for the
+  wraps (`racecar_sim.world.laps`), and a point where the track has no room for the
   grid is drawn again.
 * **reward**: progress minus the penalty on a step with *any* contact, wall or car (and in
   training the episode ends there, as at a wall).

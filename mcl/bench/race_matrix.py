@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from racecar_sim.race.scripted_race import matrix_table, ordered_share, run_scripted_race
-from racecar_sim.race.track import LOOP_STARTS
+from racecar_sim.world.track import LOOP_STARTS
 
 _FIELDS = ["map", "opponents", "seed", "seconds", "speeds", "laps", "progress", "car_contacts",
            "wall_contacts", "passes", "pairs_in_speed_order", "wall_s"]  # fmt: skip

@@ -11,7 +11,8 @@ import cv2
 import numpy as np
 
 from mcl.cli.common import Parser, check_out, output_folder, path_arg
-from racecar_sim.maps import draw
+from racecar_sim.maps import draw, load_map
+from racecar_sim.world.track import LOOP_STARTS, Track, centre_loop
 
 _bundled = importlib.import_module(
     "racecar_sim.maps.bundled"
@@ -71,4 +72,31 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f"{path}: {w} x {h} cells = {w * draw.RESOLUTION:.2f} m x "
                 f"{h * draw.RESOLUTION:.2f} m, free {area:.1f} m^2"
             )
+        for path in write_tracks(out):
+            print(f"{path}: {Track.from_csv(path).length:.2f} m")
     return 0
+
+
+def write_tracks(out: Path) -> list[Path]:
+    """The bundled loop maps' tracks, driven on the maps just drawn into ``out``: the wall
+    follower's loop (``NAME_loop.csv``) and its centerline (``NAME_centerline.csv``); a file is
+    replaced only when the map beside it was drawn here."""
+    from mcl.agents.track import drive_loop
+
+    old = os.environ.get("RACECAR_SIM_MAPS")
+    os.environ["RACECAR_SIM_MAPS"] = str(out)  # drive on the maps just drawn
+    written = []
+    try:
+        for name in sorted(LOOP_STARTS):
+            yaml_path = out / f"{name}.yaml"
+            ours = lambda _p, y=yaml_path, n=name: draw.drawn_here(y, n)  # noqa: E731
+            loop = drive_loop.__wrapped__(name)
+            centerline = centre_loop(load_map(yaml_path), loop.points)
+            written.append(loop.to_csv(out / f"{name}_loop.csv", ours))
+            written.append(centerline.to_csv(out / f"{name}_centerline.csv", ours))
+    finally:
+        if old is None:
+            os.environ.pop("RACECAR_SIM_MAPS", None)
+        else:
+            os.environ["RACECAR_SIM_MAPS"] = old
+    return written

@@ -12,7 +12,7 @@ or until the first car completes ``laps`` laps. With ``racing`` drivers the race
 [Traffic][racecar_sim.race.traffic.Traffic] picture of every car on the track (from the true
 poses, ``RaceEnv.poses``), reset after the race's reset and updated after every step, as
 ``RacecarRace-v0`` does; the racing drivers read it. The result has, per car: its finishing
-position (race order by distance covered along the centerline, ``racecar_sim.race.laps``), laps,
+position (race order by distance covered along the centerline, ``racecar_sim.world.laps``), laps,
 lap times, overtakes and times overtaken (rank gains and losses in race order), wall and car
 contacts (separate contacts; all four counted by
 [RaceTally][mcl.agents.race_tally.RaceTally]) and, localized, the mean and largest position
@@ -197,8 +197,8 @@ def setup_race(spec: RaceSpec, render: bool = False) -> RaceSetup:
         )
     traffic = None
     if knows_the_others(spec.drivers):
-        from racecar_sim.race.track import with_widths
         from racecar_sim.race.traffic import Traffic
+        from racecar_sim.world.track import with_widths
 
         traffic = Traffic(with_widths(race.track, race.map), spec.n_cars, race.car_params)
     drivers = [

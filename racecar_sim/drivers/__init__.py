@@ -12,8 +12,9 @@ it directly. Waypoints and poses are in the world frame (metres, radians).
 
 from racecar_sim.drivers.base import Driver, despeckle
 from racecar_sim.drivers.loop_recorder import waypoints_from_drive
-from racecar_sim.drivers.pure_pursuit import PurePursuit, resample_polyline
+from racecar_sim.drivers.pure_pursuit import PurePursuit
 from racecar_sim.drivers.wall_follower import WallFollower
+from racecar_sim.world.track import resample_polyline
 
 __all__ = [
     "Driver",

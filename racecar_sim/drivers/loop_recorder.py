@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from racecar_sim.drivers.pure_pursuit import resample_polyline
+from racecar_sim.world.track import resample_polyline
 
 __all__ = ["waypoints_from_drive"]
 

@@ -10,29 +10,9 @@ import numpy as np
 
 from racecar_sim.drivers.base import as_action
 from racecar_sim.settings.config import CarParams
+from racecar_sim.world.track import resample_polyline
 
 __all__ = ["PurePursuit", "resample_polyline"]
-
-
-def resample_polyline(points: np.ndarray, spacing: float, loop: bool = False) -> np.ndarray:
-    """Points (K, 2) every ``spacing`` metres along the polyline through ``points`` (world).
-
-    With ``loop`` the polyline closes from the last point back to the first.
-    """
-    pts = np.asarray(points, dtype=np.float64)
-    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.isfinite(pts).all():
-        raise ValueError(f"points must be finite (K >= 2, 2), got shape {pts.shape}")
-    if not spacing > 0:
-        raise ValueError(f"spacing must be positive metres, got {spacing}")
-    if loop:
-        pts = np.vstack([pts, pts[:1]])
-    seg = np.hypot(*np.diff(pts, axis=0).T)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    if s[-1] <= 0:
-        raise ValueError("points must not all coincide")
-    n = max(int(round(s[-1] / spacing)), 2)
-    t = np.linspace(0.0, s[-1], n, endpoint=not loop)
-    return np.column_stack([np.interp(t, s, pts[:, 0]), np.interp(t, s, pts[:, 1])])
 
 
 class PurePursuit:

@@ -338,7 +338,7 @@ def map_yaml(name: str, resolution: float = RESOLUTION, origin: Point = (0.0, 0.
     )
 
 
-def _drawn_here(yaml_path: Path, name: str) -> bool:
+def drawn_here(yaml_path: Path, name: str) -> bool:
     """Whether ``yaml_path`` is the YAML [draw_maps][racecar_sim.maps.draw.draw_maps] writes for
     map ``name`` (its exact text)."""
     text = map_yaml(name).encode()
@@ -355,7 +355,7 @@ def draw_problem(out_dir: Path) -> str | None:
     for name in MAPS:
         yaml_path = Path(out_dir) / f"{name}.yaml"
         for path in (yaml_path, yaml_path.with_suffix(".png")):
-            problem = replace_problem(path, lambda _p, y=yaml_path, n=name: _drawn_here(y, n))
+            problem = replace_problem(path, lambda _p, y=yaml_path, n=name: drawn_here(y, n))
             if problem is not None:
                 return problem
     return None

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from racecar_sim.race.track import Track, resolve_track
+from racecar_sim.world.centerline import resolve_track
+from racecar_sim.world.track import Track
 
 __all__ = ["RaceEnv", "Track", "resolve_track"]
 

@@ -9,8 +9,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from racecar_sim.race.track import Track
 from racecar_sim.render import MapRenderer
+from racecar_sim.world.track import Track
 
 __all__ = ["CAR_COLOURS", "draw_race"]
 

@@ -4,7 +4,7 @@ Every car is the single env's car (``RacecarSim-v0``: its observation, action, n
 and every ``RacecarSim-v0`` setting applies to every car. What a race adds (see
 [`RaceWorld`][racecar_sim.race.world.RaceWorld]): each lidar sees the other cars' boxes exactly as it
 sees walls, cars collide with each other as pymunk bodies, and on a track the info carries
-progress, laps, lap times and race order (`racecar_sim.race.laps`). Needs the ``race`` extra
+progress, laps, lap times and race order (`racecar_sim.world.laps`). Needs the ``race`` extra
 (pettingzoo; in the checkout ``.venv/bin/pip install -e '.[race]'``).
 """
 
@@ -31,9 +31,6 @@ except ImportError:  # pragma: no cover - pettingzoo is in the dev extra
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.race.drawing import CAR_COLOURS, draw_race
 from racecar_sim.race.grid import start_grid
-from racecar_sim.race.laps import LapCounter
-from racecar_sim.race.loops import centerline_for_map
-from racecar_sim.race.track import LOOP_STARTS, Track, resolve_track
 from racecar_sim.race.world import RaceWorld
 from racecar_sim.render import MapRenderer
 from racecar_sim.settings.config import EnvConfig, merge_settings
@@ -45,6 +42,9 @@ from racecar_sim.settings.validation import (
     short,
 )
 from racecar_sim.vector_env import car_seeds
+from racecar_sim.world.centerline import resolve_track
+from racecar_sim.world.laps import LapCounter
+from racecar_sim.world.track import LOOP_STARTS, Track
 
 MAX_CARS = 100
 """Most cars in one race (each car is an env: physics, lidar, odometry; every pair is checked for
@@ -95,8 +95,9 @@ class RaceEnv(ParallelEnv):
         n_cars: number of cars (agents ``car_0`` ... ``car_{n_cars-1}``).
         config: as ``RacecarSim-v0``; keyword ``settings`` override it.
         track: a centerline CSV (f1tenth's format), ``"auto"``, a `Track`, or None: the
-            derived centerline on a bundled loop map (`LOOP_STARTS`),
-            else no track.
+            bundled centerline on a bundled loop map (`LOOP_STARTS`), else no track;
+            ``"auto"`` on any other loop map derives it
+            ([`racecar_sim.world.centerline`][racecar_sim.world.centerline]).
         max_episode_steps: truncate every agent after this many steps (None: never).
         workers: threads casting the scans (default 1).
         render_mode: ``"rgb_array"`` or None.
@@ -139,7 +140,7 @@ class RaceEnv(ParallelEnv):
         spec = cfg.track
         if spec is None and grid.name in LOOP_STARTS:
             spec = "auto"
-        self.track: Track | None = resolve_track(spec, grid, auto=centerline_for_map)
+        self.track: Track | None = resolve_track(spec, grid)
         """The race's track (None: no progress, laps or grid)."""
         self.config = dataclasses.replace(cfg, map=grid, track=None)  # the cars' own settings
         self.world = RaceWorld(n_cars, self.config, workers=workers)

@@ -13,8 +13,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from racecar_sim.race.track import Track
 from racecar_sim.settings.config import CarParams
+from racecar_sim.world.track import Track
 
 __all__ = ["start_grid"]
 

@@ -4,7 +4,7 @@ the track's edges, and how far ahead a given offset stays clear.
 A car driving ``o`` metres left of the centerline (its rear axle's lateral offset, a car ``width``
 wide, facing along the track) fits at arc length ``s`` when ``-right(s) + width / 2 + margin <= o <=
 left(s) - width / 2 - margin`` (the track's free widths,
-[Track.width_at][racecar_sim.race.track.Track.width_at]).
+[Track.width_at][racecar_sim.world.track.Track.width_at]).
 [LaneRoom][racecar_sim.race.lanes.LaneRoom] samples those bounds along the track once, so that a
 driver asks "how far ahead does each of these offsets fit" with one numpy expression per step.
 """
@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from racecar_sim.race.track import Track
+from racecar_sim.world.track import Track
 
 __all__ = ["LaneRoom"]
 
@@ -25,7 +25,7 @@ class LaneRoom:
     from the edges, sampled every ``spacing`` metres along the track.
 
     A track without widths (``Track.widths`` None) has room everywhere; give it its widths first
-    ([with_widths][racecar_sim.race.track.with_widths]).
+    ([with_widths][racecar_sim.world.track.with_widths]).
 
     Attributes:
         low, high: (K,) metres, the smallest and largest lateral offset (left positive) at which

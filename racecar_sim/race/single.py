@@ -29,9 +29,9 @@ from racecar_sim.race.env import RaceEnv
 from racecar_sim.race.grid import start_grid
 from racecar_sim.race.racing_driver import RacingDriver
 from racecar_sim.race.racing_rules import RacingRules
-from racecar_sim.race.track import Track, with_widths
 from racecar_sim.race.traffic import Traffic
 from racecar_sim.settings.config import EnvConfig
+from racecar_sim.world.track import Track, with_widths
 
 __all__ = ["DRIVERS", "RacecarRaceEnv"]
 

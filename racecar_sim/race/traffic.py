@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from racecar_sim.race.track import Track
 from racecar_sim.settings.config import CarParams
+from racecar_sim.world.track import Track
 
 __all__ = ["Traffic"]
 

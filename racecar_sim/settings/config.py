@@ -87,7 +87,7 @@ class EnvConfig:
         imu: a yaw-rate gyro in ``obs["imu"]`` ([`racecar_sim.sensors.vesc.ImuParams`][racecar_sim.sensors.vesc.ImuParams], a mapping
             ``{sigma, bias}`` or True for its defaults); None = no IMU.
         track: the race track for progress, laps, lap times and rank in the info
-            (`racecar_sim.race.track.resolve_track()`): a centerline CSV in f1tenth's format,
+            (`racecar_sim.world.track.resolve_track()`): a centerline CSV in f1tenth's format,
             ``"auto"`` (derived from a loop map) or a ``Track``; None = no track.
         car_model: ``"kinematic"`` (the kinematic bicycle) or ``"single_track"`` (tire slip, a
             friction limit): `racecar_sim.car.models`.

@@ -10,9 +10,9 @@ import pytest
 from race_helpers import QUIET, hall_map
 
 from racecar_sim.race.env import RaceEnv
-from racecar_sim.race.laps import LapCounter
-from racecar_sim.race.loops import centerline_for_map
-from racecar_sim.race.track import MAX_TRACK_BYTES, Track
+from racecar_sim.world.centerline import centerline_for_map
+from racecar_sim.world.laps import LapCounter
+from racecar_sim.world.track import MAX_TRACK_BYTES, Track
 
 
 def circle(radius: float = 5.0, n: int = 400) -> Track:
@@ -185,7 +185,7 @@ def test_the_single_env_takes_track_auto_as_the_race_does():
     for _ in range(20):
         _, _, _, _, info = env.step([0.0, 2.0])
     assert info["progress"] > 0.5
-    with pytest.raises(ValueError, match="no loop known on map 'hall'"):
+    with pytest.raises(ValueError, match="'hall' is not a loop map"):
         RacecarEnv(hall_map(), track="auto")
 
 

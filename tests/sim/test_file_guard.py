@@ -26,7 +26,7 @@ from racecar_sim.file_guard import (
     path_problem,
     writable,
 )
-from racecar_sim.race.track import Track
+from racecar_sim.world.track import Track
 
 
 def test_a_new_folder_is_claimed_marked_and_released_when_nothing_was_written(tmp_path) -> None:

@@ -1,4 +1,4 @@
-"""Progress, laps, lap times and race order of the cars on a [`Track`][racecar_sim.race.track.Track].
+"""Progress, laps, lap times and race order of the cars on a [`Track`][racecar_sim.world.track.Track].
 
 Each car carries ``u``: metres along the centerline from the start line, unwrapped (it keeps
 growing lap after lap, and is negative behind the line). A step adds the short-way arc length
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from racecar_sim.race.track import Track
+from racecar_sim.world.track import Track
 
 __all__ = ["LapCounter"]
 

@@ -4,7 +4,8 @@ A `Track` is a closed polyline of world points (metres) in driving order, with t
 to the right and to the left of each point. It loads from f1tenth's track format (a CSV with
 ``x_m, y_m, w_tr_right_m, w_tr_left_m`` per row, header lines starting with ``#``; their users'
 ``*_centerline.csv`` files load as they are), or is derived from a loop map
-(`centre_loop()` of the loop the wall follower drives, [`racecar_sim.race.loops`][racecar_sim.race.loops]). The start line crosses the track at its first point; arc length ``s`` runs from there in
+([`racecar_sim.world.centerline`][racecar_sim.world.centerline]: bundled CSVs, or the midline of any
+map whose free space runs round an island). The start line crosses the track at its first point; arc length ``s`` runs from there in
 the driving direction. Frames: ``world`` (the map's) for the points and poses, ``car`` (x forward,
 y left, origin at the rear axle) for [`Track.ahead()`][Track.ahead].
 """
@@ -20,11 +21,39 @@ from pathlib import Path
 import numba as nb
 import numpy as np
 
-from racecar_sim.drivers.pure_pursuit import resample_polyline
 from racecar_sim.file_guard import writable
 from racecar_sim.maps import OccupancyMap
 
-__all__ = ["LOOP_STARTS", "MAX_TRACK_BYTES", "Track", "centre_loop", "resolve_track", "with_widths"]
+__all__ = [
+    "LOOP_STARTS",
+    "MAX_TRACK_BYTES",
+    "Track",
+    "centre_loop",
+    "resample_polyline",
+    "with_widths",
+]
+
+
+def resample_polyline(points: np.ndarray, spacing: float, loop: bool = False) -> np.ndarray:
+    """Points (K, 2) every ``spacing`` metres along the polyline through ``points`` (world).
+
+    With ``loop`` the polyline closes from the last point back to the first.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.isfinite(pts).all():
+        raise ValueError(f"points must be finite (K >= 2, 2), got shape {pts.shape}")
+    if not spacing > 0:
+        raise ValueError(f"spacing must be positive metres, got {spacing}")
+    if loop:
+        pts = np.vstack([pts, pts[:1]])
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if s[-1] <= 0:
+        raise ValueError("points must not all coincide")
+    n = max(int(round(s[-1] / spacing)), 2)
+    t = np.linspace(0.0, s[-1], n, endpoint=not loop)
+    return np.column_stack([np.interp(t, s, pts[:, 0]), np.interp(t, s, pts[:, 1])])
+
 
 LOOP_STARTS: dict[str, tuple[float, float, float]] = {
     "basement_loop": (9.0, 2.5, 0.0),  # south hallway, driving east (island on the left)
@@ -138,7 +167,7 @@ class Track:
 
         Raises:
             ValueError: the file is missing, not a regular file (a device, a pipe, a folder),
-                longer than ``racecar_sim.race.track.MAX_TRACK_BYTES`` (1 MB) or not
+                longer than ``racecar_sim.world.track.MAX_TRACK_BYTES`` (1 MB) or not
                 such a table; the message names the file.
         """
         path = Path(path)
@@ -167,14 +196,21 @@ class Track:
         except ValueError as exc:
             raise ValueError(f"track file {path}: {exc}") from None
 
-    def to_csv(self, path: str | os.PathLike[str]) -> Path:
+    def to_csv(
+        self, path: str | os.PathLike[str], recognise: Callable[[Path], bool] | None = None
+    ) -> Path:
         """Write the track in f1tenth's centerline format (widths 0 when unknown); returns the path.
+
+        Args:
+            path: the CSV file.
+            recognise: tells whether an existing ``path`` is ours to replace (as
+                [writable][racecar_sim.file_guard.writable] takes it).
 
         Raises:
             FileExistsError: ``path`` exists outside racecar-sim's folders
                 ([writable][racecar_sim.file_guard.writable]).
         """
-        path = writable(path)
+        path = writable(path, recognise)
         widths = self.widths if self.widths is not None else np.zeros_like(self.points)
         np.savetxt(
             path,
@@ -225,7 +261,7 @@ class Track:
         """Where world points ``xy`` (N, 2) are on the loop: arc lengths ``s`` (N,) in
         [0, length), signed lateral offsets (N,) (metres, positive left of the driving direction)
         and the nearest segments (N,) for the next call's ``hint`` (as
-        [arc_lengths][racecar_sim.race.track.Track.arc_lengths])."""
+        [arc_lengths][racecar_sim.world.track.Track.arc_lengths])."""
         xy = np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2)
         s, idx = self.arc_lengths(xy, hint)
         seg = self._seg[idx]
@@ -330,36 +366,3 @@ def with_widths(track: Track, grid: OccupancyMap) -> Track:
     half = max(1, int(_ALCOVE / spacing))
     ext = _rolling_min(_free_extent(grid, track.points, _normals(track.points)), half)
     return Track(track.points, ext)
-
-
-def resolve_track(
-    spec: object, grid: OccupancyMap, auto: Callable[[str], Track] | None = None
-) -> Track | None:
-    """The track of the ``track`` setting: None (no track), a `Track`, a CSV path
-    (f1tenth's centerline format) or ``"auto"``: ``auto(map name)``, the centerline derived from
-    a loop map by driving it ([`racecar_sim.race.loops.centerline_for_map()`][racecar_sim.race.loops.centerline_for_map]; every env passes
-    one: the race envs that function, the single env the same derivation in its own class).
-
-    Raises:
-        ValueError: a file that is not a track, ``"auto"`` on a map with no known loop, or
-            ``"auto"`` where no derivation is given.
-    """
-    if spec is None or isinstance(spec, Track):
-        return spec
-    if isinstance(spec, str | os.PathLike):
-        text = os.fspath(spec)
-        if text == "auto":
-            if auto is None:
-                raise ValueError(
-                    "track='auto' derives the centerline by driving the map, which the envs do; "
-                    "here give a centerline CSV or a Track "
-                    "(racecar_sim.race.loops.centerline_for_map(name).to_csv(path))"
-                )
-            if grid.name not in LOOP_STARTS:
-                raise ValueError(
-                    f"track='auto': no loop known on map {grid.name!r} (known: {sorted(LOOP_STARTS)}); "
-                    "give a centerline CSV"
-                )
-            return auto(grid.name)
-        return Track.from_csv(text)
-    raise ValueError(f"track must be None, 'auto', a CSV path or a Track, got {spec!r}")
