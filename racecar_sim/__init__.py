@@ -19,7 +19,7 @@ __all__ = [
     "bundled",
     "load_map",
 ]
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 ENV_ID = "RacecarSim-v0"
 """Gymnasium id of [`racecar_sim.env.RacecarEnv`][racecar_sim.env.RacecarEnv]: ``gymnasium.make(ENV_ID, map=...)``; many

@@ -123,6 +123,26 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
     ``render_mode="rgb_array"`` makes `render()` return an RGB ``uint8`` frame (H, W, 3) of
     the map, the car and the last scan's hits, plus whatever hooks added with
     `add_render_hook()` draw.
+
+    ## Version History
+    * v0 (racecar-sim 0.1): the kinematic car, the four-part beam model, Gaussian odometry.
+      Every setting added since is off (or at v0's value) by default, so v0's settings give v0's
+      episodes:
+    * ``noise_profile``, ``scan_effects``, ``odom_bias`` (0.2): a real scanner's correlated
+      failures and the VESC's bias replace the beam model's noise (measured profile
+      ``mit_racecar``); ``odom_lead`` (0.2): the odometry reads each command that many seconds
+      before the body moves on it.
+    * ``obstacles``, ``scene`` (0.2): unmapped boxes, people, openings and furniture the lidar sees
+      and the car touches.
+    * ``imu`` (0.2): adds ``imu`` to the observation space (a new key; ``scan`` and ``odom`` keep
+      their draws first, so the same seed gives the same scans and odometry).
+    * ``car_model="single_track"`` (0.2): tire slip and a friction limit; the odometry then
+      disagrees with ``info["twist"]`` while the car slides.
+    * ``track`` (0.2): adds ``progress``, ``lap``, ``lap_times`` and ``rank`` to ``info``.
+    * 0.3: ``track="auto"`` works on any map whose free space runs round an island; the bundled
+      loop maps' tracks are read from their CSVs (points to 0.1 mm), so ``progress`` on them may
+      differ from 0.2's in the fourth decimal. The 0.2 module paths (``racecar_sim.config``, ...)
+      import with a ``FutureWarning`` until 0.4.
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 40}  # noqa: RUF012

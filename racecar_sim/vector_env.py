@@ -97,6 +97,14 @@ class RacecarVectorEnv(VectorEnv):
 
     Raises:
         ValueError: ``num_envs`` < 1, a bad setting (named), a render mode.
+
+    ## Version History
+    * v0 (racecar-sim 0.1): N independent ``RacecarSim-v0`` cars; car ``i`` with the same seed
+      and actions gives the same episode as the single env (tested).
+    * 0.2: every setting of ``RacecarSim-v0`` (see its history) applies to each car; the random
+      start table is built once per map and car size and shared by the cars.
+    * 0.3: each car's steps, scans and odometry come from one core of N cars' arrays
+      ([`CarFleet`][racecar_sim.car.fleet.CarFleet]); episodes are unchanged.
     """
 
     metadata: dict[str, Any] = {  # noqa: RUF012

@@ -73,3 +73,14 @@ def test_the_quick_start_names_come_from_two_modules() -> None:
     for name in ("LocalizationWrapper", "LocalizedVectorEnv", "LocalizedRaceEnv", "ParticleFilter",
                  "AdaptiveParticleFilter", "ParticleFilterParams", "LostParams"):  # fmt: skip
         assert getattr(mcl, name) is not None, name
+
+
+def test_every_env_says_what_changed_since_v0() -> None:
+    from racecar_sim.env import RacecarEnv
+    from racecar_sim.race.env import RaceEnv
+    from racecar_sim.race.single import RacecarRaceEnv
+    from racecar_sim.vector_env import RacecarVectorEnv
+
+    for env_class in (RacecarEnv, RacecarVectorEnv, RaceEnv, RacecarRaceEnv):
+        doc = env_class.__doc__ or ""
+        assert "## Version History" in doc and "* v0" in doc, env_class.__name__

@@ -101,6 +101,12 @@ class RaceEnv(ParallelEnv):
         max_episode_steps: truncate every agent after this many steps (None: never).
         workers: threads casting the scans (default 1).
         render_mode: ``"rgb_array"`` or None.
+
+    ## Version History
+    * v0 (racecar-sim 0.2): N cars that see and touch each other, with laps and ranks on a track.
+    * 0.3: the bundled loop maps' default track is read from their ``NAME_centerline.csv``
+      (points to 0.1 mm); ``track="auto"`` works on any map whose free space runs round an
+      island; ``n_cars`` that do not fit on the grid say so at construction.
     """
 
     metadata: dict[str, Any] = {  # noqa: RUF012

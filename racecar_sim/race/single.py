@@ -69,6 +69,11 @@ class RacecarRaceEnv(gym.Env):
     Raises:
         ValueError: a negative count, an unknown driver name, speeds not one per opponent, or
             pure pursuit or racing without a track.
+
+    ## Version History
+    * v0 (racecar-sim 0.2): car 0 against scripted opponents (``RacecarRace-v0``).
+    * 0.3: the track as in [`RaceEnv`][racecar_sim.race.env.RaceEnv] (bundled CSVs, ``"auto"``
+      on any map whose free space runs round an island).
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 40}  # noqa: RUF012
