@@ -30,8 +30,8 @@ from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from racecar_sim.car.fleet import CarFleet
 from racecar_sim.env import RacecarEnv
+from racecar_sim.fleet import CarFleet
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.raycast.kernels import PARALLEL_MIN_RAYS
 from racecar_sim.raycast.scan import scans_serial_nogil, scans_shared
@@ -104,7 +104,7 @@ class RacecarVectorEnv(VectorEnv):
     * 0.2: every setting of ``RacecarSim-v0`` (see its history) applies to each car; the random
       start table is built once per map and car size and shared by the cars.
     * 0.3: each car's steps, scans and odometry come from one core of N cars' arrays
-      ([`CarFleet`][racecar_sim.car.fleet.CarFleet]); episodes are unchanged.
+      ([`CarFleet`][racecar_sim.fleet.CarFleet]); episodes are unchanged.
     """
 
     metadata: dict[str, Any] = {  # noqa: RUF012
@@ -183,7 +183,7 @@ class RacecarVectorEnv(VectorEnv):
         self._last_odom = np.zeros((num_envs, 3), dtype=np.float32)
         self._workers = max(1, int(workers if workers is not None else (os.cpu_count() or 1)))
         self.fleet = CarFleet(self.envs)
-        """The cars' physics, scan seeds and odometry on arrays ([`CarFleet`][racecar_sim.car.fleet.CarFleet])."""
+        """The cars' physics, scan seeds and odometry on arrays ([`CarFleet`][racecar_sim.fleet.CarFleet])."""
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(

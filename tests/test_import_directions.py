@@ -56,3 +56,25 @@ def test_only_the_command_line_and_the_benchmarks_import_themselves(graph, lab: 
         for d in deps if within(d, lab)
     )  # fmt: skip
     assert not bad, "\n".join(bad)
+
+
+SIM_LAYERS = {
+    "racecar_sim.raycast": ("car", "sensors", "world", "drivers", "env", "vector_env", "fleet", "race"),
+    "racecar_sim.car": ("sensors", "world", "drivers", "env", "vector_env", "fleet", "race"),
+    "racecar_sim.sensors": ("world", "drivers", "env", "vector_env", "fleet", "race"),
+    "racecar_sim.world": ("car", "sensors", "drivers", "env", "vector_env", "fleet", "race"),
+    "racecar_sim.drivers": ("env", "vector_env", "fleet", "race"),
+    "racecar_sim.env": ("vector_env", "fleet", "race"),
+}
+"""Inside the simulator: the car, its sensors and the world below the drivers, the drivers below the
+envs, the single env below the N-car ones and the race (docs/ARCHITECTURE.md, Layout)."""
+
+
+@pytest.mark.parametrize("package", sorted(SIM_LAYERS))
+def test_the_simulator_s_folders_import_downwards(graph, package: str) -> None:
+    above = tuple(f"racecar_sim.{name}" for name in SIM_LAYERS[package])
+    bad = sorted(
+        f"{m} -> {d}" for m, deps in graph.items() if within(m, package)
+        for d in deps if any(within(d, p) for p in above)
+    )  # fmt: skip
+    assert not bad, "\n".join(bad)

@@ -259,7 +259,7 @@ def learning_curve(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from mcl.experiments.plots import save_figure
+    from racecar_sim.file_guard import writable
 
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
     for name, csv_path in curves.items():
@@ -276,4 +276,8 @@ def learning_curve(
     ax.set_ylabel(f"episode return (m of progress - penalties), mean of {window}")
     ax.grid(alpha=0.3)
     ax.legend()
-    return save_figure(fig, path)
+    out = writable(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=100)  # as mcl.experiments.plots
+    plt.close(fig)
+    return out

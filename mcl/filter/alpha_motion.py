@@ -20,7 +20,7 @@ are taken modulo pi to the nearer of 0 and pi). The noisy displacement is
 rate, ``trans`` is speed x dt and the rotations are turn rate x dt: the noise grows with speed and
 turn rate, which is where a sliding car's odometry is wrong ([`racecar_sim.sensors.vesc`][racecar_sim.sensors.vesc]).
 
-Draws: six standard normals per particle from one `racecar_sim.rand` stream, in the order
+Draws: six standard normals per particle from one `racecar_sim.raycast.rand` stream, in the order
 particle 0 (rot1, trans, rot2, floor dx, floor dy, floor dtheta), particle 1, ...
 """
 
@@ -32,7 +32,7 @@ import numba as nb
 import numpy as np
 
 from mcl.filter.step_kernels import wrap
-from racecar_sim.rand import normal
+from racecar_sim.raycast.rand import normal
 
 __all__ = ["alpha_odometry_into", "alpha_sd"]
 
@@ -67,7 +67,7 @@ def alpha_sd(odometry, alphas):
 def alpha_odometry_into(odometry, alphas, floor, seed, out):
     """``out`` (N, 3): one noisy car-frame displacement per particle for ``odometry`` (3,), the
     coefficients ``alphas`` (4,) and the constant ``floor`` (3,) standard deviations, from the
-    `racecar_sim.rand` stream ``seed`` (draw order in the module docstring)."""
+    `racecar_sim.raycast.rand` stream ``seed`` (draw order in the module docstring)."""
     rot1, trans, rot2, sd_rot1, sd_trans, sd_rot2 = alpha_sd(odometry, alphas)
     f0, f1, f2 = floor[0], floor[1], floor[2]
     state = np.uint64(seed)

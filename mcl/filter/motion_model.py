@@ -25,7 +25,7 @@ import numpy as np
 from mcl.filter.alpha_motion import alpha_odometry_into
 from mcl.filter.bounds import check_filter
 from mcl.filter.step_kernels import compose_into, move_noisy, noise_into
-from racecar_sim.rand import seed_from
+from racecar_sim.raycast.rand import seed_from
 from racecar_sim.settings.validation import short
 
 __all__ = [
@@ -210,7 +210,7 @@ class MotionModel:
     def sample_noise(self, n: int, rng: np.random.Generator) -> np.ndarray:
         """(n, 3) car-frame odometry perturbations (metres, metres, radians) for ``n`` particles.
 
-        Drawn inside numba from a `racecar_sim.rand` stream seeded by one raw draw of
+        Drawn inside numba from a `racecar_sim.raycast.rand` stream seeded by one raw draw of
         ``rng`` (three times faster than ``rng.standard_normal`` at 4000 particles): the same
         ``rng`` state gives the same noise, and `evaluate()` adds exactly these draws.
         """

@@ -19,7 +19,7 @@ import math
 import numba as nb
 import numpy as np
 
-from racecar_sim.rand import normal, uniform
+from racecar_sim.raycast.rand import normal, uniform
 
 __all__ = [
     "bayes_step", "bayes_update", "compose_into", "covariance_about", "exp_shifted_into",
@@ -167,7 +167,7 @@ def _draw(state, gaussian):
 @nb.njit(cache=True)
 def noise_into(coefficients, gaussian, seed, out):
     """``out`` (N, 3): per-particle odometry noise, ``coefficients[k]`` times a standard normal
-    (``gaussian``) or a uniform on [-1, 1), drawn from the `racecar_sim.rand` stream
+    (``gaussian``) or a uniform on [-1, 1), drawn from the `racecar_sim.raycast.rand` stream
     ``seed`` in the order particle 0 (dx, dy, dtheta), particle 1, ..."""
     state = np.uint64(seed)
     for i in range(out.shape[0]):

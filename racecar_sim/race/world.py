@@ -13,7 +13,7 @@ its odometry's six normals, as the single env's does, so a world of one car give
 Per step, the work for all cars is done on arrays, not car by car: the cars' clocks (the car's
 clock, ``racecar_sim.car.clock.CarClocks``: the single env's rules on arrays), their last scans and
 the poses those were taken at live here; their physics step, scan seeds and odometry are the
-vector env's too (``racecar_sim.car.fleet.CarFleet``); a car's own ``RacecarEnv`` keeps its
+vector env's too (``racecar_sim.fleet.CarFleet``); a car's own ``RacecarEnv`` keeps its
 physics, its lidar settings and its generator. What stays per car in Python is what is per car by
 nature: one raw draw and one draw of six normals from each car's generator, and the pymunk step
 of a car near a wall or another car.
@@ -29,8 +29,8 @@ import gymnasium as gym
 import numpy as np
 
 from racecar_sim.car.clock import CarClocks
-from racecar_sim.car.fleet import CarFleet
 from racecar_sim.env import RacecarEnv
+from racecar_sim.fleet import CarFleet
 from racecar_sim.race.contact import (
     WALL,
     CarContacts,
@@ -100,7 +100,7 @@ class RaceWorld:
         self.car_params = first.car_params
         self.lidar_params = first.lidar_params
         self.fleet = CarFleet(self.cars)
-        """The cars' physics, scan seeds and odometry on arrays ([`CarFleet`][racecar_sim.car.fleet.CarFleet])."""
+        """The cars' physics, scan seeds and odometry on arrays ([`CarFleet`][racecar_sim.fleet.CarFleet])."""
         self._phys = self.fleet.physics
         self._pairs = np.triu_indices(n_cars, 1)
         self.contacts = CarContacts([c.physics for c in self.cars])

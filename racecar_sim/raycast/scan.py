@@ -5,7 +5,7 @@ is a dozen numpy operations on one pose, a kernel call and a second kernel call 
 it is one call whose arithmetic is the same, operation for operation, as
 [`cast_ray()`][racecar_sim.raycast.kernels.cast_ray] after [`RayCaster.cast()`][RayCaster.cast]'s frame change, and as
 the noise of [`racecar_sim.sensors.lidar.Lidar.add_noise()`][racecar_sim.sensors.lidar.Lidar.add_noise] (`add_beam_noise()`, which draws its
-uniforms and normals itself from a `racecar_sim.rand` stream seeded once per scan): the ranges
+uniforms and normals itself from a `racecar_sim.raycast.rand` stream seeded once per scan): the ranges
 are the same doubles and the noisy scan the same floats (tested).
 
 The per-ray traversal is [`cast_ray()`][racecar_sim.raycast.kernels.cast_ray] written for one origin:
@@ -21,8 +21,8 @@ import math
 import numba as nb
 import numpy as np
 
-from racecar_sim.rand import uniforms_and_normals
 from racecar_sim.raycast.kernels import OCCUPIED
+from racecar_sim.raycast.rand import uniforms_and_normals
 from racecar_sim.raycast.shared_work import fetch_add, run_shared
 
 __all__ = [
@@ -206,13 +206,13 @@ def add_beam_noise(ranges, seed, noise, out) -> int:
 
     Args:
         ranges: float64 (M,) true ranges, metres.
-        seed: int64 seed of this scan's random stream ([`racecar_sim.rand.seed_from()`][racecar_sim.rand.seed_from]).
+        seed: int64 seed of this scan's random stream ([`racecar_sim.raycast.rand.seed_from()`][racecar_sim.raycast.rand.seed_from]).
         noise: float64 array laid out as `NOISE_FIELDS`.
         out: float32 (M,) output, metres.
 
     Per beam one uniform picks the part (and, rescaled within its interval, gives a random or
     short return's distance) and one normal is the Gaussian part's; both come from
-    `racecar_sim.rand.uniforms_and_normals()` (beam ``i`` from its own counters).
+    `racecar_sim.raycast.rand.uniforms_and_normals()` (beam ``i`` from its own counters).
 
     Returns:
         0, or 2 when a range is NaN or outside [0, max_range] (``out`` then unfinished).

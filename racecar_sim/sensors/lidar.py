@@ -3,7 +3,7 @@ scanner. Truth in, noisy measurement out (the wheel odometry is
 [`racecar_sim.sensors.odometry`][racecar_sim.sensors.odometry]).
 
 Both sensors draw their random numbers from a `numpy.random.Generator` passed to the call
-(the lidar one 64-bit seed per scan, for a fast stream inside its kernel: `racecar_sim.rand`),
+(the lidar one 64-bit seed per scan, for a fast stream inside its kernel: `racecar_sim.raycast.rand`),
 so the same seed gives the same measurements.
 
 Lidar beam noise (the four-part beam model of [`LidarParams`][racecar_sim.settings.config.LidarParams]). One uniform
@@ -29,8 +29,8 @@ from typing import NamedTuple
 import numpy as np
 
 from racecar_sim.maps import OccupancyMap
-from racecar_sim.rand import seed_from
 from racecar_sim.raycast import RayCaster
+from racecar_sim.raycast.rand import seed_from
 from racecar_sim.raycast.scan import add_beam_noise, scan_geometry, scan_with_noise
 from racecar_sim.settings.config import LidarParams
 
@@ -157,7 +157,7 @@ class Lidar:
 
         See the module docstring for the model. Draws one 64-bit seed from ``rng``; beam ``i``
         then takes one uniform and one standard normal from counters ``2i + 1`` and ``2i + 2`` of
-        that seed's `racecar_sim.rand` stream (`uniforms_and_normals()`;
+        that seed's `racecar_sim.raycast.rand` stream (`uniforms_and_normals()`;
         the normal is used by Gaussian beams only). The uniform both picks the beam's part and,
         rescaled to [0, 1) within that part's interval, gives the random return's or the short
         return's distance, so no further draws are needed.

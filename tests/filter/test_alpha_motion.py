@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from mcl.filter.alpha_motion import alpha_odometry_into
 from mcl.filter.motion_model import MotionModel, MotionModelParams, compose
-from racecar_sim.rand import normals
+from racecar_sim.raycast.rand import normals
 from racecar_sim.settings.config import from_mapping
 
 

@@ -13,11 +13,11 @@ from hypothesis import strategies as st
 
 from racecar_sim.maps import resolve_map
 from racecar_sim.race.lanes import LaneRoom
-from racecar_sim.world.centerline import centerline_for_map
 from racecar_sim.race.racing_driver import RacingDriver
 from racecar_sim.race.racing_rules import RacingRules
 from racecar_sim.race.traffic import Traffic
 from racecar_sim.settings.config import CarParams
+from racecar_sim.world.centerline import centerline_for_map
 from racecar_sim.world.track import Track, with_widths
 
 CAR = CarParams()

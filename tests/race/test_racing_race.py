@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from racecar_sim.world.centerline import centerline_for_map
 from racecar_sim.race.single import RacecarRaceEnv
+from racecar_sim.world.centerline import centerline_for_map
 from racecar_sim.world.track import Track
 
 PARKED = np.zeros(2, dtype=np.float32)

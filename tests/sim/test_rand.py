@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from racecar_sim.rand import normals, seed_from, uniforms, uniforms_and_normals
+from racecar_sim.raycast.rand import normals, seed_from, uniforms, uniforms_and_normals
 
 N = 1_000_000
 

@@ -71,7 +71,7 @@ class CarFleet:
 
     def scan_seeds(self, due: list[int]) -> np.ndarray:
         """(K,) int64 the scan seeds of cars ``due``: one raw draw from each car's generator, its
-        top 63 bits (``racecar_sim.rand.seed_from``)."""
+        top 63 bits (``racecar_sim.raycast.rand.seed_from``)."""
         cars = self.cars
         raw = np.array([cars[i].np_random.bit_generator.random_raw() for i in due], dtype=np.uint64)
         return (raw >> _ONE).astype(np.int64)
