@@ -29,6 +29,7 @@ __all__ = [
     "AdaptiveParticleFilter",
     "AugmentedParams",
     "ClusterParams",
+    "DriveRecorder",
     "KLDParams",
     "LocalizationConfig",
     "LocalizationWrapper",
@@ -43,13 +44,24 @@ __all__ = [
     "SensorModelParams",
     "Uncertainty",
     "__version__",
+    "read_bag",
+    "replay",
 ]
 
 
-def __getattr__(name: str):
-    """``mcl.LocalizedRaceEnv`` (PettingZoo, the ``race`` extra) is imported on first use."""
-    if name == "LocalizedRaceEnv":
-        from mcl.wrappers.race import LocalizedRaceEnv
+_ON_FIRST_USE = {
+    "LocalizedRaceEnv": "mcl.wrappers.race",  # PettingZoo, the race extra
+    "DriveRecorder": "mcl.io.bag_writer",  # rosbags and mcap
+    "read_bag": "mcl.io.bag_reader",
+    "replay": "mcl.experiments.replay",
+}
 
-        return LocalizedRaceEnv
+
+def __getattr__(name: str):
+    """The race wrapper, recording, reading and replaying bags are imported on first use
+    (``from mcl import read_bag`` loads the bag readers, ``import mcl`` does not)."""
+    if name in _ON_FIRST_USE:
+        import importlib
+
+        return getattr(importlib.import_module(_ON_FIRST_USE[name]), name)
     raise AttributeError(f"module 'mcl' has no attribute {name!r}")

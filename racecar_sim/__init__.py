@@ -13,9 +13,11 @@ __all__ = [
     "RACE_ENV_ID",
     "MapError",
     "OccupancyMap",
+    "PurePursuit",
     "RaceEnv",
     "RacecarEnv",
     "RacecarVectorEnv",
+    "WallFollower",
     "bundled",
     "load_map",
 ]
@@ -42,7 +44,8 @@ if ENV_ID not in registry:  # importing the package twice (or reloading it) must
 
 
 def __getattr__(name: str):
-    """The envs are imported on first use (``racecar_sim.RaceEnv`` needs the ``race`` extra)."""
+    """The envs and drivers are imported on first use (``racecar_sim.RaceEnv`` needs the ``race``
+    extra)."""
     if name == "RaceEnv":
         from racecar_sim.race.env import RaceEnv
 
@@ -51,6 +54,10 @@ def __getattr__(name: str):
         from racecar_sim.env import RacecarEnv
 
         return RacecarEnv
+    if name in ("WallFollower", "PurePursuit"):
+        from racecar_sim import drivers
+
+        return getattr(drivers, name)
     if name == "RacecarVectorEnv":
         from racecar_sim.vector_env import RacecarVectorEnv
 

@@ -68,10 +68,11 @@ def test_the_quick_start_names_come_from_two_modules() -> None:
     import mcl
     import racecar_sim
 
-    for name in ("RacecarEnv", "RacecarVectorEnv", "RaceEnv", "OccupancyMap", "load_map"):
+    for name in ("RacecarEnv", "RacecarVectorEnv", "RaceEnv", "OccupancyMap", "load_map", "WallFollower"):
         assert getattr(racecar_sim, name) is not None, name
     for name in ("LocalizationWrapper", "LocalizedVectorEnv", "LocalizedRaceEnv", "ParticleFilter",
-                 "AdaptiveParticleFilter", "ParticleFilterParams", "LostParams"):  # fmt: skip
+                 "AdaptiveParticleFilter", "ParticleFilterParams", "LostParams", "DriveRecorder",
+                 "read_bag", "replay"):  # fmt: skip
         assert getattr(mcl, name) is not None, name
 
 
@@ -84,3 +85,11 @@ def test_every_env_says_what_changed_since_v0() -> None:
     for env_class in (RacecarEnv, RacecarVectorEnv, RaceEnv, RacecarRaceEnv):
         doc = env_class.__doc__ or ""
         assert "## Version History" in doc and "* v0" in doc, env_class.__name__
+
+
+def test_the_readme_quick_start_imports_from_the_two_packages() -> None:
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    code = text.split("## Quick start", 1)[1].split("```python", 1)[1].split("```", 1)[0]
+    imports = [line for line in code.splitlines() if line.startswith(("from ", "import "))]
+    ours = [line for line in imports if "mcl" in line or "racecar_sim" in line]
+    assert ours and all(line.split()[1] in ("mcl", "racecar_sim") for line in ours), ours
