@@ -140,8 +140,8 @@ def step_record(
     weights: np.ndarray,
 ) -> StepRecord:
     """The record of a step from the wrapper's ``obs`` and ``info`` (``info["localization"]`` as
-    [`localization_report`][mcl.wrappers.localization.localization_report] makes it) and the
-    filter's particles and weights."""
+    ``mcl.wrappers.localization.localization_report`` makes it) and the filter's particles and
+    weights."""
     loc = info["localization"]
     return StepRecord(
         step=int(step),
