@@ -78,3 +78,31 @@ def test_the_simulator_s_folders_import_downwards(graph, package: str) -> None:
         for d in deps if any(within(d, p) for p in above)
     )  # fmt: skip
     assert not bad, "\n".join(bad)
+
+
+def test_the_wrappers_import_no_lab_module(graph) -> None:
+    """The wrappers take step hooks; the bag recorder and the live view (``mcl.io``) attach to them
+    from above (the command line, the experiments), never the other way round."""
+    wrapper_modules = [m for m in graph if within(m, WRAPPERS[0])]
+    assert {"mcl.wrappers.single", "mcl.wrappers.hooks"} <= set(wrapper_modules)
+    bad = sorted(
+        f"{m} -> {d}" for m in wrapper_modules for d in graph[m]
+        if any(within(d, p) for p in LAB)
+    )  # fmt: skip
+    assert not bad, "\n".join(bad)
+
+
+def test_the_wrappers_import_nothing_by_name_at_run_time() -> None:
+    """No ``importlib.import_module(...)`` or ``__import__(...)`` behind the graph's back."""
+    import ast
+
+    from tests.test_import_cycles import ROOT
+
+    found = []
+    for path in sorted((ROOT / "mcl" / "wrappers").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call):
+                name = getattr(node.func, "attr", None) or getattr(node.func, "id", None)
+                if name in ("import_module", "__import__"):
+                    found.append(f"{path.name}:{node.lineno}")
+    assert not found, found

@@ -52,7 +52,7 @@ def _client(port: int, ready, stop) -> None:
 
 
 class Timed:
-    """Wraps a live recorder to add up the seconds spent streaming."""
+    """Wraps a live recorder (a step hook) to add up the seconds spent streaming."""
 
     def __init__(self, recorder) -> None:
         self.recorder, self.seconds, self.calls = recorder, 0.0, 0
@@ -64,24 +64,16 @@ class Timed:
         self.calls += 1
 
 
-def drive(env: LocalizationWrapper, steps: int, seed: int, live: Timed | None = None) -> float:
-    """Steps per second of wall time of ``steps`` steps after a reset with ``seed``; ``live``
-    streams each reset and step as the wrapper's own ``live`` does (``live(env, obs, info)``)."""
-
-    def stream(obs, info) -> None:
-        if live is not None:
-            live(env, obs, info)
-
-    obs, info = env.reset(seed=seed)
-    stream(obs, info)
+def drive(env: LocalizationWrapper, steps: int, seed: int) -> float:
+    """Steps per second of wall time of ``steps`` steps after a reset with ``seed`` (a live
+    view streams through the env's step hook)."""
+    obs, _ = env.reset(seed=seed)
     driver = WallFollower.for_env(env)
     t0 = time.perf_counter()
     for _ in range(steps):
-        obs, _, terminated, truncated, info = env.step(driver(obs))
-        stream(obs, info)
+        obs, _, terminated, truncated, _ = env.step(driver(obs))
         if terminated or truncated:
-            obs, info = env.reset(seed=seed)
-            stream(obs, info)
+            obs, _ = env.reset(seed=seed)
     return steps / (time.perf_counter() - t0)
 
 
@@ -100,8 +92,9 @@ def main(argv: list[str] | None = None) -> int:
     timed = {
         name: Timed(DriveRecorder(None, env, live=servers[name]))
         for name, env in (("live, no client", idle), ("live, watched", watched))
-    }  # the recorder the wrapper's live=0 would stream through, timed
-    live_of = {id(idle): timed["live, no client"], id(watched): timed["live, watched"]}
+    }  # the live view as drive --live attaches it, timed
+    idle.add_step_hook(timed["live, no client"])
+    watched.add_step_hook(timed["live, watched"])
     context = multiprocessing.get_context("spawn")
     ready, stop = context.Event(), context.Event()
     port = servers["live, watched"].port
@@ -110,14 +103,14 @@ def main(argv: list[str] | None = None) -> int:
     if not ready.wait(120):
         raise SystemExit("the benchmark's client did not subscribe within 120 s")
     for env in (plain, idle, watched):
-        drive(env, 50, args.seed, live_of.get(id(env)))  # warm-up: kernels, tables, the client's subscriptions
+        drive(env, 50, args.seed)  # warm-up: kernels, tables, the client's subscriptions
     for t in timed.values():
         t.seconds, t.calls = 0.0, 0
     rates: dict[str, list[float]] = {"plain": [], "live, no client": [], "live, watched": []}
     for r in range(args.rounds):
         order = list(zip(rates, (plain, idle, watched), strict=True))
         for name, env in order if r % 2 == 0 else order[::-1]:
-            rates[name].append(drive(env, args.steps, args.seed, live_of.get(id(env))))
+            rates[name].append(drive(env, args.steps, args.seed))
     stop.set()
     client.join(10)
     sent = servers["live, watched"].n_published

@@ -163,7 +163,7 @@ def main(argv: list[str] | None = None) -> int:
         t0 = time.perf_counter()
         count = [0]
 
-        def on_step(wrapped: object, obs: object, info: object) -> None:
+        def on_step(record: object) -> None:
             count[0] += 1
             minutes = mark_steps.get(count[0])
             if minutes is None:
@@ -179,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
                 flush=True,
             )
 
-        run_one(spec, log_path, on_step=on_step)
+        run_one(spec, log_path, step_hooks=lambda wrapped: [on_step])
     if len(rows) >= 2:
         first, last = rows[0], rows[-1]
         steps = last[1] - first[1]

@@ -10,8 +10,9 @@ and writes into ``--out``:
                     (drive_frames/*.png instead when OpenCV cannot write mp4)
 
 With ``--bag DIR`` the drive is also recorded as a ROS 2 bag with MCAP storage (scans, odometry,
-tf, ground truth, the filter's pose and particles, the map; [`mcl.io.DriveRecorder`][mcl.io.DriveRecorder]), which
-``racecar-sim replay DIR --map MAP`` reads back and scores against the ground truth.
+tf, ground truth, the filter's pose and particles, the map; [`mcl.io.DriveRecorder`][mcl.io.DriveRecorder],
+attached to the drive's wrapper as a step hook), which ``racecar-sim replay DIR --map MAP`` reads
+back and scores against the ground truth.
 
 With ``--live [HOST:]PORT`` the same messages stream to Foxglove as the drive runs (a WebSocket
 server on 127.0.0.1 unless a host is given; [`mcl.io.live`][mcl.io.live]), paced at ``--live-speed`` times
@@ -64,6 +65,8 @@ from mcl.filter.params import DEFAULT_PARTICLES
 from mcl.io import DriveRecorder
 from mcl.io.live import LiveServer
 from mcl.wrappers.error_log import read_error_log
+from mcl.wrappers.hooks import StepHook, StepRecord
+from mcl.wrappers.single import LocalizationWrapper
 from racecar_sim.maps import DEFAULT_MAP
 from racecar_sim.render import CAR_COLOUR, ESTIMATE_COLOUR, PARTICLE_COLOUR, SCAN_COLOUR
 
@@ -236,11 +239,16 @@ def _drive(
     recorder: list[DriveRecorder] = []
     pace = Pacer(live_speed if live is not None else 0.0)
 
-    def on_step(wrapped: Any, obs: dict[str, Any], info: dict[str, Any]) -> None:
-        if not recorder:
-            recorder.append(DriveRecorder(bag, wrapped, live=live))
-        recorder[0](wrapped, obs, info)
-        pace(float(info["time"]))
+    def step_hooks(wrapped: LocalizationWrapper) -> list[StepHook]:
+        """The wrapper's one step hook: the bag and / or the live view, then the pace."""
+
+        def record(step: StepRecord) -> None:
+            if not recorder:  # made at the reset's record, so a drive that fails first leaves no bag
+                recorder.append(DriveRecorder(bag, wrapped, live=live))
+            recorder[0](step)
+            pace(step.time)
+
+        return [record]
 
     t0 = time.perf_counter()
     try:
@@ -250,7 +258,7 @@ def _drive(
             on_frame=on_frame,
             frame_every=frame_every,
             progress=progress,
-            on_step=on_step if bag is not None or live is not None else None,
+            step_hooks=step_hooks if bag is not None or live is not None else None,
         )
     finally:
         if video is not None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
@@ -31,6 +31,7 @@ from mcl.filter.motion_model import MotionModelParams
 from mcl.filter.params import DEFAULT_PARTICLES
 from mcl.filter.sensor_model import SensorModel
 from mcl.wrappers.error_log import read_error_log
+from mcl.wrappers.hooks import StepHook
 from mcl.wrappers.localization import LocalizationConfig
 from mcl.wrappers.single import LocalizationWrapper
 from racecar_sim.drivers import PurePursuit, WallFollower, waypoints_from_drive
@@ -267,7 +268,7 @@ def run_one(
     frame_every: int = 1,
     progress: bool = False,
     diverged_m: float = DIVERGED_M,
-    on_step: Callable[[Any, dict[str, Any], dict[str, Any]], None] | None = None,
+    step_hooks: Callable[[LocalizationWrapper], Sequence[StepHook]] | None = None,
 ) -> RunResult:
     """Drive ``spec`` with MCL in the loop, logging the error to ``log_path`` (CSV, see
     `mcl.wrappers.error_log`); returns its statistics.
@@ -282,8 +283,12 @@ def run_one(
         frame_every: steps between two frames.
         progress: show a tqdm bar over the steps.
         diverged_m: metres of error counted as diverged in the statistics.
-        on_step: when given, called as ``on_step(wrapper, obs, info)`` after the reset and after
-            every step (e.g. [`mcl.io.DriveRecorder`][mcl.io.DriveRecorder] writing a bag).
+        step_hooks: when given, called once with the run's wrapper before its reset; the step
+            hooks it returns are attached to the wrapper
+            ([`add_step_hook()`][mcl.wrappers.single.LocalizationWrapper.add_step_hook]), so each
+            is called with the [`StepRecord`][mcl.wrappers.hooks.StepRecord] of the reset and of
+            every step (e.g. a [`DriveRecorder`][mcl.io.bag_writer.DriveRecorder] writing a bag;
+            closing it is the caller's job).
 
     Raises:
         Exception: whatever the map, the env, the driver or the filter raises; the log keeps the
@@ -313,9 +318,9 @@ def run_one(
     )
     n_collisions = 0
     try:
+        for hook in step_hooks(wrapped) if step_hooks is not None else ():
+            wrapped.add_step_hook(hook)
         obs, info = wrapped.reset(seed=spec.seed, options=scenario.reset_options())
-        if on_step is not None:
-            on_step(wrapped, obs, info)
         if on_frame is not None:
             on_frame(wrapped.render(), info)
         steps: Any = range(1, spec.n_steps + 1)
@@ -330,8 +335,6 @@ def run_one(
             scenario.before_step(wrapped, k, (k - 1) * env.dt, scenario_rng)
             obs, _, terminated, truncated, info = wrapped.step(driver(obs, info))
             n_collisions += bool(info["collision"])
-            if on_step is not None:
-                on_step(wrapped, obs, info)
             if after_step is not None:
                 after_step(wrapped, k, info)
             if on_frame is not None and k % frame_every == 0:

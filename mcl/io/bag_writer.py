@@ -34,6 +34,7 @@ from racecar_sim.maps import OccupancyMap
 
 if TYPE_CHECKING:
     from mcl.io.live import LiveServer
+    from mcl.wrappers.hooks import StepRecord
 
 __all__ = ["EPOCH_NS", "TOPICS", "BagRecorder", "DriveRecorder", "start_live"]
 
@@ -308,19 +309,34 @@ def start_live(address: str | int) -> LiveServer:
 
 
 class DriveRecorder:
-    """Records a [LocalizationWrapper][mcl.wrappers.single.LocalizationWrapper] drive step by step (the
-    ``on_step`` hook of [run_one][mcl.experiments.runs.run_one]): odometry every step, the scan,
-    the estimate and the particles at every fresh scan, the true pose every step.
+    """Records a [LocalizationWrapper][mcl.wrappers.single.LocalizationWrapper] drive step by step: a
+    step hook ([`mcl.wrappers.hooks`][mcl.wrappers.hooks]; attach it with
+    [`add_step_hook()`][mcl.wrappers.single.LocalizationWrapper.add_step_hook] or the wrapper's
+    ``on_step``). Odometry every step, the scan, the estimate and the particles at every fresh
+    scan, the true pose every step.
 
     Odometry: the env's twist of step k describes the motion from ``t_k - dt`` to ``t_k``, so its
     message is stamped ``t_k - dt`` with the integrated odometry pose at that time (a reader that
     holds each twist until the next message integrates exactly the simulated motion). Scans and
-    truth are stamped ``t_k``; the sim's no-returns (``max_range``) are written as +inf.
+    truth are stamped ``t_k``; the sim's no-returns (``max_range``) are written as +inf. A record
+    of step 0 (a reset) starts the odometry again at the origin.
 
     Args:
         path: the bag folder to create; None writes no bag (``live`` only).
-        wrapped: the wrapper around a ``RacecarSim-v0`` env (its lidar and map are recorded).
-        live: a Foxglove server ([start_live][mcl.io.bag_writer.start_live]), the same messages.
+        wrapped: the wrapper around a ``RacecarSim-v0`` env (its lidar, its world map and its
+            time step are recorded).
+        live: a Foxglove server ([start_live][mcl.io.bag_writer.start_live]), the same messages;
+            the caller closes it after the recorder.
+
+    Example:
+        ```python
+        server = start_live(0)  # or None; ws://localhost:PORT
+        recorder = DriveRecorder("out/bag", env, live=server)
+        env.add_step_hook(recorder)
+        ...  # env.reset(), env.step(...)
+        recorder.close()
+        server.close()
+        ```
     """
 
     def __init__(
@@ -343,29 +359,29 @@ class DriveRecorder:
         self._odom = np.zeros(3)
         self._first = True
 
-    def __call__(self, wrapped, obs: dict, info: dict) -> None:
+    def __call__(self, record: StepRecord) -> None:
+        """Write the messages of one reset or step."""
         from mcl.filter.motion_model import compose, twist_to_odometry
 
-        t = float(info["time"])
+        t = record.time
         rec = self.recorder
-        if t == 0.0 and not self._first:  # a new episode: odometry starts again
+        if record.step == 0:  # a new episode: odometry starts again
             self._odom = np.zeros(3)
             self._first = True
         if not self._first:
-            twist = np.asarray(obs["odom"], dtype=np.float64)
+            twist = np.asarray(record.odom, dtype=np.float64)
             rec.write_odom(t - self.dt, self._odom, twist)
             self._odom = compose(self._odom[None], twist_to_odometry(twist, self.dt))[0]
-        rec.write_truth(t, np.asarray(info["pose"], dtype=np.float64))
-        if self._first or info.get("new_scan", False):
+        rec.write_truth(t, record.truth)
+        if self._first or record.new_scan:
             if rec.wants("/scan"):
-                scan = np.asarray(obs["scan"], dtype=np.float64).copy()
+                scan = np.array(record.scan, dtype=np.float64)
                 scan[scan >= self.max_range] = np.inf
                 rec.write_scan(t, scan)
             if any(rec.wants(topic) for topic in ("/pf/pose", "/tf", "/pf/particles")):
-                pf = wrapped.filter
-                rec.write_estimate(t, obs["pose_estimate"], pf.covariance(), pf.particles)
+                rec.write_estimate(t, record.estimate, record.covariance, record.particles)
         self._first = False
 
     def close(self) -> None:
-        """Finish the bag."""
+        """Finish the bag (the live server is the caller's to stop)."""
         self.recorder.close()

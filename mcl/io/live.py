@@ -287,8 +287,8 @@ class LiveServer:
             proc.wait()
 
     def __deepcopy__(self, memo: dict) -> LiveServer:
-        """The same server: it is a running process, not a value (Gymnasium deep-copies a
-        wrapper's arguments, ``live`` among them)."""
+        """The same server: it is a running process, not a value (a deep copy of whatever holds
+        it shares it)."""
         return self
 
     def __enter__(self) -> LiveServer:

@@ -21,8 +21,8 @@ import functools
 import math
 import os
 import time
-from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -36,6 +36,7 @@ from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.sensor_model import SensorModel
 from mcl.wrappers.checks import check_filter_map, check_wrapped, filter_start
 from mcl.wrappers.error_log import ErrorLogWriter
+from mcl.wrappers.hooks import StepHook, StepHooks, step_record
 from mcl.wrappers.localization import (
     FilterFactory,
     LocalizationConfig,
@@ -48,10 +49,6 @@ from mcl.wrappers.localization import (
 )
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.render import MapRenderer
-
-if TYPE_CHECKING:
-    from mcl.io.bag_writer import DriveRecorder
-    from mcl.io.live import LiveServer
 
 __all__ = ["LocalizationWrapper", "car_of"]
 
@@ -96,10 +93,15 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
             drawn); None = the env's map. Both must share the world frame; size and resolution
             may differ, but at least half of the world's free space must be free on it
             ([MIN_FILTER_MAP_COVER][mcl.wrappers.checks.MIN_FILTER_MAP_COVER]).
-        live: ``"[HOST:]PORT"`` (or a port number): stream the drive to Foxglove as it runs, on
-            a WebSocket server bound to 127.0.0.1 unless a host is given, with the topics of
-            ``drive --bag`` ([`mcl.io.live`][mcl.io.live]; extra ``[live]``); or a server from
-            [`mcl.io.start_live()`][mcl.io.start_live]. ``close()`` stops a server the wrapper started.
+        on_step: a step hook or a list of them ([`mcl.wrappers.hooks`][mcl.wrappers.hooks]):
+            each is called as ``hook(record)`` with the
+            [`StepRecord`][mcl.wrappers.hooks.StepRecord] of the reset (step 0) and of every step,
+            after the filter's update and the error log's row. More can be added with
+            [`add_step_hook()`][mcl.wrappers.single.LocalizationWrapper.add_step_hook]. The bag
+            recorder and the Foxglove live view attach this way
+            ([`DriveRecorder`][mcl.io.bag_writer.DriveRecorder], streaming to a server from
+            [`start_live()`][mcl.io.bag_writer.start_live] when given one); the wrapper neither
+            closes nor owns its hooks.
 
     Observation: the env's dict plus ``pose_estimate``, ``Box(-inf, inf, (3,), float64)``, the
     estimate [x, y, theta] (world, metres, radians in [-pi, pi)).
@@ -134,12 +136,14 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         sensor_model: SensorModel | None = None,
         clock: Callable[[], float] = time.perf_counter,
         filter_map: str | os.PathLike[str] | OccupancyMap | None = None,
-        live: str | int | LiveServer | None = None,
+        on_step: StepHook | Sequence[StepHook] | None = None,
     ) -> None:
+        # not on_step: Gymnasium deep-copies these, and a hook is a live object (an open bag)
         gym.utils.RecordConstructorArgs.__init__(
             self, config=config, log_path=log_path, filter_factory=filter_factory, clock=clock,
-            filter_map=filter_map, live=live,
+            filter_map=filter_map,
         )  # fmt: skip
+        self._hooks = StepHooks(on_step)  # checked first: a hook that is no callable fails fast
         check_wrapped("LocalizationWrapper", env, "single",
                       "a RacecarSim-v0 or RacecarRace-v0 env (a gymnasium.Env)")  # fmt: skip
         gym.Wrapper.__init__(self, env)
@@ -190,8 +194,6 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         self.log: ErrorLogWriter | None = ErrorLogWriter(log_path) if log_path is not None else None
         self._step = 0
         self.last_localization: dict[str, Any] | None = None
-        self.live, self._live, self._owns_live = _live_recorder(self, live)
-        """The Foxglove live server, or None (see ``live``)."""
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -222,7 +224,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         estimate = self.filter.estimate()
         self._step = 0
         loc = self._localization(estimate, truth, n_eff, self._clock() - t0, True)
-        return self._streamed(self._observe(obs, estimate), {**info, "localization": loc})
+        return self._hooked(self._observe(obs, estimate), {**info, "localization": loc})
 
     def step(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
         """Step the env, then predict with its odometry and correct with a fresh scan."""
@@ -252,7 +254,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
                 update_s,
                 loc["lost"],
             )
-        obs, info = self._streamed(self._observe(obs, estimate), {**info, "localization": loc})
+        obs, info = self._hooked(self._observe(obs, estimate), {**info, "localization": loc})
         return obs, reward, terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
@@ -273,18 +275,45 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         return img
 
     def close(self) -> None:
-        """Close the error log, the live view (a server the wrapper started) and the env."""
+        """Close the error log and the env (the step hooks are their owners' to close)."""
         if self.log is not None:
             self.log.close()
-        if self._live is not None and self._owns_live:
-            self.live.close()
-        self._live = None
         super().close()
 
+    # ------------------------------------------------------------------ step hooks
+    def add_step_hook(self, hook: StepHook) -> None:
+        """Call ``hook(record)`` with the [`StepRecord`][mcl.wrappers.hooks.StepRecord] of every
+        reset and step from now on, after the hooks added before it.
+
+        Raises:
+            TypeError: ``hook`` is not callable.
+        """
+        self._hooks.add(hook)
+
+    def remove_step_hook(self, hook: StepHook) -> None:
+        """Stop calling a hook given as ``on_step`` or added with
+        [`add_step_hook()`][mcl.wrappers.single.LocalizationWrapper.add_step_hook].
+
+        Raises:
+            ValueError: ``hook`` is not one of this wrapper's.
+        """
+        self._hooks.remove(hook)
+
+    @property
+    def step_hooks(self) -> tuple[StepHook, ...]:
+        """The step hooks, in the order they are called."""
+        return tuple(self._hooks)
+
     # ------------------------------------------------------------------ internals
-    def _streamed(self, obs: dict[str, Any], info: dict[str, Any]) -> tuple[dict, dict]:
-        if self._live is not None:
-            self._live(self, obs, info)
+    def _hooked(self, obs: dict[str, Any], info: dict[str, Any]) -> tuple[dict, dict]:
+        """Call the step hooks with this step's record; ``obs`` and ``info`` unchanged."""
+        if self._hooks:
+            assert self.filter is not None
+            time_s = info.get("time", self._step * self.dt)
+            record = step_record(
+                self._step, time_s, obs, info, self.filter.particles, self.filter.weights
+            )
+            self._hooks.call(record)
         return obs, info
 
     def _correct(self, scan: np.ndarray) -> float:
@@ -306,15 +335,3 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     def _observe(obs: dict[str, Any], estimate: np.ndarray) -> dict[str, Any]:
         return {**obs, "pose_estimate": np.asarray(estimate, dtype=np.float64).copy()}
 
-
-def _live_recorder(
-    wrapper: LocalizationWrapper, live: str | int | LiveServer | None
-) -> tuple[LiveServer | None, DriveRecorder | None, bool]:
-    """The live server, the recorder that streams to it and whether the wrapper started the server
-    (None, None, False without ``live``)."""
-    if live is None:
-        return None, None, False
-    from mcl.io.bag_writer import DriveRecorder, start_live
-
-    server = live if hasattr(live, "publish") else start_live(live)
-    return server, DriveRecorder(None, wrapper, live=server), server is not live

@@ -47,7 +47,7 @@ def test_the_drive_loop_keeps_nothing_per_step(tmp_path) -> None:
     held: dict[int, int] = {}
     count = [0]
 
-    def on_step(wrapped, obs, info) -> None:
+    def on_step(record) -> None:
         count[0] += 1
         if count[0] == 250:
             gc.collect()
@@ -59,7 +59,7 @@ def test_the_drive_loop_keeps_nothing_per_step(tmp_path) -> None:
 
     spec = RunSpec(duration=751 * 0.025, n_particles=200, env=(("n_beams", 181),), series="m")
     try:
-        run_one(spec, tmp_path / "log.csv", on_step=on_step)
+        run_one(spec, tmp_path / "log.csv", step_hooks=lambda wrapped: [on_step])
     finally:
         tracemalloc.stop()
     per_step = held["bytes"] / 500

@@ -1,5 +1,6 @@
 """The fuzz family ``live``: misbehaving Foxglove clients against a short localized drive streamed
-with ``LocalizationWrapper(live=0)``.
+by a [DriveRecorder][mcl.io.bag_writer.DriveRecorder] attached as the wrapper's step hook (as
+``drive --live`` attaches it).
 
 A case is a seeded schedule of client actions, each due at a step of the drive: ``open`` (clients
 that subscribe to a random subset of the channels and read), ``stuck`` (subscribe to everything,
@@ -213,7 +214,13 @@ def _drive(steps: int, live: Any = None, clients: _Clients | None = None, case=N
     from mcl.wrappers.single import LocalizationWrapper
     from racecar_sim.env import RacecarEnv
 
-    env = LocalizationWrapper(RacecarEnv(**_SMALL), {"filter": {"n_particles": 100}}, live=live)
+    env = LocalizationWrapper(RacecarEnv(**_SMALL), {"filter": {"n_particles": 100}})
+    recorder = None
+    if live is not None:  # the live view as drive --live attaches it: a step hook
+        from mcl.io.bag_writer import DriveRecorder
+
+        recorder = DriveRecorder(None, env, live=live)
+        env.add_step_hook(recorder)
     pace = Pacer(2.0 if live is not None else 0.0)
     due = list(case["actions"]) if case else []
     obs, info = env.reset(seed=3)
@@ -231,6 +238,8 @@ def _drive(steps: int, live: Any = None, clients: _Clients | None = None, case=N
                 obs, info = env.reset(seed=3)
     finally:
         env.close()
+        if recorder is not None:
+            recorder.close()
     return out
 
 

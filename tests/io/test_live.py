@@ -1,6 +1,7 @@
 """The live view: a Foxglove WebSocket client on localhost receives and decodes the drive's
-messages while it runs (``LocalizationWrapper(live=...)`` and ``racecar-sim drive --live``), and the
-drive is the same with and without it.
+messages while it runs (a [DriveRecorder][mcl.io.bag_writer.DriveRecorder] streaming to a server,
+attached as the wrapper's step hook, and ``racecar-sim drive --live``), and the drive is the same
+with and without it.
 
 The client is a plain ``websockets`` client speaking the Foxglove WebSocket protocol as served by
 foxglove-sdk (subprotocol ``foxglove.sdk.v1``): it reads the server's ``advertise``, sends
@@ -100,10 +101,12 @@ def _wait(condition, seconds: float = 60.0) -> None:
 
 
 def test_wrapper_streams_scans_the_client_decodes_and_the_map_to_a_late_subscriber() -> None:
-    env = LocalizationWrapper(
-        gym.make("RacecarSim-v0", map="office"), {"filter": {"n_particles": 200}}, live=0
-    )
-    server = env.live
+    from mcl.io import DriveRecorder, start_live
+
+    env = LocalizationWrapper(gym.make("RacecarSim-v0", map="office"), {"filter": {"n_particles": 200}})
+    server = start_live(0)
+    recorder = DriveRecorder(None, env, live=server)
+    env.add_step_hook(recorder)
     assert server is not None and server.host == "127.0.0.1" and server.port > 0
     obs, info = env.reset(seed=3)  # /map goes out now, before anyone listens
     client = Client(server.port, {"/scan", "/map", "/pf/particles", "/tf"}, lambda m: len(m.get("/scan", [])) >= 5 and "/map" in m)
@@ -117,6 +120,8 @@ def test_wrapper_streams_scans_the_client_decodes_and_the_map_to_a_late_subscrib
             sent.append(obs["scan"].copy())
     client.join(60)
     env.close()
+    recorder.close()
+    server.close()
     assert client.error is None, client.error
     assert client.advertised["/scan"]["schemaName"] == "sensor_msgs/msg/LaserScan"
     assert client.advertised["/scan"]["encoding"] == "cdr"
@@ -179,13 +184,12 @@ def test_replay_live_streams_the_filter_on_a_recorded_drive(tmp_path: Path) -> N
 
     env = LocalizationWrapper(gym.make("RacecarSim-v0", map="office"), {"filter": {"n_particles": 200}})
     recorder = DriveRecorder(tmp_path / "bag", env)
+    env.add_step_hook(recorder)  # records the reset and every step
     obs, info = env.reset(seed=1)
     start = info["pose"]  # the replay starts its filter here
-    recorder(env, obs, info)
     driver = WallFollower.for_env(env)
     for _ in range(120):  # 3 s
         obs, _, _, _, info = env.step(driver(obs))
-        recorder(env, obs, info)
     recorder.close()
     cmd = [sys.executable, "-m", "mcl.cli.main", "replay", str(tmp_path / "bag"), "--map", "office",
            "--init", ",".join(f"{v:.4f}" for v in start), "--video-fps", "0",
