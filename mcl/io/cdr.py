@@ -16,7 +16,14 @@ import struct
 
 import numpy as np
 
-__all__ = ["laser_scan", "odometry", "pose_stamped", "pose_with_covariance_stamped", "tf_message"]
+__all__ = [
+    "laser_scan",
+    "odometry",
+    "pose_array",
+    "pose_stamped",
+    "pose_with_covariance_stamped",
+    "tf_message",
+]
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"
 
@@ -116,3 +123,20 @@ def laser_scan(
     w.raw(r.tobytes(), 4)
     w.raw(struct.pack("<I", 0), 4)
     return w.bytes()
+
+
+def pose_array(stamp_ns: int, frame_id: str, poses: np.ndarray) -> bytes:
+    """A ``geometry_msgs/msg/PoseArray`` of the (N, 3) planar poses [x m, y m, theta rad],
+    serialized as little-endian CDR in one numpy pass (the same bytes as rosbags'
+    ``serialize_cdr`` of the message, tested; hundreds of times faster for 500 poses)."""
+    frame = frame_id.encode() + b"\0"
+    head = struct.pack(
+        "<4siII", b"\x00\x01\x00\x00", stamp_ns // 10**9, stamp_ns % 10**9, len(frame)
+    )
+    body = head + frame
+    body += b"\0" * (-len(body) % 4) + struct.pack("<I", len(poses))
+    body += b"\0" * (-(len(body) - 4) % 8)  # doubles align to 8 bytes after the 4-byte header
+    out = np.zeros((len(poses), 7))
+    out[:, 0], out[:, 1] = poses[:, 0], poses[:, 1]
+    out[:, 5], out[:, 6] = np.sin(poses[:, 2] / 2.0), np.cos(poses[:, 2] / 2.0)
+    return body + out.astype("<f8").tobytes()

@@ -204,27 +204,32 @@ class LiveServer:
             return False
         return i in self._latched or self._status[worker.FLAGS_AT + i] != 0
 
-    def publish(self, topic: str, log_time_ns: int, data: bytes) -> None:
+    def publish(self, topic: str, log_time_ns: int, data: bytes, flush: bool = True) -> None:
         """Hand one serialized message on ``topic`` (stamped ``log_time_ns``) to the server,
-        never waiting: when the pipe is full, an unsent message of the same topic is replaced."""
+        never waiting: when the pipe is full, an unsent message of the same topic is replaced.
+        With ``flush=False`` it is only queued: `flush()` hands the queue over in one write."""
         if self._dead is not None or self._proc is None:
             return
         i = self._index[topic]
         if self._pending.pop(i, None) is not None:
             self.n_dropped += 1
         self._pending[i] = worker.HEADER.pack(len(data), i, int(log_time_ns)) + bytes(data)
-        self._flush()
+        if flush:
+            self.flush()
 
-    def _flush(self) -> None:
-        """Write what the pipe takes now; keep the rest for the next call."""
+    def flush(self) -> None:
+        """Write what the pipe takes now, the queued messages in one write; keep the rest for the
+        next call (never waits)."""
+        if self._dead is not None or self._proc is None:
+            return
         try:
             while True:
                 if not self._partial:
                     if not self._pending:
                         return
-                    i = next(iter(self._pending))
-                    self._partial = memoryview(self._pending.pop(i))
-                    self.n_published += 1
+                    self.n_published += len(self._pending)
+                    self._partial = memoryview(b"".join(self._pending.values()))
+                    self._pending.clear()
                 n = os.write(self._fd, self._partial)
                 self._partial = self._partial[n:]
         except BlockingIOError:
@@ -272,7 +277,7 @@ class LiveServer:
         if getattr(self, "_proc", None) is None:
             return
         if self._dead is None and hasattr(self, "_fd"):
-            self._flush()
+            self.flush()
         self._stop()
 
     def _stop(self) -> None:

@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from mcl.io.bag_writer import EPOCH_NS, BagRecorder, pose_array_cdr
+from mcl.io.bag_writer import EPOCH_NS, BagRecorder
+from mcl.io.cdr import pose_array
 from mcl.io.live import LiveServer
 
 __all__ = ["RACE_TOPICS", "RaceStream", "start_race_live"]
@@ -71,17 +72,17 @@ class RaceStream:
         ns = EPOCH_NS + round(max(float(infos[agents[0]]["time"]), 0.0) * 1e9)
         if live.wants("/race/cars"):
             poses = np.array([infos[a]["pose"] for a in agents], dtype=np.float64)
-            live.publish("/race/cars", ns, pose_array_cdr(ns, "map", poses))
+            live.publish("/race/cars", ns, pose_array(ns, "map", poses))
         filters = getattr(env, "filters", None)
         if not filters:
             return
         if live.wants("/race/estimates"):
             estimates = np.array([obs[a]["pose_estimate"] for a in agents if a in filters])
-            live.publish("/race/estimates", ns, pose_array_cdr(ns, "map", estimates))
+            live.publish("/race/estimates", ns, pose_array(ns, "map", estimates))
         if live.wants("/race/particles"):
             clouds = []
             for a in agents:
                 if a in filters:
                     p = filters[a].particles
                     clouds.append(p[:: max(1, len(p) // self.max_particles)])
-            live.publish("/race/particles", ns, pose_array_cdr(ns, "map", np.vstack(clouds)))
+            live.publish("/race/particles", ns, pose_array(ns, "map", np.vstack(clouds)))

@@ -224,12 +224,12 @@ def test_static_mount_follows_the_chain_and_upside_down_lidars():
 def test_pose_array_bytes_decode_as_rosbags_serializes_them(frame: str) -> None:
     from rosbags.typesys import Stores, get_typestore
 
-    from mcl.io.bag_writer import pose_array_cdr
+    from mcl.io.cdr import pose_array
 
     ts = get_typestore(Stores.ROS2_HUMBLE)
     poses = np.random.default_rng(len(frame)).normal(0, 5, (23, 3))
     stamp = 946_684_800 * 10**9 + 123_456_789
-    data = pose_array_cdr(stamp, frame, poses)
+    data = pose_array(stamp, frame, poses)
     msg = ts.deserialize_cdr(data, "geometry_msgs/msg/PoseArray")
     assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (946_684_800, 123_456_789)
     assert msg.header.frame_id == frame and len(msg.poses) == len(poses)

@@ -128,8 +128,11 @@ def test_wrapper_streams_scans_the_client_decodes_and_the_map_to_a_late_subscrib
     scans = [TYPESTORE.deserialize_cdr(m, "sensor_msgs/msg/LaserScan") for m in client.messages["/scan"]]
     assert scans[0].header.frame_id == "laser" and len(scans[0].ranges) == obs["scan"].size
     max_range = env.unwrapped.lidar.params.max_range
-    expected = np.where(sent[0] >= max_range, np.inf, sent[0]).astype(np.float32)
-    np.testing.assert_array_equal(scans[0].ranges, expected)  # the first scan sent after subscribing
+    expected = [np.where(s >= max_range, np.inf, s).astype(np.float32) for s in sent]
+    # each scan received is one the env measured (the live view sends 20 frames a second of 40 scans)
+    for scan in scans:
+        assert any(np.array_equal(scan.ranges, e) for e in expected)
+    assert len(scans) >= 5
     grid = TYPESTORE.deserialize_cdr(client.messages["/map"][0], "nav_msgs/msg/OccupancyGrid")
     assert (grid.info.width, grid.info.height) == (env.map.width, env.map.height)
     particles = TYPESTORE.deserialize_cdr(client.messages["/pf/particles"][-1], "geometry_msgs/msg/PoseArray")
@@ -221,3 +224,32 @@ def test_replay_live_streams_the_filter_on_a_recorded_drive(tmp_path: Path) -> N
         np.testing.assert_allclose(
             [msg.pose.pose.position.x, msg.pose.pose.position.y], [row["x"], row["y"]], atol=1e-6
         )
+
+
+def test_the_live_view_goes_at_its_own_rate_and_the_bag_gets_every_scan(tmp_path: Path) -> None:
+    from mcl.io import DriveRecorder, read_bag, start_live
+
+    env = LocalizationWrapper(gym.make("RacecarSim-v0", map="office"), {"filter": {"n_particles": 200}})
+    server = start_live(0)
+    recorder = DriveRecorder(tmp_path / "bag", env, live=server, live_rate=10.0)
+    env.add_step_hook(recorder)
+    env.reset(seed=3)
+    client = Client(server.port, {"/scan", "/ground_truth"}, lambda m: False, timeout=30)
+    client.start()
+    assert client.subscribed.wait(60), client.error
+    _wait(lambda: server.wants("/scan") and server.wants("/ground_truth"))
+    n_scans = 0
+    for _ in range(80):  # 2 s at dt = 0.025 s, a 40 Hz lidar: a fresh scan every step
+        _, _, _, _, info = env.step([0.0, 1.0])
+        n_scans += bool(info["new_scan"])
+    time.sleep(1.0)
+    recorder.close()
+    server.close()
+    client.join(30)
+    truths = [TYPESTORE.deserialize_cdr(m, "geometry_msgs/msg/PoseStamped") for m in client.messages["/ground_truth"]]
+    stamps = np.array([t.header.stamp.sec + 1e-9 * t.header.stamp.nanosec for t in truths])
+    assert 19 <= len(stamps) <= 21  # 10 frames a second of the 2 s
+    np.testing.assert_allclose(np.diff(stamps), 0.1, atol=1e-6)
+    assert len(client.messages["/scan"]) <= len(stamps)
+    bag = read_bag(tmp_path / "bag")
+    assert len(bag.scans) == n_scans + 1  # the reset's scan and every fresh one
