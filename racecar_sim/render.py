@@ -27,6 +27,7 @@ __all__ = [
     "CarRendering",
     "MapRenderer",
     "RenderHook",
+    "warn_no_render_mode",
 ]
 
 Colour = tuple[int, int, int]
@@ -173,6 +174,16 @@ class MapRenderer:
         cv2.arrowedLine(img, tuple(p0), tuple(p1), colour, thickness=1, tipLength=0.3)
 
 
+def warn_no_render_mode() -> None:
+    """The warning of ``render()`` on an env made without a render mode (a plain warning:
+    gym.logger.warn's colour codes end up in logs), pointing at the caller of ``render()``."""
+    warnings.warn(
+        "render() called without a render_mode; make the env with render_mode='rgb_array'",
+        UserWarning,
+        stacklevel=3,
+    )
+
+
 RenderHook = Callable[[np.ndarray, MapRenderer], None]
 """``fn(img, renderer) -> None``: draws overlays in place on the RGB frame being rendered."""
 
@@ -199,11 +210,7 @@ class CarRendering:
         Returns None (with a warning) when the env was made without ``render_mode="rgb_array"``.
         """
         if self.render_mode is None:
-            warnings.warn(  # a plain warning: gym.logger.warn's colour codes end up in logs
-                "render() called without a render_mode; make the env with render_mode='rgb_array'",
-                UserWarning,
-                stacklevel=2,
-            )
+            warn_no_render_mode()
             return None
         renderer = self.renderer
         img = renderer.base()

@@ -14,7 +14,6 @@ import dataclasses
 import difflib
 import functools
 import os
-import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -32,7 +31,7 @@ from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.race.drawing import CAR_COLOURS, draw_race
 from racecar_sim.race.grid import start_grid
 from racecar_sim.race.world import RaceWorld
-from racecar_sim.render import MapRenderer
+from racecar_sim.render import MapRenderer, warn_no_render_mode
 from racecar_sim.settings.config import EnvConfig, merge_settings
 from racecar_sim.settings.validation import (
     check_action,
@@ -337,11 +336,7 @@ class RaceEnv(ParallelEnv):
         """RGB uint8 (H, W, 3): the map, every car's last scan hits and its box in its own colour
         (`CAR_COLOURS`), the track's centerline when there is one."""
         if self.render_mode is None:
-            warnings.warn(  # a plain warning: gym.logger.warn's colour codes end up in logs
-                "render() called without a render_mode; make the env with render_mode='rgb_array'",
-                UserWarning,
-                stacklevel=2,
-            )
+            warn_no_render_mode()
             return None
         if self._renderer is None:
             self._renderer = MapRenderer(self.map)
