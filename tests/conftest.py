@@ -18,6 +18,31 @@ from tests.skips import shared_missing
 settings.register_profile("no_deadline", deadline=None)
 settings.load_profile("no_deadline")
 
+LONGEST_FIRST = (
+    "tests/calibration/test_real_bags.py",
+    "tests/cli/test_wheel.py",
+    "tests/fuzz/test_fuzz.py",
+    "tests/io/test_replay.py",
+    "tests/io/test_live_safety.py",
+    "tests/experiments/test_changing_world.py",
+    "tests/experiments/test_ray_executor.py",
+    "tests/cli/test_editable.py",
+    "tests/cli/test_bench_global.py",
+    "tests/io/test_sensor_models_bench.py",
+    "tests/experiments/test_recovery.py",
+    "tests/io/test_live.py",
+)
+"""Test files of a minute or more (on the 2-core CI machine), run first: the two workers of
+``pytest -n 2 --dist loadfile`` take files in collection order, and a long file started last
+would leave one worker idle at the end."""
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """The longest files first (`LONGEST_FIRST`), the rest in their order."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.nodeid.split("::", 1)[0], len(rank)))
+
+
 REPO = Path(__file__).resolve().parent.parent
 SHARED_MAPS = REPO.parent / "shared" / "maps"
 STATA_YAML = SHARED_MAPS / "stata_basement.yaml"

@@ -15,7 +15,8 @@ import pytest
 from tests.fuzz import mutations
 from tests.fuzz.harness import judge, problem_kind, run_cases
 
-# kind -> (cases, seconds the worker may take: imports, numba's cached kernels, the cases)
+# kind -> (cases, seconds the worker may take: imports, numba's cached kernels, the cases); the
+# suite runs a few of each kind, scripts/fuzz.py runs campaigns of hundreds
 BUDGET = {
     "setting": (30, 240),
     "filter": (16, 240),
@@ -23,11 +24,11 @@ BUDGET = {
     "action": (30, 180),
     "cli": (8, 240),
     "bag": (12, 240),
-    "race_api": (24, 240),
+    "race_api": (12, 240),
     "localization_api": (24, 240),
-    "path": (16, 300),
-    "scan": (16, 300),
-    "live": (8, 300),
+    "path": (10, 300),
+    "scan": (10, 300),
+    "live": (5, 300),
 }
 
 
