@@ -37,7 +37,7 @@ KINDS = ("stuck", "storm", "churn")
 
 def _clients(port: int, kinds: list[str], stop, out) -> None:
     """The hostile clients, niced, until ``stop`` is set; their counts go to ``out``."""
-    os.nice(10)
+    os.nice(19)
     from mcl.bench.hostile_clients import HostileClients
 
     clients = HostileClients(port, kinds).start()

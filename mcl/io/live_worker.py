@@ -213,7 +213,7 @@ def serve(status_fd: int) -> None:
     message of standard input until it ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the drive's; it closes our input
     with contextlib.suppress(OSError):
-        os.nice(10)  # a viewer never takes the CPU from the drive
+        os.nice(19)  # a viewer never takes the CPU from the drive: the lowest priority
     status = Status(status_fd)
     config, buffer = _config(0)
     if config.get("death_signal"):
