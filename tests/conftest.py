@@ -32,8 +32,8 @@ LONGEST_FIRST = (
     "tests/experiments/test_recovery.py",
     "tests/io/test_live.py",
 )
-"""Test files of a minute or more (on the 2-core CI machine), run first: the two workers of
-``pytest -n 2 --dist loadfile`` take files in collection order, and a long file started last
+"""Test files of a minute or more (on the 2-core CI machine), run first: the workers of
+``pytest -n 3 --dist loadfile`` take files in collection order, and a long file started last
 would leave one worker idle at the end."""
 
 

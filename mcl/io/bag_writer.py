@@ -7,10 +7,9 @@ Topics (ROS 2 Humble message types, frames as amcl publishes them):
 - ``/odom`` ``nav_msgs/msg/Odometry`` (``odom`` -> ``base_link``, twist in base_link),
 - ``/tf`` ``tf2_msgs/msg/TFMessage``: ``odom`` -> ``base_link`` from the odometry and
   ``map`` -> ``odom`` from the estimate (so that map -> base_link is the estimate),
-- ``/tf_static``: ``base_link`` -> ``laser`` (the mount),
-- ``/ground_truth`` ``geometry_msgs/msg/PoseStamped`` (map frame, the simulator's true pose),
-- ``/pf/pose`` ``geometry_msgs/msg/PoseWithCovarianceStamped`` (map frame, the estimate),
-- ``/pf/particles`` ``geometry_msgs/msg/PoseArray`` (map frame, a subsample of the particles),
+- ``/tf_static``: ``base_link`` -> ``laser`` (the mount); ``/ground_truth``
+  ``geometry_msgs/msg/PoseStamped`` (map frame, the simulator's true pose),
+- ``/pf/pose`` ``geometry_msgs/msg/PoseWithCovarianceStamped`` (map frame, the estimate), ``/pf/particles`` ``geometry_msgs/msg/PoseArray`` (map frame, a subsample),
 - ``/map`` ``nav_msgs/msg/OccupancyGrid`` once at the start (0 free, 100 occupied or unknown).
 
 Times: seconds of the drive, as ns after [EPOCH_NS][mcl.io.bag_writer.EPOCH_NS] (2000-01-01),
@@ -143,7 +142,8 @@ class BagRecorder:
         if self._writer is not None:
             self._writer.write(self._cons[topic], ns, data)
         if self.live is not None and self.live_due:
-            self.live.publish(topic, ns, bytes(data), flush=not self.batch_live)
+            batch = {"flush": False} if self.batch_live else {}  # a plain publish() for other sinks
+            self.live.publish(topic, ns, bytes(data), **batch)
         self.n_messages += 1
 
     def _stamp_ns(self, t: float) -> int:
@@ -275,8 +275,8 @@ class BagRecorder:
             self._write_raw("/pf/particles", t, cdr.pose_array(self._stamp_ns(t), "map", p[::step]))
 
     def flush_live(self) -> None:
-        """Hand the messages queued for the live server to its pipe, in one write (never waits)."""
-        if self.live is not None:
+        """Hand the queued live messages (``batch_live``) to the server's pipe in one write."""
+        if self.live is not None and self.batch_live:
             self.live.flush()
 
     # ------------------------------------------------------------------ lifetime

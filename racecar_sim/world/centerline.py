@@ -9,7 +9,7 @@ user's. The free space the car can reach is one region around the island (the la
 that does not touch the map's border). Every point of that region is nearer the island or nearer the
 outer walls; the border between the two is the line midway between them, a closed curve round the
 island. It is smoothed, centred between the walls along its normals and given its free widths by
-[`centre_loop()`][racecar_sim.world.track.centre_loop], and oriented counter-clockwise (the island
+`racecar_sim.world.track.centre_loop()`, and oriented counter-clockwise (the island
 on the left) unless a start pose says otherwise. Frames: world (metres, radians).
 """
 
