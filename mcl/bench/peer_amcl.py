@@ -300,8 +300,11 @@ class AmclPeer(PeerProcess):
         Path(f"{stem}_in.npz").unlink(missing_ok=True)
         if msg["done"] is None:
             raise RuntimeError(f"amcl failed: {msg.get('error')}")
-        updates = np.load(msg["done"])
-        Path(msg["done"]).unlink(missing_ok=True)
+        output = Path(f"{stem}_out.npy")  # the file this run asked for, and only that one
+        if Path(msg["done"]) != output:
+            raise RuntimeError(f"amcl answered with {msg['done']!r}, not the file asked for ({output})")
+        updates = np.load(output)
+        output.unlink(missing_ok=True)
         return localized_run(estimates_between(updates, at, poses), drive.truth), float(
             msg["cpu_s"]
         )

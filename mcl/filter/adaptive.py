@@ -178,8 +178,9 @@ class AdaptiveParticleFilter(ParticleFilter):
         elif pos_sd < a.converged_position_sd and head_sd < a.converged_heading_sd:
             self._set_mode(True)
 
-    def _restart(self) -> None:
-        super()._restart()
+    def start_new_belief(self) -> None:
+        """The filter's new belief, and this filter searches again (a new start is unknown)."""
+        super().start_new_belief()
         self._skipped_in_row = 0
         if hasattr(self, "_search_params"):
             self._set_mode(False)

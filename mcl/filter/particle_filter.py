@@ -179,10 +179,12 @@ class ParticleFilter(Belief, GlobalRecovery):
         sd = np.asarray(spread_sd(self.params.init_spread if spread is None else spread, "spread"))
         n = self.params.n_particles
         self.set_particles(centre + self.rng.standard_normal((n, 3)) * sd)
-        self._restart()
+        self.start_new_belief()
 
-    def _restart(self) -> None:
-        """A new initial belief: forget the likelihood history; the next scan is always used."""
+    def start_new_belief(self) -> None:
+        """Forget the likelihood history, the recovery state, the moved distance and the
+        odometry scale's window (the next scan is always used): what `initialize()` and
+        `initialize_global()` do after placing the particles; subclasses extend it."""
         self.averages.reset()
         self.pending_random = 0
         self.recovery_share, self._shrink_to, self._before_burst = 0.0, None, None

@@ -82,7 +82,7 @@ class GlobalRecovery:
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 1:
             raise ValueError(f"n_particles must be a positive integer, got {n_particles!r}")
         self.set_particles(self.random_free_poses(int(n)))
-        self._restart()
+        self.start_new_belief()
 
     def random_free_poses(self, n: int) -> np.ndarray:
         """(n, 3) world poses uniform over free space (``global_clearance``), from the filter's rng."""
