@@ -345,7 +345,7 @@ class DriveRecorder:
         live: LiveServer | None = None,
         live_rate: float = LIVE_RATE,
     ) -> None:
-        if not (isinstance(live_rate, int | float) and 1.0 <= live_rate <= 1000.0):
+        if isinstance(live_rate, bool) or not (isinstance(live_rate, int | float) and 1.0 <= live_rate <= 1000.0):
             raise ValueError(f"live_rate must be 1 to 1000 frames per second, got {live_rate!r}")
         self.live_period = 1.0 / float(live_rate)
         self._live_t = -math.inf

@@ -253,3 +253,12 @@ def test_the_live_view_goes_at_its_own_rate_and_the_bag_gets_every_scan(tmp_path
     assert len(client.messages["/scan"]) <= len(stamps)
     bag = read_bag(tmp_path / "bag")
     assert len(bag.scans) == n_scans + 1  # the reset's scan and every fresh one
+
+
+@pytest.mark.parametrize("rate", [0.5, 1001, float("nan"), True, "20"])
+def test_a_live_rate_out_of_range_is_refused_naming_it(rate) -> None:
+    from mcl.io import DriveRecorder
+
+    env = LocalizationWrapper(gym.make("RacecarSim-v0", map="corridor"), {"filter": {"n_particles": 50}})
+    with pytest.raises(ValueError, match="live_rate must be 1 to 1000"):
+        DriveRecorder(None, env, live_rate=rate)
