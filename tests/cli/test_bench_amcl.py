@@ -24,7 +24,8 @@ from mcl.experiments.recorded import RecordedDrive, record_drive
 from mcl.filter.motion_model import compose, twist_to_odometry
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.raycast import RayCaster
-from tests.conftest import lidar_pose, room_map
+from tests.conftest import SHARED_MAPS, lidar_pose, room_map
+from tests.skips import shared_missing
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -139,6 +140,9 @@ def test_params_are_nav2s_and_checked():
 
 
 def test_part_skips_with_the_reason_when_amcl_cannot_be_had(capsys, monkeypatch):
+    world = SHARED_MAPS / "stata_basement.yaml"
+    if not world.is_file():  # the part checks the real maps first, then amcl
+        pytest.skip(shared_missing(world))
     monkeypatch.setattr(peer_amcl, "amcl_python", lambda given=None: (None, "no amcl here"))
     assert peers.amcl_part(peers_args(["--only", "amcl"])) == 0
     assert "skipped: no amcl here" in capsys.readouterr().out
