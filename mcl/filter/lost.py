@@ -26,7 +26,13 @@ What the filter can see, measured once per used scan (no truth involved):
   the weighted covariance) exceeds ``max_position_sd`` metres, e.g. after a global start or while
   the cloud holds two distant modes.
 
-Recovery (``recover``): while the fit says lost, the filter is asked
+- **A jump**: the scan no longer continues the previous one as the odometry says it should
+  ([`mcl.filter.scan_continuity`][mcl.filter.scan_continuity]): fewer than ``jump_below`` of the
+  previous scan's points are seen again where they should be. The car was carried away (a
+  kidnap); a map out of date, furniture or people do not cause it, as no map is involved. The flag
+  goes up at once and stays up while the fit says lost, or ``jump_hold_s`` seconds at least.
+
+Recovery (``recover``, or ``recover_after_jump`` after a jump): while the fit says lost, the filter is asked
 ([ParticleFilter.request_recovery][mcl.filter.particle_filter.ParticleFilter.request_recovery]) to
 replace ``inject_share`` of every resampling's draws by uniform free-space poses, and every
 ``burst_every_s`` seconds to weigh a burst of uniform free-space poses (``burst_density`` per m² of
@@ -42,10 +48,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from mcl.filter.particle_filter import ParticleFilter
+from mcl.filter.scan_continuity import ScanContinuity
 from mcl.filter.step_kernels import pose_moments
 from racecar_sim.settings.validation import short
 
@@ -74,9 +82,17 @@ class LostParams:
         reference_s: seconds (of time not lost) over which the reference fit is averaged.
         max_position_sd: metres; the flag is also up while the cloud's position standard
             deviation exceeds this (``math.inf``: never).
-        recover: inject free-space particles while the fit says lost (off by default: in the
+        recover: inject free-space particles whenever the fit says lost (off by default: in the
             honest world it moved the cloud to wrong places that fit 62-86 % of the beams and lost
             runs the plain filter keeps, docs/recovery.md).
+        recover_after_jump: inject them after a jump (a kidnap), while the flag is up.
+        jump_below: a jump is a scan that sees fewer than this fraction of the previous scan's
+            points again (0: never; the wrappers feed the odometry the check needs).
+        jump_hold_s: seconds the flag stays up after a jump at least.
+        jump_found_within: after a jump, the car counts as found when the averaged fit is
+            back within this fraction of the usual fit before the jump.
+        jump_search_s: seconds after which a jumped filter stops searching for a better place
+            than one the fit does not call lost.
         inject_share: fraction of each resampling's draws replaced by uniform free-space poses
             while lost, in [0, 0.5].
         burst_every_s: seconds between two bursts of uniform poses while lost (the first one as
@@ -100,6 +116,11 @@ class LostParams:
     reference_s: float = 20.0
     max_position_sd: float = 2.0
     recover: bool = False
+    recover_after_jump: bool = True
+    jump_below: float = 0.3
+    jump_hold_s: float = 1.0
+    jump_found_within: float = 0.1
+    jump_search_s: float = 30.0
     inject_share: float = 0.02
     burst_every_s: float = 1.0
     burst_density: float = 20.0
@@ -107,7 +128,7 @@ class LostParams:
     burst_accept: float = 0.1
 
     def __post_init__(self) -> None:
-        for name in ("enabled", "recover", "skip_short"):
+        for name in ("enabled", "recover", "recover_after_jump", "skip_short"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(
                     f"LostParams.{name} = {short(getattr(self, name))} must be true or false"
@@ -131,6 +152,8 @@ class LostParams:
             "window_s": (0.0, 60.0, "seconds"),
             "reference_s": (0.0, 3600.0, "seconds"),
             "burst_every_s": (0.0, 600.0, "seconds"),
+            "jump_hold_s": (0.0, 600.0, "seconds"),
+            "jump_search_s": (0.0, 3600.0, "seconds"),
             "burst_density": (0.0, 10_000.0, "particles per m²"),
         }
         for name, (low, high, unit) in checks.items():
@@ -139,7 +162,7 @@ class LostParams:
                 raise ValueError(
                     f"LostParams.{name} = {short(v)} must lie in ({low:g}, {high:g}] {unit}"
                 )
-        for name in ("raise_below", "clear_above", "burst_accept"):
+        for name in ("raise_below", "clear_above", "burst_accept", "jump_below", "jump_found_within"):
             if not 0.0 <= number(name) <= 1.0:
                 raise ValueError(
                     f"LostParams.{name} = {short(getattr(self, name))} must be a fraction in [0, 1]"
@@ -194,6 +217,16 @@ def scan_agreement(
     return float(np.count_nonzero(agree) / counted) if counted > 0 else math.nan
 
 
+def _beam_angles(sensor_model: Any, n: int) -> np.ndarray:
+    """(n,) the bearings of a scan's ``n`` beams in the lidar frame (radians): the sensor model's
+    own when it has them for ``n`` beams, else evenly over its field of view."""
+    angles = sensor_model.beam_angles
+    if angles is not None and angles.size == n:
+        return np.asarray(angles, dtype=np.float64)
+    fov = float(sensor_model.params.fov)
+    return np.linspace(-fov / 2, fov / 2, n) if n > 1 else np.zeros(1)
+
+
 class LostDetector:
     """The ``lost`` flag of one filter (module docstring); one per car, restarted with its filter.
 
@@ -206,7 +239,11 @@ class LostDetector:
         reference_fit: the slow average of ``smoothed_fit`` while not lost (``reference_s``).
         fit_lost: the hysteresis flag of the fit alone.
         position_sd: metres, the cloud's position standard deviation at the last scan.
-        lost: the flag: ``fit_lost`` or a spread cloud.
+        continuity: the last scan's continuity of the one before (NaN without odometry, or
+            before the second scan; [`mcl.filter.scan_continuity`][mcl.filter.scan_continuity]).
+        jumped: a jump was seen and the filter has not found the car again since.
+        jumps: jumps seen since the restart.
+        lost: the flag: ``fit_lost``, a spread cloud, or ``jumped``.
     """
 
     def __init__(self, params: LostParams | None = None) -> None:
@@ -216,19 +253,31 @@ class LostDetector:
         self.reference_fit = math.nan
         self.fit_lost = False
         self.position_sd = 0.0
+        self.continuity = math.nan
+        self.jumped = False
+        self.jumps = 0
         self.lost = False
         self._since_scan = 0.0  # seconds of driving since the last scan observed
         self._reference_age = 0.0  # seconds of driving folded into reference_fit
         self._since_burst = math.inf
+        self._since_jump = math.inf
+        self._found_fit = 0.0  # the averaged fit at which a jumped car counts as found
+        self._scans: ScanContinuity | None = None  # built at the first scan (needs the lidar)
+        self._odometry_fed = False
 
     def restart(self) -> None:
         """Forget the history (a new belief: a reset or a new start)."""
         self.__init__(self.params)
 
-    def advance(self, dt: float) -> None:
-        """``dt`` seconds of driving passed (called on every step, with or without a scan)."""
+    def advance(self, dt: float, odometry: np.ndarray | None = None) -> None:
+        """``dt`` seconds of driving passed (called on every step, with or without a scan), on the
+        car-frame ``odometry`` twist [vx m/s, vy m/s, omega rad/s] (None: no jump check)."""
         self._since_scan += dt
         self._since_burst += dt
+        self._since_jump += dt
+        if odometry is not None and self._scans is not None:
+            self._scans.advance(np.asarray(odometry, dtype=np.float64), dt)
+            self._odometry_fed = True
 
     def observe(self, pf: ParticleFilter, scan: np.ndarray) -> bool:
         """Measure the fit of ``scan`` (metres, the filter's beams) at ``pf``'s estimate, update
@@ -245,16 +294,19 @@ class LostDetector:
                 pf.undo_burst()
                 estimate = pf.estimate()
                 fit = self._fit(pf, estimate, scan)
-            elif math.isfinite(fit):  # a new estimate: the average of the old one's fit is moot
-                self.smoothed_fit = fit
+            else:  # a new estimate: the odometry scale's window spans the move, the average
+                pf.odometry_scale.restart()  # of the old estimate's fit is moot
+                if math.isfinite(fit):
+                    self.smoothed_fit = fit
         self.fit = fit
+        self._check_jump(pf, scan)
         if math.isfinite(fit):
             if math.isnan(self.smoothed_fit):
                 self.smoothed_fit = self.reference_fit = fit
             else:
                 dt = max(self._since_scan, 0.0)
                 self.smoothed_fit += (1.0 - math.exp(-dt / p.window_s)) * (fit - self.smoothed_fit)
-                if not self.fit_lost:
+                if not (self.fit_lost or self.jumped):
                     a = 1.0 - math.exp(-dt / p.reference_s)
                     self.reference_fit += a * (self.smoothed_fit - self.reference_fit)
                     self._reference_age += dt
@@ -271,16 +323,47 @@ class LostDetector:
                 self.fit_lost = True
         cov = pf.covariance()
         self.position_sd = float(math.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
-        self.lost = self.fit_lost or self.position_sd > p.max_position_sd
-        if p.recover:
+        self.lost = self.fit_lost or self.position_sd > p.max_position_sd or self.jumped
+        searching = (p.recover and self.fit_lost) or (p.recover_after_jump and self.jumped)
+        if p.recover or p.recover_after_jump:
             burst = 0
-            if self.fit_lost and self._since_burst >= p.burst_every_s and p.burst_max > 0:
+            if searching and self._since_burst >= p.burst_every_s and p.burst_max > 0:
                 burst = min(p.burst_max, math.ceil(p.burst_density * pf.map.free_area))
                 self._since_burst = 0.0
-            if not self.fit_lost:
+            if not searching:
                 self._since_burst = math.inf  # the next loss bursts at once
-            pf.request_recovery(p.inject_share if self.fit_lost else 0.0, burst)
+            pf.request_recovery(p.inject_share if searching else 0.0, burst)
         return self.lost
+
+    def _check_jump(self, pf: ParticleFilter, scan: np.ndarray) -> None:
+        """Compare ``scan`` with the previous one (odometry fed since): a jump raises
+        ``jumped``. It falls once ``jump_hold_s`` passed, the fit does not say lost and its
+        average is back within ``jump_found_within`` of the usual fit before the jump (a wrong
+        place that fits a cluttered world fairly is searched on), or after ``jump_search_s``."""
+        p = self.params
+        sm = pf.sensor_model
+        z = np.asarray(scan, dtype=np.float64).reshape(-1)
+        if self._scans is None:
+            mount = sm.lidar_poses(np.zeros((1, 3)))[0]
+            self._scans = ScanContinuity(mount, float(sm.max_range), p.beams)
+        continuity = self._scans.observe(z, _beam_angles(sm, z.size))
+        self.continuity = continuity if self._odometry_fed else math.nan
+        if p.jump_below > 0.0 and self.continuity < p.jump_below:  # NaN compares False
+            if not self.jumped:  # the usual fit, from before the jump
+                usual = self.reference_fit if math.isfinite(self.reference_fit) else 1.0
+                self._found_fit = usual - p.jump_found_within
+            self.jumped = True
+            self.jumps += 1
+            pf.odometry_scale.restart()  # its window holds the jump: nothing to learn from
+            self._since_jump = 0.0
+            self._since_burst = math.inf  # search at once
+        elif (
+            self.jumped
+            and self._since_jump >= p.jump_hold_s
+            and not self.fit_lost
+            and (self.smoothed_fit >= self._found_fit or self._since_jump >= p.jump_search_s)
+        ):
+            self.jumped = False
 
     def _fit(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> float:
         """The scan fit at ``estimate`` (module docstring)."""
@@ -289,11 +372,7 @@ class LostDetector:
         z = np.asarray(scan, dtype=np.float64).reshape(-1)
         n = z.size
         idx = np.unique(np.floor(np.linspace(0, n - 1, min(p.beams, n)) + 0.5).astype(np.int64))
-        if sm.beam_angles is not None and sm.beam_angles.size == n:
-            angles = sm.beam_angles[idx]
-        else:
-            fov = float(sm.params.fov)
-            angles = np.linspace(-fov / 2, fov / 2, n)[idx] if n > 1 else np.zeros(1)
+        angles = _beam_angles(sm, n)[idx]
         z = z[idx]
         lidar = sm.lidar_poses(estimate[None, :])[0]
         max_range = float(sm.max_range)

@@ -169,7 +169,7 @@ class LocalizedRaceEnv(BaseParallelWrapper):
             t0 = self._clock()
             pf.predict(np.asarray(o["odom"], dtype=np.float64), self.dt)
             detector = self.lost_detectors[agent]
-            detector.advance(self.dt)
+            detector.advance(self.dt, o["odom"])
             fresh = bool(infos[agent].get("new_scan", True))
             n_eff = (
                 correct_with_scan(pf, o["scan"], self._lidar_max_range, detector)

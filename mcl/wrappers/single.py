@@ -234,7 +234,7 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         pf = self.filter
         t0 = self._clock()
         pf.predict(np.asarray(obs["odom"], dtype=np.float64), self.dt)
-        self.lost_detector.advance(self.dt)
+        self.lost_detector.advance(self.dt, obs["odom"])
         fresh = bool(info.get("new_scan", True))
         n_eff = self._correct(obs["scan"]) if fresh else pf.effective_sample_size
         estimate = pf.estimate()

@@ -172,7 +172,7 @@ class LocalizedVectorEnv(VectorWrapper):
             else:
                 pf = self._pf(i)
                 pf.predict(odom[i], self.dt)
-                self.lost_detectors[i].advance(self.dt)
+                self.lost_detectors[i].advance(self.dt, odom[i])
                 corrected = bool(fresh[i])
                 n_eff = self._correct(i, obs["scan"][i]) if corrected else pf.effective_sample_size
             estimates[i] = self._pf(i).estimate()

@@ -101,9 +101,9 @@ def _drive(seconds: float, kidnap_at: float | None, seed: int, log_path=None, co
     return t, err, lost.astype(bool), kidnap
 
 
-def test_with_recovery_the_filter_flags_a_kidnap_within_2_s_and_finds_the_car_within_15_s() -> None:
-    at = 21.0  # after the flag's record of the usual fit has formed (LostParams.reference_s)
-    t, err, lost, kidnap = _drive(at + 15.0, at, seed=2, config={"lost": {"recover": True}})
+def test_the_default_filter_flags_a_kidnap_within_2_s_and_finds_the_car_within_15_s() -> None:
+    at = 6.0  # the scans' jump needs no record of the usual fit
+    t, err, lost, kidnap = _drive(at + 15.0, at, seed=2)
     assert kidnap.kidnap_to is not None
     assert not lost[t <= at].any()  # tracking: no false alarm before the kidnap
     after = t > at + 1e-9
@@ -114,6 +114,13 @@ def test_with_recovery_the_filter_flags_a_kidnap_within_2_s_and_finds_the_car_wi
     assert found.size and found[0] - at <= 15.0
     assert (err[t >= t[-1] - 1.0] < 0.5).all()  # and keeps it
     assert not lost[-1]
+
+
+def test_without_the_jump_check_the_default_filter_does_not_find_a_kidnapped_car() -> None:
+    at = 6.0
+    t, err, lost, _ = _drive(at + 6.0, at, seed=2, config={"lost": {"jump_below": 0.0}})
+    assert (err[t > at + 1e-9] > 1.0).all()  # the jump check is what finds it above
+    assert lost[-1]
 
 
 def test_lost_stays_down_on_a_clean_ideal_drive(tmp_path) -> None:
