@@ -118,7 +118,7 @@ class LostParams:
     recover: bool = False
     recover_after_jump: bool = True
     jump_below: float = 0.3
-    jump_hold_s: float = 1.0
+    jump_hold_s: float = 0.25
     jump_found_within: float = 0.1
     jump_search_s: float = 30.0
     inject_share: float = 0.02

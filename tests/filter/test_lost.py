@@ -41,6 +41,12 @@ DT = 0.025  # the env's default step
         ("max_position_sd", 0.0),
         ("enabled", "yes"),
         ("window_s", math.nan),
+        ("recover_after_jump", 1),
+        ("jump_below", 1.2),
+        ("jump_below", -0.1),
+        ("jump_hold_s", 0.0),
+        ("jump_found_within", 2.0),
+        ("jump_search_s", math.inf),
     ],
 )
 def test_lost_params_refuse_bad_values_naming_the_field(field: str, value: object) -> None:
