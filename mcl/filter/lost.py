@@ -85,14 +85,16 @@ class LostParams:
         recover: inject free-space particles whenever the fit says lost (off by default: in the
             honest world it moved the cloud to wrong places that fit 62-86 % of the beams and lost
             runs the plain filter keeps, docs/recovery.md).
-        recover_after_jump: inject them after a jump (a kidnap), while the flag is up.
+        recover_after_jump: inject them after a jump (a kidnap) until the car is found, and
+            again whenever the fit says lost within ``jump_search_s`` of the jump.
         jump_below: a jump is a scan that sees fewer than this fraction of the previous scan's
             points again (0: never; the wrappers feed the odometry the check needs).
         jump_hold_s: seconds the flag stays up after a jump at least.
         jump_found_within: after a jump, the car counts as found when the averaged fit is
             back within this fraction of the usual fit before the jump.
-        jump_search_s: seconds after which a jumped filter stops searching for a better place
-            than one the fit does not call lost.
+        jump_search_s: seconds after a jump during which a fit that says lost resumes the
+            search, and after which a jumped filter stops searching for a better place than
+            one the fit does not call lost.
         inject_share: fraction of each resampling's draws replaced by uniform free-space poses
             while lost, in [0, 0.5].
         burst_every_s: seconds between two bursts of uniform poses while lost (the first one as
@@ -117,7 +119,7 @@ class LostParams:
     max_position_sd: float = 2.0
     recover: bool = False
     recover_after_jump: bool = True
-    jump_below: float = 0.3
+    jump_below: float = 0.4
     jump_hold_s: float = 0.25
     jump_found_within: float = 0.1
     jump_search_s: float = 30.0
@@ -324,7 +326,10 @@ class LostDetector:
         cov = pf.covariance()
         self.position_sd = float(math.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
         self.lost = self.fit_lost or self.position_sd > p.max_position_sd or self.jumped
-        searching = (p.recover and self.fit_lost) or (p.recover_after_jump and self.jumped)
+        # after a jump, a fit that says lost within jump_search_s resumes the search: the place
+        # the search found may fit only where the car happened to be
+        after_jump = self.jumped or (self.fit_lost and self._since_jump < p.jump_search_s)
+        searching = (p.recover and self.fit_lost) or (p.recover_after_jump and after_jump)
         if p.recover or p.recover_after_jump:
             burst = 0
             if searching and self._since_burst >= p.burst_every_s and p.burst_max > 0:
