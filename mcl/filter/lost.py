@@ -28,8 +28,10 @@ What the filter can see, measured once per used scan (no truth involved):
 
 - **A jump**: the scan no longer continues the previous one as the odometry says it should
   ([`mcl.filter.scan_continuity`][mcl.filter.scan_continuity]): fewer than ``jump_below`` of the
-  previous scan's points are seen again where they should be. The car was carried away (a
-  kidnap); a map out of date, furniture or people do not cause it, as no map is involved. The flag
+  previous scan's points are seen again where they should be, and within ``jump_confirm_s`` the
+  scan fit at the estimate falls under ``clear_above``. The car was carried away (a kidnap); a map
+  out of date does not cause it, as no map is involved, and people or furniture passing close to
+  the lidar cause a dip of the continuity but not of the fit. The flag
   goes up at once and stays up while the fit says lost, or ``jump_hold_s`` seconds at least.
 
 Recovery (``recover``, or ``recover_after_jump`` after a jump): while the fit says lost, the filter is asked
@@ -89,6 +91,9 @@ class LostParams:
             again whenever the fit says lost within ``jump_search_s`` of the jump.
         jump_below: a jump is a scan that sees fewer than this fraction of the previous scan's
             points again (0: never; the wrappers feed the odometry the check needs).
+        jump_confirm_s: a dip of the continuity is a jump when, within this many seconds, the
+            scan fit at the estimate falls under ``clear_above`` (something passing close to the
+            lidar makes a dip, but the fit holds).
         jump_hold_s: seconds the flag stays up after a jump at least.
         jump_found_within: after a jump, the car counts as found when the averaged fit is
             back within this fraction of the usual fit before the jump.
@@ -119,7 +124,8 @@ class LostParams:
     max_position_sd: float = 2.0
     recover: bool = False
     recover_after_jump: bool = True
-    jump_below: float = 0.4
+    jump_below: float = 0.5
+    jump_confirm_s: float = 0.5
     jump_hold_s: float = 0.25
     jump_found_within: float = 0.1
     jump_search_s: float = 30.0
@@ -155,6 +161,7 @@ class LostParams:
             "reference_s": (0.0, 3600.0, "seconds"),
             "burst_every_s": (0.0, 600.0, "seconds"),
             "jump_hold_s": (0.0, 600.0, "seconds"),
+            "jump_confirm_s": (0.0, 60.0, "seconds"),
             "jump_search_s": (0.0, 3600.0, "seconds"),
             "burst_density": (0.0, 10_000.0, "particles per m²"),
         }
@@ -264,6 +271,7 @@ class LostDetector:
         self._since_burst = math.inf
         self._since_jump = math.inf
         self._found_fit = 0.0  # the averaged fit at which a jumped car counts as found
+        self._since_dip = math.inf  # seconds since the continuity last dipped under jump_below
         self._scans: ScanContinuity | None = None  # built at the first scan (needs the lidar)
         self._odometry_fed = False
 
@@ -277,6 +285,7 @@ class LostDetector:
         self._since_scan += dt
         self._since_burst += dt
         self._since_jump += dt
+        self._since_dip += dt
         if odometry is not None and self._scans is not None:
             self._scans.advance(np.asarray(odometry, dtype=np.float64), dt)
             self._odometry_fed = True
@@ -354,6 +363,11 @@ class LostDetector:
         continuity = self._scans.observe(z, _beam_angles(sm, z.size))
         self.continuity = continuity if self._odometry_fed else math.nan
         if p.jump_below > 0.0 and self.continuity < p.jump_below:  # NaN compares False
+            self._since_dip = 0.0
+        # a dip of the continuity is a jump once the fit at the estimate has fallen too (people
+        # and furniture passing close to the lidar make dips, but the fit holds)
+        if self._since_dip <= p.jump_confirm_s and self.fit < p.clear_above:
+            self._since_dip = math.inf
             if not self.jumped:  # the usual fit, from before the jump
                 usual = self.reference_fit if math.isfinite(self.reference_fit) else 1.0
                 self._found_fit = usual - p.jump_found_within

@@ -45,6 +45,7 @@ DT = 0.025  # the env's default step
         ("jump_below", 1.2),
         ("jump_below", -0.1),
         ("jump_hold_s", 0.0),
+        ("jump_confirm_s", -1.0),
         ("jump_found_within", 2.0),
         ("jump_search_s", math.inf),
     ],
