@@ -10,7 +10,7 @@ their settings. The filter's parts live in ``mcl.filter`` (models, kernels, resa
 from mcl.filter.adaptive import AdaptiveParticleFilter
 from mcl.filter.augmented import AugmentedParams
 from mcl.filter.kld import KLDParams
-from mcl.filter.lost import LostParams
+from mcl.filter.lost_params import LostParams
 from mcl.filter.motion_model import MotionModel, MotionModelParams
 from mcl.filter.params import DEFAULT_PARTICLES, ParticleFilterParams
 from mcl.filter.particle_filter import ParticleFilter

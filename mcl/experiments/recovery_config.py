@@ -15,7 +15,7 @@ from mcl.experiments.convergence import ConvergenceCriteria, RecoveryStats
 from mcl.experiments.runs import DRIVERS, RunResult, RunSpec
 from mcl.filter.augmented import AugmentedParams
 from mcl.filter.kld import KLDParams
-from mcl.filter.lost import LostParams
+from mcl.filter.lost_params import LostParams
 from mcl.filter.particle_filter import ParticleFilterParams
 from mcl.filter.sensor_model import SensorModelParams
 from mcl.wrappers.localization import LocalizationConfig
@@ -43,7 +43,7 @@ def recovery_localization(
 ) -> LocalizationConfig:
     """Filter settings for finding the car (module docstring); the defaults are the measured ones.
 
-    The lost flag ([LostParams][mcl.filter.lost.LostParams]) is reported but triggers no recovery of
+    The lost flag ([LostParams][mcl.filter.lost_params.LostParams]) is reported but triggers no recovery of
     its own here: augmented MCL and KLD-sampling do the searching, as measured.
 
     Args:

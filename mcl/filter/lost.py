@@ -49,150 +49,19 @@ Frames and units: world frame; metres, radians, seconds.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from mcl.filter.lost_params import LostParams
 from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.scan_continuity import ScanContinuity
 from mcl.filter.step_kernels import pose_moments
-from racecar_sim.settings.validation import short
 
-__all__ = ["LostDetector", "LostParams", "scan_agreement"]
+__all__ = ["LostDetector", "scan_agreement"]
 
 _MIN_MISFIT = 0.02
 """The smallest usual misfit the relative test assumes (a perfect record would flag any beam)."""
-
-
-@dataclass(frozen=True)
-class LostParams:
-    """Thresholds of the ``lost`` flag and the recovery it triggers (module docstring).
-
-    Attributes:
-        enabled: compute the flag (False: ``lost`` is always False and nothing is injected).
-        fit_tolerance: metres; a beam agrees when its measured range is this close to the cast.
-        skip_short: leave out of the fit the beams that return more than ``fit_tolerance``
-            short of the cast (furniture, people, other cars: what the map lacks).
-        beams: beams of the scan compared (evenly spaced).
-        window_s: seconds of driving over which the fit is averaged (exponential time constant).
-        raise_below: the flag goes up when the averaged fit falls below this fraction.
-        clear_above: the flag goes down when the averaged fit rises above this fraction
-            (at least ``raise_below``: hysteresis).
-        misfit_ratio: the flag also goes up when the averaged misfit exceeds this many times
-            the reference's (at least 1; ``.inf``: never).
-        reference_s: seconds (of time not lost) over which the reference fit is averaged.
-        max_position_sd: metres; the flag is also up while the cloud's position standard
-            deviation exceeds this (``math.inf``: never).
-        recover: inject free-space particles whenever the fit says lost (off by default: in the
-            honest world it moved the cloud to wrong places that fit 62-86 % of the beams and lost
-            runs the plain filter keeps, docs/recovery.md).
-        recover_after_jump: inject them after a jump (a kidnap) until the car is found, and
-            again whenever the fit says lost within ``jump_search_s`` of the jump.
-        jump_below: a jump is a scan that sees fewer than this fraction of the previous scan's
-            points again (0: never; the wrappers feed the odometry the check needs).
-        jump_confirm_s: a dip of the continuity is a jump when, within this many seconds, the
-            scan fit at the estimate falls under ``clear_above`` (something passing close to the
-            lidar makes a dip, but the fit holds).
-        jump_hold_s: seconds the flag stays up after a jump at least.
-        jump_found_within: after a jump, the car counts as found when the averaged fit is
-            back within this fraction of the usual fit before the jump.
-        jump_search_s: seconds after a jump during which a fit that says lost resumes the
-            search, and after which a jumped filter stops searching for a better place than
-            one the fit does not call lost.
-        inject_share: fraction of each resampling's draws replaced by uniform free-space poses
-            while lost, in [0, 0.5].
-        burst_every_s: seconds between two bursts of uniform poses while lost (the first one as
-            soon as the flag goes up).
-        burst_density: burst particles per m² of the filter map's free floor.
-        burst_max: most particles of one burst (0: no bursts).
-        burst_accept: a burst's outcome is kept only when the scan fit at the new estimate
-            beats the fit at the cloud's estimate before the burst by this much; else the
-            cloud before the burst is restored (the beam model may prefer a wrong place that a
-            cluttered, out-of-date world happens to fit).
-    """
-
-    enabled: bool = True
-    fit_tolerance: float = 0.2
-    skip_short: bool = True
-    beams: int = 100
-    window_s: float = 0.75
-    raise_below: float = 0.5
-    clear_above: float = 0.65
-    misfit_ratio: float = 6.0
-    reference_s: float = 20.0
-    max_position_sd: float = 2.0
-    recover: bool = False
-    recover_after_jump: bool = True
-    jump_below: float = 0.5
-    jump_confirm_s: float = 0.5
-    jump_hold_s: float = 0.25
-    jump_found_within: float = 0.1
-    jump_search_s: float = 30.0
-    inject_share: float = 0.02
-    burst_every_s: float = 1.0
-    burst_density: float = 20.0
-    burst_max: int = 20_000
-    burst_accept: float = 0.1
-
-    def __post_init__(self) -> None:
-        for name in ("enabled", "recover", "recover_after_jump", "skip_short"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(
-                    f"LostParams.{name} = {short(getattr(self, name))} must be true or false"
-                )
-        for name in ("beams", "burst_max"):
-            v = getattr(self, name)
-            low = 1 if name == "beams" else 0
-            if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
-                raise ValueError(
-                    f"LostParams.{name} = {short(v)} must be an integer in [{low}, 1000000]"
-                )
-
-        def number(name: str) -> float:
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int | float) or math.isnan(v):
-                raise ValueError(f"LostParams.{name} = {short(v)} must be a number")
-            return float(v)
-
-        checks = {
-            "fit_tolerance": (0.0, 10.0, "metres"),
-            "window_s": (0.0, 60.0, "seconds"),
-            "reference_s": (0.0, 3600.0, "seconds"),
-            "burst_every_s": (0.0, 600.0, "seconds"),
-            "jump_hold_s": (0.0, 600.0, "seconds"),
-            "jump_confirm_s": (0.0, 60.0, "seconds"),
-            "jump_search_s": (0.0, 3600.0, "seconds"),
-            "burst_density": (0.0, 10_000.0, "particles per m²"),
-        }
-        for name, (low, high, unit) in checks.items():
-            v = number(name)
-            if not low < v <= high:
-                raise ValueError(
-                    f"LostParams.{name} = {short(v)} must lie in ({low:g}, {high:g}] {unit}"
-                )
-        for name in ("raise_below", "clear_above", "burst_accept", "jump_below", "jump_found_within"):
-            if not 0.0 <= number(name) <= 1.0:
-                raise ValueError(
-                    f"LostParams.{name} = {short(getattr(self, name))} must be a fraction in [0, 1]"
-                )
-        if self.clear_above < self.raise_below:
-            raise ValueError(
-                f"LostParams.clear_above = {self.clear_above} must be at least raise_below = "
-                f"{self.raise_below} (hysteresis)"
-            )
-        if not 0.0 <= number("inject_share") <= 0.5:
-            raise ValueError(
-                f"LostParams.inject_share = {short(self.inject_share)} must lie in [0, 0.5]"
-            )
-        if not number("misfit_ratio") >= 1.0:
-            raise ValueError(
-                f"LostParams.misfit_ratio = {short(self.misfit_ratio)} must be >= 1 (.inf: off)"
-            )
-        if not number("max_position_sd") > 0.0:
-            raise ValueError(
-                f"LostParams.max_position_sd = {short(self.max_position_sd)} must be > 0 metres (.inf: never)"
-            )
 
 
 def scan_agreement(
@@ -240,7 +109,7 @@ class LostDetector:
     """The ``lost`` flag of one filter (module docstring); one per car, restarted with its filter.
 
     Args:
-        params: [LostParams][mcl.filter.lost.LostParams].
+        params: [LostParams][mcl.filter.lost_params.LostParams].
 
     Attributes:
         fit: the last scan's fit (fraction of beams, NaN before the first scan).

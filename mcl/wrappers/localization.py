@@ -21,7 +21,8 @@ from gymnasium import spaces
 from mcl.filter.adaptive import AdaptiveParams
 from mcl.filter.angles import wrap_angle
 from mcl.filter.bounds import MAX_CASTS, check_filter
-from mcl.filter.lost import LostDetector, LostParams
+from mcl.filter.lost import LostDetector
+from mcl.filter.lost_params import LostParams
 from mcl.filter.motion_model import MotionModel, MotionModelParams
 from mcl.filter.particle_filter import ParticleFilter, ParticleFilterParams
 from mcl.filter.sensor_model import SensorModel, SensorModelParams
@@ -75,7 +76,7 @@ class LocalizationConfig:
         adaptive: when given, the filter is a [`AdaptiveParticleFilter`][mcl.filter.adaptive.AdaptiveParticleFilter]
             with these settings (searching, then tracking), unless a ``filter_factory`` is given.
         lost: the ``lost`` flag's thresholds and the recovery it triggers
-            ([LostParams][mcl.filter.lost.LostParams]).
+            ([LostParams][mcl.filter.lost_params.LostParams]).
     """
 
     init: str = "pose"

@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
 from mcl.experiments.lost_flag import kidnap_times
 from mcl.experiments.scenarios import KidnapScenario
-from mcl.filter.lost import LostParams, scan_agreement
+from mcl.filter.lost import scan_agreement
+from mcl.filter.lost_params import LostParams
 from mcl.wrappers.error_log import read_error_log
 from mcl.wrappers.localization import LocalizationConfig, as_localization_config
 from mcl.wrappers.single import LocalizationWrapper

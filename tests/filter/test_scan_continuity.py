@@ -8,7 +8,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mcl.filter.lost import LostParams
+from mcl.filter.lost_params import LostParams
 from mcl.filter.scan_continuity import (
     ScanContinuity,
     compose,
