@@ -227,7 +227,7 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
     @property
     def time(self) -> float:
         """Seconds since the reset (the car's clock in the core: steps x dt)."""
-        return float(self.fleet.clocks.times[self.car_index])
+        return self.fleet.clocks.time(self.car_index)
 
     @property
     def pose(self) -> np.ndarray:
@@ -308,13 +308,12 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
             steer, speed = check_action(action, (2,)).tolist()
         if not (math.isfinite(steer) and math.isfinite(speed)):
             raise ValueError(f"action must be finite [steer, speed], got {short(action)}")
-        steer, speed = self.fleet.clip_one(steer, speed)
         physics = self.physics
         if self.obstacles is not None:
             self.obstacles.step(self.dt, physics.pose)
             # pymunk must see obstacles near the car (free steps only know the map's walls)
             physics.free_steps = not self.obstacles.near(physics.pose, _OBSTACLE_REACH)
-        # The core: the command delay, the physics, the clock (racecar_sim.fleet).
+        # The core: clip to the box, the command delay, the physics, the clock (racecar_sim.fleet).
         collided, fresh, pose = self.fleet.step_one(self.car_index, steer, speed)
         if fresh:
             self._take_scan(pose)

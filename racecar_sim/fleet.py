@@ -124,11 +124,6 @@ class CarFleet:
         """(N, 2) float64 ``commands`` = [steer rad, speed m/s] clipped to the action box."""
         return np.minimum(np.maximum(commands, self.low), self.high)
 
-    def clip_one(self, steer: float, speed: float) -> tuple[float, float]:
-        """One command (rad, m/s) clipped to the action box, in plain floats."""
-        lo, hi = self._lo, self._hi
-        return min(max(steer, lo[0]), hi[0]), min(max(speed, lo[1]), hi[1])
-
     def command(self, cars: list[int], commands: np.ndarray) -> np.ndarray:
         """Give cars ``cars`` their rows of the clipped ``commands`` (N, 2); returns the commands
         that reach the bodies now (``commands`` itself without a delay, else a copy whose rows of
@@ -173,8 +168,12 @@ class CarFleet:
         return hits, self.clocks.tick(cars)
 
     def step_one(self, i: int, steer: float, speed: float) -> tuple[bool, bool, np.ndarray]:
-        """`command()` and `step()` of car ``i`` alone, by a clipped command (rad, m/s), in plain
-        floats: returns (touched a wall, its scan is due, its new rear-axle world pose (3,))."""
+        """`clip()`, `command()` and `step()` of car ``i`` alone, by a finite command (rad, m/s),
+        in plain floats (the same doubles): returns (touched a wall, its scan is due, its new rear-axle world
+        pose (3,))."""
+        lo, hi = self._lo, self._hi
+        steer = min(max(steer, lo[0]), hi[0])
+        speed = min(max(speed, lo[1]), hi[1])
         delay = self.delays[i]
         if delay.n:
             steer, speed = delay.push(steer, speed)
