@@ -263,9 +263,10 @@ class RaceWorld:
 
     def _measure_odometry(self, cars: np.ndarray) -> None:
         """The odometry (and IMU) of ``cars`` after their scans, as the single env measures it
-        ([`CarSensors.observation`][racecar_sim.sensors.onboard.CarSensors.observation]), drawn from each car's generator in its order: with an
-        IMU, an odometry bias or lead, the single env's own call per car; else the VESC's twist
-        from the wheels and the noise on arrays (the same draws and double operations)."""
+        ([`CarSensors.observation`][racecar_sim.sensors.onboard.CarSensors.observation]), drawn
+        from each car's generator in its order: with an IMU or an odometry bias, the single env's
+        own call per car; else the core's (the VESC's twist from the wheels and the noise on
+        arrays, or car by car with an odometry lead: the same draws and double operations)."""
         if len(cars) == 0:
             return
         first = self.cars[0]
