@@ -50,8 +50,15 @@ class FleetCar(Protocol):
     """What the fleet reads of a car: its physics and its random generator (a
     [`RacecarEnv`][racecar_sim.env.RacecarEnv] is one)."""
 
-    physics: RacecarPhysics
-    np_random: np.random.Generator
+    @property
+    def physics(self) -> RacecarPhysics:
+        """The car's physics (its state)."""
+        ...
+
+    @property
+    def np_random(self) -> np.random.Generator:
+        """The car's random generator (read at every draw: a reset may replace it)."""
+        ...
 
 
 class CarFleet:
