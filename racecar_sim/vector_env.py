@@ -103,8 +103,10 @@ class RacecarVectorEnv(VectorEnv):
       and actions gives the same episode as the single env (tested).
     * 0.2: every setting of ``RacecarSim-v0`` (see its history) applies to each car; the random
       start table is built once per map and car size and shared by the cars.
-    * 0.3: each car's steps, scans and odometry come from one core of N cars' arrays
-      ([`CarFleet`][racecar_sim.fleet.CarFleet]); episodes are unchanged.
+    * 0.3: each car's steps, clock, scans and odometry come from one core of N cars' arrays
+      ([`CarFleet`][racecar_sim.fleet.CarFleet], the one the single env steps through with one
+      car); each car's env is a row of it (``envs[i].time``, ``last_scan``); episodes are
+      unchanged.
     """
 
     metadata: dict[str, Any] = {  # noqa: RUF012
