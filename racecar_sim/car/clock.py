@@ -40,11 +40,22 @@ class CarClocks:
         """(N,) seconds since each car's reset (a car that does not step keeps its time)."""
         self.next_scan = np.zeros(n)
         """(N,) seconds since each car's reset at which its next scan is due."""
+        self._views()
+
+    def _views(self) -> None:
         # The same memory as plain Python ints and floats, for the one-car path (numpy's scalars
         # cost twice as much per access on the single env's hot path).
         self._steps1, self._times1, self._next1 = (
             memoryview(self.steps), memoryview(self.times), memoryview(self.next_scan)
         )
+
+    def __getstate__(self) -> dict:
+        """For pickle and deepcopy (an env is copied whole): the arrays, not their views."""
+        return {k: v for k, v in self.__dict__.items() if not isinstance(v, memoryview)}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._views()
 
     def reset(self, cars: np.ndarray | list[int] | None = None) -> None:
         """``cars`` (int indices; None: every car) back to time 0 with a scan due now."""
