@@ -12,16 +12,15 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 
-from racecar_sim.car.clock import CarClock
 from racecar_sim.car.physics import RacecarPhysics
 from racecar_sim.car.start_poses import random_start, shared_start_cells
 from racecar_sim.compile_log import install as log_first_compile
+from racecar_sim.fleet import CarFleet
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.render import CarRendering, MapRenderer, RenderHook
 from racecar_sim.sensors.lidar import Lidar
 from racecar_sim.sensors.odometry import Odometry
 from racecar_sim.sensors.onboard import CarSensors
-from racecar_sim.sensors.vesc import CommandDelay, lead_steps
 from racecar_sim.settings.config import (
     CarParams,
     EnvConfig,
@@ -142,7 +141,10 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
     * 0.3: ``track="auto"`` works on any map whose free space runs round an island; the bundled
       loop maps' tracks are read from their CSVs (points to 0.1 mm), so ``progress`` on them may
       differ from 0.2's in the fourth decimal. The 0.2 module paths (``racecar_sim.config``, ...)
-      import with a ``FutureWarning`` until 0.4.
+      import with a ``FutureWarning`` until 0.4. The car steps through the core that the vector
+      env and the race share ([`CarFleet`][racecar_sim.fleet.CarFleet] with one car: ``fleet``,
+      ``car_index``); its clock and command delay are the core's (``fleet.clocks``,
+      ``fleet.delays``, no longer ``clock`` and ``command_delay``); episodes are unchanged.
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array"], "render_fps": 40}  # noqa: RUF012
@@ -176,11 +178,13 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
         )
         self.lidar = Lidar(self.map, self.lidar_params)
         self.odometry = Odometry(self.odometry_noise)
-        self._wheelbase = float(self.car_params.wheelbase)
-        # The body gets each command odom_lead late; the odometry reads the wheels now (vesc.py).
-        self.command_delay = CommandDelay(
-            lead_steps(cfg.odom_lead, self.dt), self.car_params, self.dt, cfg.substep
-        )
+        self.fleet = CarFleet([self], cfg, self.lidar.period, self.odometry, self.lidar_params.n_beams)
+        """The core this car steps through ([`CarFleet`][racecar_sim.fleet.CarFleet]): its clock
+        and scan schedule, its commands on their way to the body (``odom_lead``), its pose, last
+        scan and odometry are row ``car_index`` there (a fleet of one of its own, unless a vector
+        env or a race made it `join()` theirs)."""
+        self.car_index = 0
+        """This car's row in `fleet`."""
         self.imu = cfg.imu
         # Honest-world extras (None = off): correlated lidar failures, odometry bias, obstacles.
         self.scan_effects = cfg.scan_effects
@@ -205,14 +209,8 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
         )
         if self.imu is not None:
             self.observation_space["imu"] = spaces.Box(-np.inf, np.inf, (1,), np.float32)
-        # Plain floats of the action box for the per-step clipping.
-        low, high = self.action_space.low, self.action_space.high
-        self._steer_lo, self._speed_lo = float(low[0]), float(low[1])
-        self._steer_hi, self._speed_hi = float(high[0]), float(high[1])
         self._penalty = float(cfg.collision_penalty)
         self._terminate = cfg.terminate_on_collision
-        self.clock = CarClock(self.dt, self.lidar.period)
-        """The car's clock and scan schedule ([`CarClock`][racecar_sim.car.clock.CarClock])."""
 
         # On a track (the ``track`` setting): progress, laps, lap times and rank in the info.
         self.track = None
@@ -224,19 +222,25 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
         self._render_hooks: list[RenderHook] = []
         self._renderer: MapRenderer | None = None
         self._needs_reset = True  # until the first reset
-        self._scan = np.zeros(self.lidar_params.n_beams, dtype=np.float32)
-        self._scan_car_pose = (0.0, 0.0, 0.0)  # rear-axle pose of the last scan (render draws it)
 
     # ------------------------------------------------------------------ state
     @property
     def time(self) -> float:
-        """Seconds since the reset (the car's clock: steps x dt)."""
-        return self.clock.time
+        """Seconds since the reset (the car's clock in the core: steps x dt)."""
+        return self.fleet.clocks.time(self.car_index)
 
     @property
     def pose(self) -> np.ndarray:
         """True rear-axle world pose [x, y, theta] (metres, radians in [-pi, pi))."""
         return self.physics.pose
+
+    def join(self, fleet: CarFleet, index: int) -> None:
+        """Make this car row ``index`` of ``fleet`` (an N-car core built over it, before the
+        first reset): from now on its clock, scan schedule, command delay, pose, last scan and
+        odometry live there, and `reset()` / `step()` go through it (the vector env and the race
+        do this, so each car has one clock, kept where they step it)."""
+        self.fleet = fleet
+        self.car_index = int(index)
 
     def teleport(self, pose: np.ndarray) -> None:
         """Move the car to ``pose`` at rest without telling anyone (kidnapped-robot tests).
@@ -275,11 +279,10 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
             # Their own stream from the env's: the same seed places the same obstacles.
             obstacle_rng = np.random.default_rng(int(self.np_random.integers(2**63)))
             self.obstacles.spawn(obstacle_rng, self.physics.pose)
-        self.clock.reset()
+        self.fleet.reset([self.car_index])
         self._needs_reset = False
         pose = self.physics.pose
         self._take_scan(pose)
-        self.command_delay.reset(self.physics.steer, self.physics.wheel_speed)
         twist = self.physics.twist
         obs = self.observation(twist)
         if self._laps is not None:
@@ -305,16 +308,16 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
             steer, speed = check_action(action, (2,)).tolist()
         if not (math.isfinite(steer) and math.isfinite(speed)):
             raise ValueError(f"action must be finite [steer, speed], got {short(action)}")
-        steer = min(max(steer, self._steer_lo), self._steer_hi)
-        speed = min(max(speed, self._speed_lo), self._speed_hi)
-        if self.command_delay.n:
-            steer, speed = self.command_delay.push(steer, speed)
-
-        collided, fresh = self._advance(steer, speed)
-        pose = self.physics.pose
+        physics = self.physics
+        if self.obstacles is not None:
+            self.obstacles.step(self.dt, physics.pose)
+            # pymunk must see obstacles near the car (free steps only know the map's walls)
+            physics.free_steps = not self.obstacles.near(physics.pose, _OBSTACLE_REACH)
+        # The core: clip to the box, the command delay, the physics, the clock (racecar_sim.fleet).
+        collided, fresh, pose = self.fleet.step_one(self.car_index, steer, speed)
         if fresh:
             self._take_scan(pose)
-        twist = self.physics.twist
+        twist = physics.twist
         progress = float(twist[0]) * self.dt
         penalty = -self._penalty if collided else 0.0
         obs = self.observation(twist)
@@ -325,16 +328,6 @@ class RacecarEnv(CarSensors, CarRendering, gym.Env):
         return obs, progress + penalty, terminated, False, info
 
     # ------------------------------------------------------------------ internals
-    def _advance(self, steer: float, speed: float) -> tuple[bool, bool]:
-        """Physics and clock of one step (clipped command); returns (collided, a scan is due)."""
-        physics = self.physics
-        if self.obstacles is not None:
-            self.obstacles.step(self.dt, physics.pose)
-            # pymunk must see obstacles near the car (free steps only know the map's walls)
-            physics.free_steps = not self.obstacles.near(physics.pose, _OBSTACLE_REACH)
-        collided = physics.step((steer, speed), self.dt)
-        return collided, self.clock.tick()
-
     def _info(
         self,
         pose: np.ndarray,

@@ -199,8 +199,8 @@ class CarRendering:
     lidar_params: Any
     physics: Any
     obstacles: Any
-    _scan: np.ndarray
-    _scan_car_pose: tuple[float, float, float]
+    last_scan: np.ndarray
+    last_scan_pose: np.ndarray
     _render_hooks: list[RenderHook]
     _renderer: MapRenderer | None
 
@@ -216,8 +216,8 @@ class CarRendering:
         img = renderer.base()
         renderer.draw_scan(
             img,
-            self.lidar.mount_pose(self._scan_car_pose),
-            self._scan,
+            self.lidar.mount_pose(self.last_scan_pose),
+            self.last_scan,
             self.lidar.angles,
             max_range=self.lidar_params.max_range,
         )

@@ -103,8 +103,10 @@ class RacecarVectorEnv(VectorEnv):
       and actions gives the same episode as the single env (tested).
     * 0.2: every setting of ``RacecarSim-v0`` (see its history) applies to each car; the random
       start table is built once per map and car size and shared by the cars.
-    * 0.3: each car's steps, scans and odometry come from one core of N cars' arrays
-      ([`CarFleet`][racecar_sim.fleet.CarFleet]); episodes are unchanged.
+    * 0.3: each car's steps, clock, scans and odometry come from one core of N cars' arrays
+      ([`CarFleet`][racecar_sim.fleet.CarFleet], the one the single env steps through with one
+      car); each car's env is a row of it (``envs[i].time``, ``last_scan``); episodes are
+      unchanged.
     """
 
     metadata: dict[str, Any] = {  # noqa: RUF012
@@ -174,16 +176,16 @@ class RacecarVectorEnv(VectorEnv):
         self._casts = 0
         lidar = first.lidar
         self._field, self._geometry, self._cos_a, self._sin_a, self._noise = lidar.kernel_inputs
-        self._low = first.action_space.low.astype(np.float64)
-        self._high = first.action_space.high.astype(np.float64)
         self._penalty = float(cfg.collision_penalty)
         self._terminate = bool(cfg.terminate_on_collision)
         self._autoreset = np.zeros(num_envs, dtype=np.bool_)
         self._never_reset = np.ones(num_envs, dtype=np.bool_)  # cars with no state yet
-        self._last_odom = np.zeros((num_envs, 3), dtype=np.float32)
         self._workers = max(1, int(workers if workers is not None else (os.cpu_count() or 1)))
-        self.fleet = CarFleet(self.envs)
-        """The cars' physics, scan seeds and odometry on arrays ([`CarFleet`][racecar_sim.fleet.CarFleet])."""
+        self.fleet = CarFleet(self.envs, cfg, lidar.period, first.odometry, n)
+        """The cars' core ([`CarFleet`][racecar_sim.fleet.CarFleet]): their clocks, poses, last
+        scans and odometry on arrays, the step they take; each car is a row of it."""
+        for i, env in enumerate(self.envs):
+            env.join(self.fleet, i)
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(
@@ -209,21 +211,15 @@ class RacecarVectorEnv(VectorEnv):
                 raise ValueError(
                     f"reset options['reset_mask'] must be a bool array of shape ({n},) with a True"
                 )
-        obs = self._empty_obs()
         infos: dict[str, Any] = {}
         for i, env in enumerate(self.envs):
-            if mask[i]:
-                o, info = env.reset(seed=seeds[i], options=options or None)
-                obs["scan"][i] = o["scan"]
-                obs["odom"][i] = o["odom"]
+            if mask[i]:  # the car's reset writes its row of the core: scan, odometry, clock
+                _, info = env.reset(seed=seeds[i], options=options or None)
                 self._add_info(infos, info, i)
-            else:
-                obs["scan"][i] = env.last_scan
-                obs["odom"][i] = self._last_odom[i]
         self._never_reset &= ~mask  # after every car's reset: a refused one leaves its car unset
-        self._last_odom = obs["odom"].copy()
         self._autoreset[mask] = False
-        return obs, infos
+        fleet = self.fleet  # the others report their last observation
+        return {"scan": fleet.scans.copy(), "odom": fleet.odom.copy()}, infos
 
     def step(
         self, actions: np.ndarray
@@ -239,57 +235,34 @@ class RacecarVectorEnv(VectorEnv):
                 f"call reset() before step(): car(s) {np.flatnonzero(self._never_reset).tolist()[:8]} "
                 "have no state yet"
             )
-        acts = check_action(actions, (n, 2), "actions")
-        acts = np.minimum(np.maximum(acts, self._low), self._high)
+        fleet = self.fleet
+        acts = fleet.clip(check_action(actions, (n, 2), "actions"))
 
-        envs = self.envs
+        # Next-step autoreset: a car whose episode ended restarts (its row of the core with it).
+        reset_now = np.flatnonzero(self._autoreset).tolist()
+        for i in reset_now:
+            self.envs[i].reset()
+        stepped = np.flatnonzero(~self._autoreset)
         fresh = np.zeros(n, dtype=np.bool_)
-        poses = np.zeros((n, 3))
-        reset_now = self._autoreset
-        reset_obs: dict[int, dict[str, np.ndarray]] = {}
-        reset_infos: dict[int, dict[str, Any]] = {}
-        due: list[int] = []
-        stepped: list[int] = []
-        for i in range(n):
-            if reset_now[i]:
-                reset_obs[i], reset_infos[i] = envs[i].reset()
-            else:
-                stepped.append(i)
-        # Physics: the cars far from walls in one kernel call, the others through pymunk.
         collided = np.zeros(n, dtype=np.bool_)
-        collided[stepped] = self.fleet.step(stepped, acts, self.dt, poses)
-        times = np.zeros(n)
-        n_steps = np.zeros(n, dtype=np.int64)
-        for i in stepped:
-            clock = envs[i].clock
-            scan_due = clock.tick()  # the car's clock, as in RacecarEnv.step
-            times[i] = clock.time
-            n_steps[i] = clock.steps
-            if scan_due:
-                fresh[i] = True
-                due.append(i)
-        scans = np.empty((n, self._n_beams), dtype=np.float32)
-        self._cast(due, poses, scans)
+        # The core: command, physics (free steps in one kernel call), clocks; then the scans due.
+        collided[stepped], due = fleet.step(stepped, fleet.command(stepped.tolist(), acts))
+        fresh[due] = True
+        self._cast(due)
+        fleet.odometry(stepped.tolist())  # the odometry's draws, after the scan's
 
-        twist = self.fleet.twists.copy()  # the cars' own twist arrays (resets: below)
-        for i in stepped:
-            if not fresh[i]:
-                scans[i] = envs[i].last_scan
-        odom = np.zeros((n, 3), dtype=np.float32)
-        odom[stepped] = self.fleet.odometry(stepped)  # the odometry's draws, after the scan's
+        poses, twist, scans = fleet.poses.copy(), fleet.twists.copy(), fleet.scans.copy()
+        odom, times = fleet.odom.copy(), fleet.clocks.times.copy()
         progress = twist[:, 0] * self.dt
         penalty = np.where(collided, -self._penalty, 0.0)
         rewards = progress + penalty
         terminated = collided & self._terminate
         if self.max_episode_steps is not None:
-            truncated = n_steps >= self.max_episode_steps
+            truncated = fleet.clocks.steps >= self.max_episode_steps
         else:
             truncated = np.zeros(n, dtype=np.bool_)
-        for i, o in reset_obs.items():  # next-step autoreset: the first observation, reward 0
-            info = reset_infos[i]
-            scans[i], odom[i] = o["scan"], o["odom"]
-            poses[i], twist[i] = info["pose"], info["twist"]
-            fresh[i], times[i] = True, 0.0
+        for i in reset_now:  # the first observation (the core's row), reward 0
+            fresh[i] = True
             rewards[i] = progress[i] = penalty[i] = 0.0
             terminated[i] = truncated[i] = False
         ones = np.ones(n, dtype=np.bool_)
@@ -304,20 +277,12 @@ class RacecarVectorEnv(VectorEnv):
             "_rewards": ones.copy(),
         }  # fmt: skip
         self._autoreset = terminated | truncated
-        self._last_odom = odom
         return {"scan": scans, "odom": odom}, rewards, terminated, truncated, infos
 
     # ------------------------------------------------------------------ internals
-    def _empty_obs(self) -> dict[str, np.ndarray]:
-        n = self.num_envs
-        return {
-            "scan": np.empty((n, self._n_beams), dtype=np.float32),
-            "odom": np.zeros((n, 3), dtype=np.float32),
-        }
-
-    def _cast(self, due: list[int], poses: np.ndarray, scans: np.ndarray) -> None:
-        """Cast the scans of cars ``due`` (their poses in ``poses``) into their rows of ``scans``
-        and store them in the cars.
+    def _cast(self, due: np.ndarray) -> None:
+        """Cast the scans of cars ``due`` (ascending) at their poses in the core and keep them
+        there.
 
         Each car draws its scan's seed from its own generator, as its
         [`measure()`][racecar_sim.sensors.lidar.Lidar.measure] would. In parallel, this thread and
@@ -325,11 +290,12 @@ class RacecarVectorEnv(VectorEnv):
         (`racecar_sim.raycast.shared_work`): a thread that the OS runs late takes fewer
         chunks, and one that has not started when they run out is not waited for.
         """
-        if not due:
-            return
         k, m = len(due), self._n_beams
-        seeds = self.fleet.scan_seeds(due)
-        sub = poses[due]
+        if k == 0:
+            return
+        fleet = self.fleet
+        seeds = fleet.scan_seeds(due.tolist())
+        sub = fleet.poses[due]
         out = np.empty((k, m), dtype=np.float32)
         ranges = np.empty((k, m))
         status = np.zeros(k, dtype=np.int64)
@@ -349,10 +315,8 @@ class RacecarVectorEnv(VectorEnv):
             times.append((time.perf_counter() - start) / k)
             del times[:-_TIMES_KEPT]
         if status.any():  # pragma: no cover - physics poses are finite and on the map
-            raise RuntimeError(f"lidar cast failed for cars {np.asarray(due)[status != 0]}")
-        for j, i in enumerate(due):
-            self.envs[i].keep_scan(sub[j], out[j])
-        scans[due] = out
+            raise RuntimeError(f"lidar cast failed for cars {due[status != 0]}")
+        fleet.scanned(due, out)
 
     def _choose_parallel(self) -> bool:
         """Threads or not for the next cast (``parallel=None``): the faster lately, probing."""

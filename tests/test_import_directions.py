@@ -64,9 +64,11 @@ SIM_LAYERS = {
     "racecar_sim.sensors": ("world", "drivers", "env", "vector_env", "fleet", "race"),
     "racecar_sim.world": ("car", "sensors", "drivers", "env", "vector_env", "fleet", "race"),
     "racecar_sim.drivers": ("env", "vector_env", "fleet", "race"),
-    "racecar_sim.env": ("vector_env", "fleet", "race"),
+    "racecar_sim.fleet": ("drivers", "env", "vector_env", "race"),
+    "racecar_sim.env": ("vector_env", "race"),
 }
-"""Inside the simulator: the car, its sensors and the world below the drivers, the drivers below the
+"""Inside the simulator: the car, its sensors and the world below the core that steps N cars (the
+fleet), the core below the envs (the single env is the core with one car), the drivers below the
 envs, the single env below the N-car ones and the race (docs/ARCHITECTURE.md, Layout)."""
 
 

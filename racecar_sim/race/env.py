@@ -163,8 +163,6 @@ class RaceEnv(ParallelEnv):
         self._index = {a: i for i, a in enumerate(self.possible_agents)}
         self._obs_space: spaces.Dict = first.observation_space
         self._act_space: spaces.Box = first.action_space
-        self._low = self._act_space.low.astype(np.float64)
-        self._high = self._act_space.high.astype(np.float64)
         self._penalty = float(self.config.collision_penalty)
         self._terminate = bool(self.config.terminate_on_collision)
         self.laps: LapCounter | None = (
@@ -297,7 +295,7 @@ class RaceEnv(ParallelEnv):
         else:
             acts = np.zeros((n, 2))
             acts[rows] = given
-        acts = np.minimum(np.maximum(acts, self._low), self._high)
+        acts = self.world.fleet.clip(acts)  # to the action box (the core's)
         collided = self.world.step(acts, self._active)
         self._n_steps += 1
         if self.laps is not None:

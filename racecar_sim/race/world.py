@@ -10,13 +10,13 @@ due scan is cast in one numba call that cuts the beams at the other cars' boxes
 its odometry's six normals, as the single env's does, so a world of one car gives what
 ``RacecarSim-v0`` gives for the same seed, start and actions.
 
-Per step, the work for all cars is done on arrays, not car by car: the cars' clocks (the car's
-clock, ``racecar_sim.car.clock.CarClocks``: the single env's rules on arrays), their last scans and
-the poses those were taken at live here; their physics step, scan seeds and odometry are the
-vector env's too (``racecar_sim.fleet.CarFleet``); a car's own ``RacecarEnv`` keeps its
-physics, its lidar settings and its generator. What stays per car in Python is what is per car by
-nature: one raw draw and one draw of six normals from each car's generator, and the pymunk step
-of a car near a wall or another car.
+Per step, the work for all cars is done on arrays, not car by car, by the core every env steps
+through ([`CarFleet`][racecar_sim.fleet.CarFleet]): the commands' delay, the physics step, the
+clocks and scan schedule, the poses, the last scans and the poses they were taken at, the scan
+seeds and the odometry; each car's ``RacecarEnv`` is a row of it and keeps its physics, its lidar
+settings and its generator. The race adds the contacts between cars and the cast that sees them.
+What stays per car in Python is what is per car by nature: one raw draw and one draw of six
+normals from each car's generator, and the pymunk step of a car near a wall or another car.
 
 Frames: world (the map's), car (x forward, y left, origin at the rear axle).
 """
@@ -28,7 +28,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from racecar_sim.car.clock import CarClocks
 from racecar_sim.env import RacecarEnv
 from racecar_sim.fleet import CarFleet
 from racecar_sim.race.contact import (
@@ -99,8 +98,12 @@ class RaceWorld:
         self.dt = first.dt
         self.car_params = first.car_params
         self.lidar_params = first.lidar_params
-        self.fleet = CarFleet(self.cars)
-        """The cars' physics, scan seeds and odometry on arrays ([`CarFleet`][racecar_sim.fleet.CarFleet])."""
+        self.fleet = CarFleet(self.cars, config, first.lidar.period, first.odometry,
+                              self.lidar_params.n_beams)  # fmt: skip
+        """The cars' core ([`CarFleet`][racecar_sim.fleet.CarFleet]): their command delays,
+        physics step, clocks, poses, last scans and odometry on arrays; each car is a row of it."""
+        for i, car in enumerate(self.cars):
+            car.join(self.fleet, i)
         self._phys = self.fleet.physics
         self._pairs = np.triu_indices(n_cars, 1)
         self.contacts = CarContacts([c.physics for c in self.cars])
@@ -117,26 +120,24 @@ class RaceWorld:
         self._workers = workers
         self._threaded = n_cars * self.lidar_params.n_beams >= PARALLEL_MIN_RAYS and workers > 1
         n, m = n_cars, self.lidar_params.n_beams
-        self.poses = np.zeros((n, 3))
-        """(N, 3) rear-axle world poses [x, y, theta] after the last reset or step."""
-        self.scans = np.zeros((n, m), dtype=np.float32)
-        """(N, n_beams) the last scan of every car (noisy, metres)."""
+        self.poses = self.fleet.poses
+        """(N, 3) rear-axle world poses [x, y, theta] after the last reset or step (the core's)."""
+        self.scans = self.fleet.scans
+        """(N, n_beams) the last scan of every car (noisy, metres; the core's)."""
         self.ranges = np.zeros((n, m))
         """(N, n_beams) the exact ranges of the last scan (walls and cars, no noise), metres."""
-        self.odom = np.zeros((n, 3), dtype=np.float32)
-        """(N, 3) the last odometry of every car (the VESC's noisy car-frame twist)."""
+        self.odom = self.fleet.odom
+        """(N, 3) the last odometry of every car (the VESC's noisy car-frame twist; the core's)."""
         self.imu = np.zeros((n, 1), dtype=np.float32)
         """(N, 1) the last IMU yaw rate of every car (rad/s; zeros without the ``imu`` setting)."""
         self.twists = np.zeros((n, 3))
         self.fresh = np.zeros(n, dtype=np.bool_)
         self.time = 0.0
         """Seconds since the reset: the clock of the car that has driven longest."""
-        self.clocks = CarClocks(n, self.dt, first.lidar.period)
-        """Every car's clock and scan schedule ([`CarClocks`][racecar_sim.car.clock.CarClocks])."""
-        self.car_time = self.clocks.times
+        self.car_time = self.fleet.clocks.times
         """(N,) each car's clock, seconds (a car stops its clock when it leaves the race)."""
-        self.scan_poses = np.zeros((n, 3))
-        """(N, 3) the rear-axle world poses the last scans were taken at."""
+        self.scan_poses = self.fleet.scan_poses
+        """(N, 3) the rear-axle world poses the last scans were taken at (the core's)."""
         self._everyone = np.arange(n)
 
     # ------------------------------------------------------------------ geometry
@@ -189,12 +190,10 @@ class RaceWorld:
         arr = self.random_poses() if given is None else given
         for i, car in enumerate(self.cars):
             car.physics.reset(arr[i])
-            car.command_delay.reset(car.physics.steer, car.physics.wheel_speed)
-        self.time = 0.0
-        self.clocks.reset()
-        self.poses = np.array([car.physics.pose for car in self.cars])
-        self.twists = np.array([car.physics.twist for car in self.cars])
         everyone = np.arange(self.n_cars)
+        self.time = 0.0
+        self.fleet.reset(everyone.tolist())  # clocks, command delays, poses
+        self.twists = self.fleet.twists.copy()
         self.fresh[:] = True
         self._cast(everyone)
         self._measure_odometry(everyone)
@@ -206,12 +205,9 @@ class RaceWorld:
         are seen and touched where they stand. Returns the collided flags (N,)."""
         n = self.n_cars
         stepped_arr = self._everyone if active.all() else np.flatnonzero(active)
-        stepped = stepped_arr.tolist()
-        if self.cars[0].command_delay.n:  # the body gets each command odom_lead late (vesc.py)
-            actions = actions.copy()
-            for i in stepped:
-                delay = self.cars[i].command_delay
-                actions[i] = delay.push(float(actions[i, 0]), float(actions[i, 1]))
+        fleet = self.fleet
+        # The body gets each command odom_lead late (racecar_sim.sensors.vesc).
+        actions = fleet.command(stepped_arr.tolist(), actions)
         poses = self.poses
         phys = self._phys
         speed = np.array([p.speed for p in phys])
@@ -226,13 +222,10 @@ class RaceWorld:
                     vel[i] = phys[i].world_velocity()
         self.contacts.clear()
         self.contacts.show(pairs, poses, vel)
-        new_poses = poses.copy()
         collided = np.zeros(n, dtype=np.bool_)
-        collided[stepped_arr] = self.fleet.step(stepped, actions, self.dt, new_poses)
-        self.poses = new_poses
-        due = self.clocks.tick(stepped_arr)
+        collided[stepped_arr], due = fleet.step(stepped_arr, actions)  # poses, clocks
         self.time = float(self.car_time.max())
-        self.twists[stepped_arr] = self.fleet.twists[stepped_arr]
+        self.twists[stepped_arr] = fleet.twists[stepped_arr]
         self.fresh[:] = False
         self.fresh[due] = True
         self._cast(due)
@@ -266,23 +259,21 @@ class RaceWorld:
             raise RuntimeError(f"lidar cast failed for cars {due[status != 0]}")
         if not everyone:
             self.ranges[due] = ranges
-            self.scans[due] = out
-        self.scan_poses[due] = self.poses[due]
-        self.clocks.scanned(due)
+        self.fleet.scanned(due, None if everyone else out)
 
     def _measure_odometry(self, cars: np.ndarray) -> None:
         """The odometry (and IMU) of ``cars`` after their scans, as the single env measures it
-        ([`CarSensors.observation`][racecar_sim.sensors.onboard.CarSensors.observation]), drawn from each car's generator in its order: with an
-        IMU, an odometry bias or lead, the single env's own call per car; else the VESC's twist
-        from the wheels and the noise on arrays (the same draws and double operations)."""
+        ([`CarSensors.observation`][racecar_sim.sensors.onboard.CarSensors.observation]), drawn
+        from each car's generator in its order: with an IMU or an odometry bias, the single env's
+        own call per car; else the core's (the VESC's twist from the wheels and the noise on
+        arrays, or car by car with an odometry lead: the same draws and double operations)."""
         if len(cars) == 0:
             return
         first = self.cars[0]
-        if first.imu is not None or first.odom_bias is not None or first.command_delay.n:
+        if first.imu is not None or first.odom_bias is not None:
             for i in cars.tolist():
-                obs = self.cars[i].observation(self.twists[i])
-                self.odom[i] = obs["odom"]
+                obs = self.cars[i].observation(self.twists[i])  # keeps the odometry in the core
                 if "imu" in obs:
                     self.imu[i] = obs["imu"]
             return
-        self.odom[cars] = self.fleet.odometry(cars.tolist())
+        self.fleet.odometry(cars.tolist())  # kept in the core's odom (this world's too)

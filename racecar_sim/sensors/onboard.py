@@ -3,8 +3,10 @@ their noise drawn from the env's generator in a fixed order, so the same seed gi
 measurements whichever env (single, vector, race) steps the car.
 
 [`CarSensors`][racecar_sim.sensors.onboard.CarSensors] is a base of
-[`RacecarEnv`][racecar_sim.env.RacecarEnv], which sets its fields. Frames: world (metres,
-radians) and car (x forward, y left, origin at the rear axle).
+[`RacecarEnv`][racecar_sim.env.RacecarEnv], which sets its fields; the car's last scan, its
+schedule and its odometry live in its row ``car_index`` of the env's core
+([`CarFleet`][racecar_sim.fleet.CarFleet]). Frames: world (metres, radians) and car (x forward,
+y left, origin at the rear axle).
 """
 
 from __future__ import annotations
@@ -15,57 +17,55 @@ import numpy as np
 
 from racecar_sim.sensors.lidar import Lidar
 from racecar_sim.sensors.odometry import Odometry
-from racecar_sim.sensors.vesc import CommandDelay, wheel_twist
 
 __all__ = ["CarSensors"]
 
 
 class CarSensors:
     """The car's lidar, VESC odometry and gyro as they measure the car (fields set by the env):
-    ``physics`` (the car's state), ``lidar``, ``odometry``, ``command_delay``, ``imu``,
-    ``odom_bias``, ``scan_effects``, ``obstacles``, ``clock``, ``np_random``."""
+    ``physics`` (the car's state), ``lidar``, ``odometry``, ``imu``, ``odom_bias``,
+    ``scan_effects``, ``obstacles``, ``fleet`` (the core whose row ``car_index`` is this car),
+    ``np_random``."""
 
     physics: Any
     lidar: Lidar
     odometry: Odometry
-    command_delay: CommandDelay
     imu: Any
     odom_bias: Any
     scan_effects: Any
     obstacles: Any
-    clock: Any
+    fleet: Any
+    car_index: int
     lidar_params: Any
     np_random: np.random.Generator
-    _wheelbase: float
-    _scan: np.ndarray
-    _scan_car_pose: tuple[float, float, float]
 
     @property
     def last_scan(self) -> np.ndarray:
-        """(n_beams,) float32 the last scan, metres (the array the car keeps: do not write it)."""
-        return self._scan
+        """(n_beams,) float32 the last scan, metres (the car's row of the core: do not write it)."""
+        return self.fleet.scans[self.car_index]
+
+    @property
+    def last_scan_pose(self) -> np.ndarray:
+        """(3,) the rear-axle world pose [x, y, theta] the last scan was taken at (metres,
+        radians; the core's row: do not write it)."""
+        return self.fleet.scan_poses[self.car_index]
 
     def observation(self, twist: np.ndarray) -> dict[str, np.ndarray]:
-        """The observation of the car now: the last scan, then the odometry and (if on) the IMU's
-        yaw rate from the true car-frame ``twist`` (m/s, m/s, rad/s), their noise drawn from
-        ``np_random`` in this order, as [`step`][racecar_sim.env.RacecarEnv.step] returns it
-        (for cars that the race steps)."""
-        obs = {"scan": self._scan.copy(), "odom": self._measure_odometry()}
+        """The observation of the car now: the last scan, then the odometry (kept in the core)
+        and (if on) the IMU's yaw rate from the true car-frame ``twist`` (m/s, m/s, rad/s), their
+        noise drawn from ``np_random`` in this order, as
+        [`step`][racecar_sim.env.RacecarEnv.step] returns it (for cars that the race steps)."""
+        fleet, i = self.fleet, self.car_index
+        odom = fleet.odometry_one(i)
+        if self.odom_bias is not None:
+            odom = self.odom_bias.apply(odom)
+        fleet.odom[i] = odom
+        obs = {"scan": fleet.scans[i].copy(), "odom": odom}
         imu = self.imu
         if imu is not None:
             rate = float(twist[2]) + imu.bias + imu.sigma * float(self.np_random.standard_normal())
             obs["imu"] = np.array([rate], dtype=np.float32)
         return obs
-
-    def _measure_odometry(self) -> np.ndarray:
-        """The VESC's noisy (and, with a profile, biased) twist from the wheels' state now."""
-        physics = self.physics
-        steer, speed = physics.steer, physics.wheel_speed
-        if self.command_delay.n:  # the wheels already have the commands the body has not
-            steer, speed = self.command_delay.wheels_ahead(steer, speed)
-        vx, vy, om = wheel_twist(speed, steer, self._wheelbase)
-        odom = self.odometry.noisy(vx, vy, om, self.np_random)
-        return odom if self.odom_bias is None else self.odom_bias.apply(odom)
 
     def _take_scan(self, pose: np.ndarray) -> None:
         """Scan from the car's current rear-axle ``pose`` and schedule the next scan one lidar
@@ -88,8 +88,5 @@ class CarSensors:
 
     def keep_scan(self, pose: np.ndarray, scan: np.ndarray) -> None:
         """Keep ``scan`` (float32 (n_beams,), metres, taken now at rear-axle world ``pose``) as the
-        car's last scan and schedule the next one: for scans cast outside the env (the vector
-        env casts every car's in one call)."""
-        self._scan = scan
-        self._scan_car_pose = tuple(pose.tolist())  # for render; info["pose"] is the array
-        self.clock.scanned()
+        car's last scan and schedule the next one (in the core: ``fleet.scanned_one``)."""
+        self.fleet.scanned_one(self.car_index, pose, scan)

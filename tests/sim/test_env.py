@@ -426,3 +426,24 @@ def test_render_without_render_mode_returns_none(map_spec) -> None:
         assert env.render() is None
     with pytest.raises(ValueError, match="render_mode"):
         make(map_spec, render_mode="human")
+
+
+@pytest.mark.parametrize("how", ["deepcopy", "pickle"])
+def test_a_copied_env_steps_on_exactly_as_the_original(how: str) -> None:
+    """An env copied whole mid-episode (its core, clock and generator with it) gives the same
+    observations and times as the original from there on."""
+    import copy
+    import pickle
+
+    env = RacecarEnv("corridor", n_beams=FEW_BEAMS, odom_lead=0.05)
+    env.reset(seed=4)
+    for _ in range(5):
+        env.step(np.array([0.1, 1.0]))
+    twin = copy.deepcopy(env) if how == "deepcopy" else pickle.loads(pickle.dumps(env))
+    assert twin.fleet is not env.fleet and twin.fleet.cars == [twin]
+    for k in range(40):
+        action = np.array([0.3 * math.sin(0.3 * k), 1.5])
+        (a, _, _, _, ia), (b, _, _, _, ib) = env.step(action), twin.step(action)
+        for key in a:
+            np.testing.assert_array_equal(a[key], b[key])
+        assert ia["time"] == ib["time"] and ia["new_scan"] == ib["new_scan"]

@@ -160,3 +160,19 @@ def test_a_negative_or_non_integer_seed_is_one_value_error(seed) -> None:
     with pytest.raises(ValueError, match=r"seed must be a non-negative int, None, or a list of 2"):
         car_seeds(seed, 2)
     assert car_seeds([0, None], 2) == [0, None] and car_seeds(5, 2) == [5, 6]
+
+
+def test_each_car_is_a_row_of_the_one_core() -> None:
+    """The cars keep one clock, scan and odometry each (the vector env's core), not a copy: what a
+    car says of itself is what the vector env reported for it, through autoresets too."""
+    n = 3
+    env = RacecarVectorEnv(n, max_episode_steps=7, **SETTINGS)
+    obs, _ = env.reset(seed=5)
+    for k in range(20):
+        obs, _, _, _, infos = env.step(np.tile([0.2, 1.0 + 0.1 * k], (n, 1)))
+        for i, car in enumerate(env.envs):
+            assert car.fleet is env.fleet and car.car_index == i
+            assert car.time == infos["time"][i]
+            np.testing.assert_array_equal(car.last_scan, obs["scan"][i])
+            np.testing.assert_array_equal(car.pose, infos["pose"][i])
+    assert infos["time"].max() < 7 * SETTINGS["dt"] + 1e-9  # truncated and restarted
