@@ -293,14 +293,15 @@ class BagRecorder:
         self.close()
 
 
-def start_live(address: str | int) -> LiveServer:
+def start_live(address: str | int, wait: bool = True) -> LiveServer:
     """A Foxglove WebSocket server for the recording's topics at ``"[HOST:]PORT"`` (bound to
-    127.0.0.1 unless a host is given); see [mcl.io.live][mcl.io.live]."""
+    127.0.0.1 unless a host is given; ``wait``: see [LiveServer][mcl.io.live.LiveServer]); see
+    [mcl.io.live][mcl.io.live]."""
     from rosbags.typesys import Stores, get_typestore
 
     from mcl.io.live import LiveServer
 
-    return LiveServer(address, TOPICS, get_typestore(Stores.ROS2_HUMBLE))
+    return LiveServer(address, TOPICS, get_typestore(Stores.ROS2_HUMBLE), wait=wait)
 
 
 class DriveRecorder:

@@ -34,6 +34,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -91,10 +92,15 @@ class LiveServer:
         name: the server's name shown in Foxglove.
         max_clients: clients served at once (default [MAX_CLIENTS][mcl.io.live.MAX_CLIENTS]).
         backlog: messages kept per client (default [BACKLOG][mcl.io.live.BACKLOG]).
+        wait: wait for the server's start here (False: return at once, so that the start, about
+            0.3 s of a process importing foxglove-sdk, runs while the drive does; messages go
+            into the pipe meanwhile, and [wait_ready][mcl.io.live.LiveServer.wait_ready] or
+            [port][mcl.io.live.LiveServer.port] waits for it).
 
     Raises:
         ValueError: a bad address, or ``max_clients`` / ``backlog`` below 1.
-        RuntimeError: foxglove-sdk is not installed, or the port cannot be bound.
+        RuntimeError: foxglove-sdk is not installed, or (with ``wait``) the port cannot be
+            bound.
     """
 
     def __init__(
@@ -105,8 +111,10 @@ class LiveServer:
         name: str = "racecar-sim",
         max_clients: int = MAX_CLIENTS,
         backlog: int = BACKLOG,
+        wait: bool = True,
     ) -> None:
         self.host, port = parse_live_address(address)
+        self.requested_port = port
         if int(max_clients) < 1 or int(backlog) < 1:
             raise ValueError(f"max_clients and backlog must be >= 1, got {max_clients}, {backlog}")
         if importlib.util.find_spec("foxglove") is None:
@@ -118,7 +126,8 @@ class LiveServer:
         self.topics = list(types)
         self._index = {topic: i for i, topic in enumerate(self.topics)}
         self._latched = {self._index[t] for t in LATCHED if t in self._index}
-        self._pending: dict[int, bytes] = {}
+        self._pending: dict[int, list[bytes]] = {}  # topic -> one moment's unsent frames
+        self._batch: list[tuple[int, bytes]] = []  # this moment's frames (publish flush=False)
         self._partial = memoryview(b"")
         self._dead: str | None = None
         self.n_published = 0
@@ -146,35 +155,89 @@ class LiveServer:
             ],
         }  # fmt: skip
         data = json.dumps(config).encode()
+        self._port: int | None = None
+        self._start_error: str | None = None
+        self._answer_lock = threading.Lock()
         try:
             self._proc.stdin.write(worker.HEADER.pack(len(data), worker.CONFIG, 0) + data)
             self._proc.stdin.flush()
-            answer = self._answer()
         except (OSError, ValueError) as exc:
-            answer = {"error": f"the server process did not start ({exc})"}
-        if "port" not in answer:
-            self._stop()
-            raise RuntimeError(
-                f"cannot serve the live view on {self.host}:{port}: {answer.get('error')}"
-            )
-        self.port = int(answer["port"])
+            self._start_error = f"the server process did not start ({exc})"
         self._fd = self._proc.stdin.fileno()
         os.set_blocking(self._fd, False)
         with contextlib.suppress(OSError, AttributeError, ImportError):
             import fcntl  # POSIX; F_SETPIPE_SZ on Linux only
 
             fcntl.fcntl(self._fd, fcntl.F_SETPIPE_SZ, PIPE_BYTES)
+        self._waiter: threading.Thread | None = None
+        if wait:
+            try:
+                self.wait_ready()
+            except RuntimeError:
+                self._stop()
+                raise
 
-    def _answer(self) -> dict:
+    def wait_ready(self, timeout: float = START_S) -> int:
+        """Wait (at most ``timeout`` seconds) until the server listens; its port. Messages
+        published before are in the pipe already: the server takes them when it is up.
+
+        Raises:
+            RuntimeError: the port cannot be bound, or the process did not start.
+        """
+        with self._answer_lock:
+            if self._port is None and self._start_error is None:
+                answer = self._answer(timeout)
+                if "port" in answer:
+                    self._port = int(answer["port"])
+                else:
+                    self._start_error = str(answer.get("error"))
+        if self._port is None:
+            raise RuntimeError(
+                f"cannot serve the live view on {self.host}:{self.requested_port}: "
+                f"{self._start_error}"
+            )
+        return self._port
+
+    def when_ready(self, ready: Callable[[str], None], failed: Callable[[str], None]) -> None:
+        """Call ``ready(url)`` once the server listens, or ``failed(reason)`` if it cannot start
+        (then the drive goes on without it), from a thread of its own: the caller does not wait
+        for the start."""
+
+        def wait() -> None:
+            try:
+                self.wait_ready()
+            except RuntimeError as exc:
+                if self._proc is not None:  # not closed meanwhile
+                    self._dead = str(exc)
+                    failed(str(exc))
+                return
+            if self._proc is not None:
+                ready(self.url)
+
+        self._waiter = threading.Thread(target=wait, daemon=True, name="live view start")
+        self._waiter.start()
+
+    def _answer(self, timeout: float) -> dict:
         """The server process's one line: ``{"port": N}`` or ``{"error": "..."}``."""
-        out = self._proc.stdout
-        ready, _, _ = select.select([out], [], [], START_S)
-        line = out.readline() if ready else b""
-        out.close()
+        proc = self._proc
+        if proc is None:
+            return {"error": "the server was closed before it started"}
+        out = proc.stdout
+        try:
+            ready, _, _ = select.select([out], [], [], timeout)
+            line = out.readline() if ready else b""
+            out.close()
+        except (OSError, ValueError):  # closed meanwhile (close() from another thread)
+            line = b""
         try:
             return json.loads(line)
         except ValueError:
-            return {"error": f"the server process did not start (exit code {self._proc.poll()})"}
+            return {"error": f"the server process did not start (exit code {proc.poll()})"}
+
+    @property
+    def port(self) -> int:
+        """The port the server listens on (waits for its start: [wait_ready][mcl.io.live.LiveServer.wait_ready])."""
+        return self._port if self._port is not None else self.wait_ready()
 
     @property
     def url(self) -> str:
@@ -189,8 +252,10 @@ class LiveServer:
 
     @property
     def n_pending(self) -> int:
-        """Messages waiting for room in the pipe (at most one per topic, plus one half written)."""
-        return len(self._pending) + (1 if self._partial else 0)
+        """Messages waiting for room in the pipe (one moment's per topic, plus those queued since
+        the last flush and one half-written write)."""
+        waiting = sum(len(frames) for frames in self._pending.values()) + len(self._batch)
+        return waiting + (1 if self._partial else 0)
 
     @property
     def alive(self) -> bool:
@@ -206,29 +271,38 @@ class LiveServer:
 
     def publish(self, topic: str, log_time_ns: int, data: bytes, flush: bool = True) -> None:
         """Hand one serialized message on ``topic`` (stamped ``log_time_ns``) to the server,
-        never waiting: when the pipe is full, an unsent message of the same topic is replaced.
-        With ``flush=False`` it is only queued: `flush()` hands the queue over in one write."""
+        never waiting: when the pipe is full, the unsent messages of the same topic are replaced.
+        With ``flush=False`` it is only queued with the others of this moment (several of one
+        topic, e.g. two ``/tf``, all go): `flush()` hands them over in one write."""
         if self._dead is not None or self._proc is None:
             return
-        i = self._index[topic]
-        if self._pending.pop(i, None) is not None:
-            self.n_dropped += 1
-        self._pending[i] = worker.HEADER.pack(len(data), i, int(log_time_ns)) + bytes(data)
+        frame = worker.HEADER.pack(len(data), self._index[topic], int(log_time_ns)) + data
+        self._batch.append((self._index[topic], frame))
         if flush:
             self.flush()
 
     def flush(self) -> None:
         """Write what the pipe takes now, the queued messages in one write; keep the rest for the
-        next call (never waits)."""
+        next call (never waits). A topic's messages still unsent from an earlier call are
+        replaced by this call's (newest wins, counted in ``n_dropped``)."""
         if self._dead is not None or self._proc is None:
             return
+        if self._batch:
+            fresh: dict[int, list[bytes]] = {}
+            for i, frame in self._batch:
+                fresh.setdefault(i, []).append(frame)
+            self._batch.clear()
+            for i, frames in fresh.items():
+                self.n_dropped += len(self._pending.pop(i, ()))
+                self._pending[i] = frames
         try:
             while True:
                 if not self._partial:
                     if not self._pending:
                         return
-                    self.n_published += len(self._pending)
-                    self._partial = memoryview(b"".join(self._pending.values()))
+                    frames = [f for group in self._pending.values() for f in group]
+                    self.n_published += len(frames)
+                    self._partial = memoryview(b"".join(frames))
                     self._pending.clear()
                 n = os.write(self._fd, self._partial)
                 self._partial = self._partial[n:]
@@ -246,6 +320,7 @@ class LiveServer:
             why += f": {reason.decode('utf-8', 'replace')}"
         self._dead = why
         self._pending.clear()
+        self._batch.clear()
         self._partial = memoryview(b"")
         print(f"warning: the live view's server stopped ({why}); the drive goes on without it",
               file=sys.stderr, flush=True)  # fmt: skip
@@ -282,14 +357,20 @@ class LiveServer:
 
     def _stop(self) -> None:
         proc, self._proc = self._proc, None
+        if proc is None:
+            return
         atexit.unregister(self.close)
         with contextlib.suppress(OSError):
             proc.stdin.close()  # the server's input ends: it stops
+        with contextlib.suppress(OSError):
+            proc.stdout.close()
         try:
             proc.wait(2.0)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        if self._waiter is not None and self._waiter is not threading.current_thread():
+            self._waiter.join(START_S)
 
     def __deepcopy__(self, memo: dict) -> LiveServer:
         """The same server: it is a running process, not a value (a deep copy of whatever holds
