@@ -9,11 +9,12 @@ client that subscribes later. Nothing is serialized for a topic no client subscr
 
 A viewer cannot slow, stall or change the drive: the server runs in a process of its own
 ([mcl.io.live_worker][mcl.io.live_worker]), which the drive feeds through a pipe it never waits
-on. When the pipe is full, a topic's unsent message is replaced by its newer one (newest wins,
-counted in [LiveServer.n_dropped][mcl.io.live.LiveServer.n_dropped]); the server holds at most
+on, nor on the server's start (``wait=False``: the messages wait in the pipe meanwhile). When
+the pipe is full, a topic's unsent messages are replaced by its newer ones (newest wins, counted
+in [LiveServer.n_dropped][mcl.io.live.LiveServer.n_dropped]); the server holds at most
 [MAX_CLIENTS][mcl.io.live.MAX_CLIENTS] clients at once and accepts on average
 [ACCEPT_RATE][mcl.io.live_worker.ACCEPT_RATE] new ones a second (one more is refused with HTTP
-503), and keeps [BACKLOG][mcl.io.live.BACKLOG] messages per client (the oldest dropped for a
+503 after [REFUSE_DELAY_S][mcl.io.live_worker.REFUSE_DELAY_S]), and keeps [BACKLOG][mcl.io.live.BACKLOG] messages per client (the oldest dropped for a
 slow one). The server process ends with the drive; if it dies first, the drive warns in one line
 and goes on.
 
@@ -115,6 +116,7 @@ class LiveServer:
     ) -> None:
         self.host, port = parse_live_address(address)
         self.requested_port = port
+        """The port asked for (0: any free one; [port][mcl.io.live.LiveServer.port] is the bound one)."""
         if int(max_clients) < 1 or int(backlog) < 1:
             raise ValueError(f"max_clients and backlog must be >= 1, got {max_clients}, {backlog}")
         if importlib.util.find_spec("foxglove") is None:
