@@ -184,11 +184,14 @@ class LiveServer:
         published before are in the pipe already: the server takes them when it is up.
 
         Raises:
-            RuntimeError: the port cannot be bound, or the process did not start.
+            RuntimeError: the port cannot be bound, the process did not start, or it has not
+                said where it listens within ``timeout``.
         """
         with self._answer_lock:
             if self._port is None and self._start_error is None:
                 answer = self._answer(timeout)
+                if answer is None:
+                    raise RuntimeError(f"the live view's server is not up after {timeout:g} s")
                 if "port" in answer:
                     self._port = int(answer["port"])
                 else:
@@ -219,15 +222,18 @@ class LiveServer:
         self._waiter = threading.Thread(target=wait, daemon=True, name="live view start")
         self._waiter.start()
 
-    def _answer(self, timeout: float) -> dict:
-        """The server process's one line: ``{"port": N}`` or ``{"error": "..."}``."""
+    def _answer(self, timeout: float) -> dict | None:
+        """The server process's one line: ``{"port": N}`` or ``{"error": "..."}``; None when it
+        has said nothing within ``timeout`` seconds (it may still)."""
         proc = self._proc
         if proc is None:
             return {"error": "the server was closed before it started"}
         out = proc.stdout
         try:
             ready, _, _ = select.select([out], [], [], timeout)
-            line = out.readline() if ready else b""
+            if not ready:
+                return None
+            line = out.readline()
             out.close()
         except (OSError, ValueError):  # closed meanwhile (close() from another thread)
             line = b""
