@@ -44,7 +44,7 @@ import mcl.io.live_worker as worker
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
-__all__ = ["BACKLOG", "DEFAULT_HOST", "LATCHED", "MAX_CLIENTS", "LiveServer", "parse_live_address"]
+__all__ = ["BACKLOG", "DEFAULT_HOST", "LATCHED", "MAX_CLIENTS", "START_WAIT_S", "LiveServer", "parse_live_address"]
 
 DEFAULT_HOST = "127.0.0.1"
 """The server binds to this address unless a host is given (only this machine can connect)."""
@@ -57,7 +57,9 @@ BACKLOG = 128
 PIPE_BYTES = 1 << 20
 """Bytes of the pipe from the drive to the server (Linux; elsewhere the system's default)."""
 START_S = 60.0
-"""Seconds the server process has to say where it listens (its start, before the drive)."""
+"""Seconds the server process has to say where it listens."""
+START_WAIT_S = 5.0
+"""Seconds `close()` waits for a server started without waiting to say where it listens."""
 
 
 def parse_live_address(text: str | int) -> tuple[str, int]:
@@ -356,9 +358,14 @@ class LiveServer:
         return text + (f"; the server stopped ({self._dead})" if self._dead else "")
 
     def close(self) -> None:
-        """Stop the server process (clients are disconnected); unsent messages are dropped."""
+        """Stop the server process (clients are disconnected); unsent messages are dropped. A
+        server still starting ([when_ready][mcl.io.live.LiveServer.when_ready]) gets up to
+        [START_WAIT_S][mcl.io.live.START_WAIT_S] to say where it listens first."""
         if getattr(self, "_proc", None) is None:
             return
+        waiter = getattr(self, "_waiter", None)
+        if waiter is not None and waiter is not threading.current_thread():
+            waiter.join(START_WAIT_S)  # a run shorter than the start still hears the address
         if self._dead is None and hasattr(self, "_fd"):
             self.flush()
         self._stop()
