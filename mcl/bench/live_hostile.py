@@ -5,7 +5,8 @@ disconnecting in a loop) hammer the live one's server.
 
 Each round runs the plain drive and the watched one (``--live 0 --live-speed 0``, unpaced, so the
 wall times compare), alternating which goes first; the clients run in a process of their own at
-a lower priority. Reported per round: the drive loop's wall time as the command prints it, the
+the lowest priority, started (its imports done) before the watched drive, which gives it the
+port. Reported per round: the drive loop's wall time as the command prints it, the
 whole command's wall time, their ratios (target <= 1.10), the CPU seconds of the plain
 command and of the watched one with its server (the clients' own are not counted: a difference
 in wall time with the same CPU time is the machine's cores shared with the clients), whether the
@@ -35,11 +36,17 @@ KINDS = ("stuck", "storm", "churn")
 """The misbehaviours run against the watched drive."""
 
 
-def _clients(port: int, kinds: list[str], stop, out) -> None:
-    """The hostile clients, niced, until ``stop`` is set; their counts go to ``out``."""
+def _clients(kinds: list[str], ports, stop, out, ready) -> None:
+    """The hostile clients, niced, against the port that comes through ``ports`` (None: none),
+    until ``stop`` is set; their counts go to ``out``. ``ready`` is set once the imports are
+    done, so that they do not run while the drive does."""
     os.nice(19)
     from mcl.bench.hostile_clients import HostileClients
 
+    ready.set()
+    port = ports.get()
+    if port is None:
+        return
     clients = HostileClients(port, kinds).start()
     stop.wait()
     out.put(dict(clients.stop()))
@@ -60,24 +67,28 @@ def drive(folder: Path, args: argparse.Namespace, live: bool) -> dict:
            "--seed", str(args.seed), "--video-fps", "0", "--quiet", "--out", str(folder)]  # fmt: skip
     if live:
         cmd += ["--live", "0", "--live-speed", "0"]
+    client = None
+    if live:  # started and imported before the drive: only the attack runs with it
+        context = multiprocessing.get_context("spawn")
+        stop, out, ports, ready = context.Event(), context.Queue(), context.Queue(), context.Event()
+        client = context.Process(target=_clients, args=(list(args.kinds), ports, stop, out, ready))
+        client.start()
+        ready.wait(120)
     t0, cpu0 = time.perf_counter(), _children_cpu()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     counts, err_head = {}, ""
-    if live:
-        context = multiprocessing.get_context("spawn")
-        stop, out = context.Event(), context.Queue()
+    if client is not None:
         for line in proc.stderr:
             err_head += line
             if match := re.search(r"ws://localhost:(\d+)", line):
-                client = context.Process(
-                    target=_clients, args=(int(match.group(1)), list(args.kinds), stop, out)
-                )
-                client.start()
+                ports.put(int(match.group(1)))
                 break
+        else:
+            ports.put(None)
         stdout, stderr = proc.communicate()
         cpu = _children_cpu() - cpu0  # the drive and its server, before the clients are reaped
         stop.set()
-        counts = out.get(timeout=60)
+        counts = out.get(timeout=60) if "ws://" in err_head else {}
         client.join(30)
     else:
         stdout, stderr = proc.communicate()

@@ -4,6 +4,8 @@ paced against the wall clock."""
 
 from __future__ import annotations
 
+import contextlib
+import socket
 import sys
 import time
 from collections.abc import Callable
@@ -56,23 +58,47 @@ def check_live(parser: Parser, text: str | None, speed: float) -> tuple[str, int
 def start_live_view(
     parser: Parser,
     address: tuple[str, int] | None,
-    start: Callable[[str], LiveServer] | None = None,
+    start: Callable[..., LiveServer] | None = None,
 ) -> LiveServer | None:
-    """Start the server at ``address`` (from [check_live][mcl.cli.live_options.check_live]) and
-    say where to connect; ``start(address text)`` makes the server (default: the recording's
-    topics, [start_live][mcl.io.bag_writer.start_live])."""
+    """Start the server at ``address`` (from [check_live][mcl.cli.live_options.check_live])
+    without waiting for it, and say where to connect once it listens; ``start(address text,
+    wait=False)`` makes the server (default: the recording's topics,
+    [start_live][mcl.io.bag_writer.start_live]). A port given and in use stops here, naming the
+    flag; a server that fails later warns in one line and the drive goes on."""
     if address is None:
         return None
     if start is None:
         from mcl.io.bag_writer import start_live as start
 
     host, port = address
+    if port:
+        problem = _bind_problem(host, port)
+        if problem:
+            parser.fail("--live", f"cannot serve the live view on {host}:{port}: {problem}")
     try:
-        server = start(f"[{host}]:{port}" if ":" in host else f"{host}:{port}")
+        server = start(f"[{host}]:{port}" if ":" in host else f"{host}:{port}", wait=False)
     except RuntimeError as exc:
         parser.fail("--live", str(exc))
-    print(f"live view: in Foxglove, Open connection, {server.url}", file=sys.stderr, flush=True)
+    server.when_ready(
+        lambda url: print(f"live view: in Foxglove, Open connection, {url}", file=sys.stderr,
+                          flush=True),
+        lambda why: print(f"warning: the live view did not start ({why}); the drive goes on "
+                          "without it", file=sys.stderr, flush=True),
+    )  # fmt: skip
     return server
+
+
+def _bind_problem(host: str, port: int) -> str | None:
+    """Why ``host:port`` cannot be bound now (e.g. in use), or None."""
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+        family, kind, proto, _, where = infos[0]
+        with contextlib.closing(socket.socket(family, kind, proto)) as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            probe.bind(where)
+    except OSError as exc:
+        return str(exc)
+    return None
 
 
 def stop_live_view(server: LiveServer | None) -> None:

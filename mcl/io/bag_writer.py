@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -188,17 +189,11 @@ class BagRecorder:
         data = np.where(m.occupied[::-1], 100, 0).astype(np.int8).reshape(-1)
         ox, oy, oyaw = m.origin
         info = T["nav_msgs/msg/MapMetaData"](
-            map_load_time=self._header(t, "map").stamp,
-            resolution=float(m.resolution),
-            width=m.width,
-            height=m.height,
-            origin=self._pose(ox, oy, oyaw),
-        )
-        self._write(
-            "/map",
-            t,
-            T["nav_msgs/msg/OccupancyGrid"](header=self._header(t, "map"), info=info, data=data),
-        )
+            map_load_time=self._header(t, "map").stamp, resolution=float(m.resolution),
+            width=m.width, height=m.height, origin=self._pose(ox, oy, oyaw),
+        )  # fmt: skip
+        grid = T["nav_msgs/msg/OccupancyGrid"](header=self._header(t, "map"), info=info, data=data)
+        self._write("/map", t, grid)
         tf = self._transform(t, "base_link", "laser", self.mount_offset, 0.0, 0.0)
         self._write("/tf_static", t, T["tf2_msgs/msg/TFMessage"](transforms=[tf]))
 
@@ -293,14 +288,15 @@ class BagRecorder:
         self.close()
 
 
-def start_live(address: str | int) -> LiveServer:
+def start_live(address: str | int, wait: bool = True) -> LiveServer:
     """A Foxglove WebSocket server for the recording's topics at ``"[HOST:]PORT"`` (bound to
-    127.0.0.1 unless a host is given); see [mcl.io.live][mcl.io.live]."""
+    127.0.0.1 unless a host is given; ``wait``: see [LiveServer][mcl.io.live.LiveServer]); see
+    [mcl.io.live][mcl.io.live]."""
     from rosbags.typesys import Stores, get_typestore
 
     from mcl.io.live import LiveServer
 
-    return LiveServer(address, TOPICS, get_typestore(Stores.ROS2_HUMBLE))
+    return LiveServer(address, TOPICS, get_typestore(Stores.ROS2_HUMBLE), wait=wait)
 
 
 class DriveRecorder:
@@ -326,6 +322,9 @@ class DriveRecorder:
             messages go live when ``1 / live_rate`` seconds have passed since the last step that
             went live (a reset always does); the bag gets every message. A viewer needs no more
             than a screen shows, and the drive does not pay for packing what no one can see.
+        live_wall_rate: also at most this many frames per wall-clock second (None: no bound): a
+            drive faster than real time then streams a screen's worth (skipping simulated frames)
+            and pays per wall second what a real-time one does.
 
     Example:
         ```python
@@ -344,24 +343,21 @@ class DriveRecorder:
         wrapped: gym.Env,
         live: LiveServer | None = None,
         live_rate: float = LIVE_RATE,
+        live_wall_rate: float | None = None,
     ) -> None:
-        if isinstance(live_rate, bool) or not (isinstance(live_rate, int | float) and 1.0 <= live_rate <= 1000.0):
-            raise ValueError(f"live_rate must be 1 to 1000 frames per second, got {live_rate!r}")
+        wall = 1.0 if live_wall_rate is None else live_wall_rate
+        for name, rate in (("live_rate", live_rate), ("live_wall_rate", wall)):
+            if isinstance(rate, bool) or not (isinstance(rate, int | float) and 1.0 <= rate <= 1000.0):
+                raise ValueError(f"{name} must be 1 to 1000 frames per second, got {rate!r}")
         self.live_period = 1.0 / float(live_rate)
-        self._live_t = -math.inf
+        self.live_wall_period = 0.0 if live_wall_rate is None else 1.0 / float(live_wall_rate)
+        self._live_t = self._live_wall = -math.inf
         env = wrapped.unwrapped
         lidar = env.lidar
         self.max_range = float(lidar.params.max_range)
         self.dt = float(env.dt)
-        self.recorder = BagRecorder(
-            path,
-            env.map,
-            lidar.angles,
-            self.max_range,
-            lidar.params.mount_offset,
-            lidar.period,
-            live=live,
-        )
+        self.recorder = BagRecorder(path, env.map, lidar.angles, self.max_range,
+                                    lidar.params.mount_offset, lidar.period, live=live)  # fmt: skip
         self.recorder.batch_live = True  # each step's messages in one write (flush_live)
         self.recorder.write_static(0.0)
         self._odom = np.zeros(3)
@@ -376,10 +372,12 @@ class DriveRecorder:
         if record.step == 0:  # a new episode: odometry starts again
             self._odom = np.zeros(3)
             self._first = True
-            self._live_t = -math.inf
-        rec.live_due = t - self._live_t >= self.live_period - 1e-9
+            self._live_t = self._live_wall = -math.inf
+        now = time.perf_counter() if self.live_wall_period else 0.0
+        wall_due = now - self._live_wall >= self.live_wall_period
+        rec.live_due = wall_due and t - self._live_t >= self.live_period - 1e-9
         if rec.live_due:
-            self._live_t = t
+            self._live_t, self._live_wall = t, now
         if not self._first:
             twist = np.asarray(record.odom, dtype=np.float64)
             rec.write_odom(t - self.dt, self._odom, twist)

@@ -9,11 +9,12 @@ client that subscribes later. Nothing is serialized for a topic no client subscr
 
 A viewer cannot slow, stall or change the drive: the server runs in a process of its own
 ([mcl.io.live_worker][mcl.io.live_worker]), which the drive feeds through a pipe it never waits
-on. When the pipe is full, a topic's unsent message is replaced by its newer one (newest wins,
-counted in [LiveServer.n_dropped][mcl.io.live.LiveServer.n_dropped]); the server holds at most
+on, nor on the server's start (``wait=False``: the messages wait in the pipe meanwhile). When
+the pipe is full, a topic's unsent messages are replaced by its newer ones (newest wins, counted
+in [LiveServer.n_dropped][mcl.io.live.LiveServer.n_dropped]); the server holds at most
 [MAX_CLIENTS][mcl.io.live.MAX_CLIENTS] clients at once and accepts on average
 [ACCEPT_RATE][mcl.io.live_worker.ACCEPT_RATE] new ones a second (one more is refused with HTTP
-503), and keeps [BACKLOG][mcl.io.live.BACKLOG] messages per client (the oldest dropped for a
+503 after [REFUSE_DELAY_S][mcl.io.live_worker.REFUSE_DELAY_S]), and keeps [BACKLOG][mcl.io.live.BACKLOG] messages per client (the oldest dropped for a
 slow one). The server process ends with the drive; if it dies first, the drive warns in one line
 and goes on.
 
@@ -34,6 +35,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -42,7 +44,7 @@ import mcl.io.live_worker as worker
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
-__all__ = ["BACKLOG", "DEFAULT_HOST", "LATCHED", "MAX_CLIENTS", "LiveServer", "parse_live_address"]
+__all__ = ["BACKLOG", "DEFAULT_HOST", "LATCHED", "MAX_CLIENTS", "START_WAIT_S", "LiveServer", "parse_live_address"]
 
 DEFAULT_HOST = "127.0.0.1"
 """The server binds to this address unless a host is given (only this machine can connect)."""
@@ -55,7 +57,9 @@ BACKLOG = 128
 PIPE_BYTES = 1 << 20
 """Bytes of the pipe from the drive to the server (Linux; elsewhere the system's default)."""
 START_S = 60.0
-"""Seconds the server process has to say where it listens (its start, before the drive)."""
+"""Seconds the server process has to say where it listens."""
+START_WAIT_S = 5.0
+"""Seconds `close()` waits for a server started without waiting to say where it listens."""
 
 
 def parse_live_address(text: str | int) -> tuple[str, int]:
@@ -91,10 +95,15 @@ class LiveServer:
         name: the server's name shown in Foxglove.
         max_clients: clients served at once (default [MAX_CLIENTS][mcl.io.live.MAX_CLIENTS]).
         backlog: messages kept per client (default [BACKLOG][mcl.io.live.BACKLOG]).
+        wait: wait for the server's start here (False: return at once, so that the start, about
+            0.3 s of a process importing foxglove-sdk, runs while the drive does; messages go
+            into the pipe meanwhile, and [wait_ready][mcl.io.live.LiveServer.wait_ready] or
+            [port][mcl.io.live.LiveServer.port] waits for it).
 
     Raises:
         ValueError: a bad address, or ``max_clients`` / ``backlog`` below 1.
-        RuntimeError: foxglove-sdk is not installed, or the port cannot be bound.
+        RuntimeError: foxglove-sdk is not installed, or (with ``wait``) the port cannot be
+            bound.
     """
 
     def __init__(
@@ -105,8 +114,11 @@ class LiveServer:
         name: str = "racecar-sim",
         max_clients: int = MAX_CLIENTS,
         backlog: int = BACKLOG,
+        wait: bool = True,
     ) -> None:
         self.host, port = parse_live_address(address)
+        self.requested_port = port
+        """The port asked for (0: any free one; [port][mcl.io.live.LiveServer.port] is the bound one)."""
         if int(max_clients) < 1 or int(backlog) < 1:
             raise ValueError(f"max_clients and backlog must be >= 1, got {max_clients}, {backlog}")
         if importlib.util.find_spec("foxglove") is None:
@@ -118,7 +130,8 @@ class LiveServer:
         self.topics = list(types)
         self._index = {topic: i for i, topic in enumerate(self.topics)}
         self._latched = {self._index[t] for t in LATCHED if t in self._index}
-        self._pending: dict[int, bytes] = {}
+        self._pending: dict[int, list[bytes]] = {}  # topic -> one moment's unsent frames
+        self._batch: list[tuple[int, bytes]] = []  # this moment's frames (publish flush=False)
         self._partial = memoryview(b"")
         self._dead: str | None = None
         self.n_published = 0
@@ -146,35 +159,95 @@ class LiveServer:
             ],
         }  # fmt: skip
         data = json.dumps(config).encode()
+        self._port: int | None = None
+        self._start_error: str | None = None
+        self._answer_lock = threading.Lock()
         try:
             self._proc.stdin.write(worker.HEADER.pack(len(data), worker.CONFIG, 0) + data)
             self._proc.stdin.flush()
-            answer = self._answer()
         except (OSError, ValueError) as exc:
-            answer = {"error": f"the server process did not start ({exc})"}
-        if "port" not in answer:
-            self._stop()
-            raise RuntimeError(
-                f"cannot serve the live view on {self.host}:{port}: {answer.get('error')}"
-            )
-        self.port = int(answer["port"])
+            self._start_error = f"the server process did not start ({exc})"
         self._fd = self._proc.stdin.fileno()
         os.set_blocking(self._fd, False)
         with contextlib.suppress(OSError, AttributeError, ImportError):
             import fcntl  # POSIX; F_SETPIPE_SZ on Linux only
 
             fcntl.fcntl(self._fd, fcntl.F_SETPIPE_SZ, PIPE_BYTES)
+        self._waiter: threading.Thread | None = None
+        if wait:
+            try:
+                self.wait_ready()
+            except RuntimeError:
+                self._stop()
+                raise
 
-    def _answer(self) -> dict:
-        """The server process's one line: ``{"port": N}`` or ``{"error": "..."}``."""
-        out = self._proc.stdout
-        ready, _, _ = select.select([out], [], [], START_S)
-        line = out.readline() if ready else b""
-        out.close()
+    def wait_ready(self, timeout: float = START_S) -> int:
+        """Wait (at most ``timeout`` seconds) until the server listens; its port. Messages
+        published before are in the pipe already: the server takes them when it is up.
+
+        Raises:
+            RuntimeError: the port cannot be bound, the process did not start, or it has not
+                said where it listens within ``timeout``.
+        """
+        with self._answer_lock:
+            if self._port is None and self._start_error is None:
+                answer = self._answer(timeout)
+                if answer is None:
+                    raise RuntimeError(f"the live view's server is not up after {timeout:g} s")
+                if "port" in answer:
+                    self._port = int(answer["port"])
+                else:
+                    self._start_error = str(answer.get("error"))
+        if self._port is None:
+            raise RuntimeError(
+                f"cannot serve the live view on {self.host}:{self.requested_port}: "
+                f"{self._start_error}"
+            )
+        return self._port
+
+    def when_ready(self, ready: Callable[[str], None], failed: Callable[[str], None]) -> None:
+        """Call ``ready(url)`` once the server listens, or ``failed(reason)`` if it cannot start
+        (then the drive goes on without it), from a thread of its own: the caller does not wait
+        for the start."""
+
+        def wait() -> None:
+            try:
+                self.wait_ready()
+            except RuntimeError as exc:
+                if self._proc is not None:  # not closed meanwhile
+                    self._dead = str(exc)
+                    failed(str(exc))
+                return
+            if self._proc is not None:
+                ready(self.url)
+
+        self._waiter = threading.Thread(target=wait, daemon=True, name="live view start")
+        self._waiter.start()
+
+    def _answer(self, timeout: float) -> dict | None:
+        """The server process's one line: ``{"port": N}`` or ``{"error": "..."}``; None when it
+        has said nothing within ``timeout`` seconds (it may still)."""
+        proc = self._proc
+        if proc is None:
+            return {"error": "the server was closed before it started"}
+        out = proc.stdout
+        try:
+            ready, _, _ = select.select([out], [], [], timeout)
+            if not ready:
+                return None
+            line = out.readline()
+            out.close()
+        except (OSError, ValueError):  # closed meanwhile (close() from another thread)
+            line = b""
         try:
             return json.loads(line)
         except ValueError:
-            return {"error": f"the server process did not start (exit code {self._proc.poll()})"}
+            return {"error": f"the server process did not start (exit code {proc.poll()})"}
+
+    @property
+    def port(self) -> int:
+        """The port the server listens on (waits for its start: [wait_ready][mcl.io.live.LiveServer.wait_ready])."""
+        return self._port if self._port is not None else self.wait_ready()
 
     @property
     def url(self) -> str:
@@ -189,8 +262,10 @@ class LiveServer:
 
     @property
     def n_pending(self) -> int:
-        """Messages waiting for room in the pipe (at most one per topic, plus one half written)."""
-        return len(self._pending) + (1 if self._partial else 0)
+        """Messages waiting for room in the pipe (one moment's per topic, plus those queued since
+        the last flush and one half-written write)."""
+        waiting = sum(len(frames) for frames in self._pending.values()) + len(self._batch)
+        return waiting + (1 if self._partial else 0)
 
     @property
     def alive(self) -> bool:
@@ -206,29 +281,38 @@ class LiveServer:
 
     def publish(self, topic: str, log_time_ns: int, data: bytes, flush: bool = True) -> None:
         """Hand one serialized message on ``topic`` (stamped ``log_time_ns``) to the server,
-        never waiting: when the pipe is full, an unsent message of the same topic is replaced.
-        With ``flush=False`` it is only queued: `flush()` hands the queue over in one write."""
+        never waiting: when the pipe is full, the unsent messages of the same topic are replaced.
+        With ``flush=False`` it is only queued with the others of this moment (several of one
+        topic, e.g. two ``/tf``, all go): `flush()` hands them over in one write."""
         if self._dead is not None or self._proc is None:
             return
-        i = self._index[topic]
-        if self._pending.pop(i, None) is not None:
-            self.n_dropped += 1
-        self._pending[i] = worker.HEADER.pack(len(data), i, int(log_time_ns)) + bytes(data)
+        frame = worker.HEADER.pack(len(data), self._index[topic], int(log_time_ns)) + data
+        self._batch.append((self._index[topic], frame))
         if flush:
             self.flush()
 
     def flush(self) -> None:
         """Write what the pipe takes now, the queued messages in one write; keep the rest for the
-        next call (never waits)."""
+        next call (never waits). A topic's messages still unsent from an earlier call are
+        replaced by this call's (newest wins, counted in ``n_dropped``)."""
         if self._dead is not None or self._proc is None:
             return
+        if self._batch:
+            fresh: dict[int, list[bytes]] = {}
+            for i, frame in self._batch:
+                fresh.setdefault(i, []).append(frame)
+            self._batch.clear()
+            for i, frames in fresh.items():
+                self.n_dropped += len(self._pending.pop(i, ()))
+                self._pending[i] = frames
         try:
             while True:
                 if not self._partial:
                     if not self._pending:
                         return
-                    self.n_published += len(self._pending)
-                    self._partial = memoryview(b"".join(self._pending.values()))
+                    frames = [f for group in self._pending.values() for f in group]
+                    self.n_published += len(frames)
+                    self._partial = memoryview(b"".join(frames))
                     self._pending.clear()
                 n = os.write(self._fd, self._partial)
                 self._partial = self._partial[n:]
@@ -246,6 +330,7 @@ class LiveServer:
             why += f": {reason.decode('utf-8', 'replace')}"
         self._dead = why
         self._pending.clear()
+        self._batch.clear()
         self._partial = memoryview(b"")
         print(f"warning: the live view's server stopped ({why}); the drive goes on without it",
               file=sys.stderr, flush=True)  # fmt: skip
@@ -273,23 +358,34 @@ class LiveServer:
         return text + (f"; the server stopped ({self._dead})" if self._dead else "")
 
     def close(self) -> None:
-        """Stop the server process (clients are disconnected); unsent messages are dropped."""
+        """Stop the server process (clients are disconnected); unsent messages are dropped. A
+        server still starting ([when_ready][mcl.io.live.LiveServer.when_ready]) gets up to
+        [START_WAIT_S][mcl.io.live.START_WAIT_S] to say where it listens first."""
         if getattr(self, "_proc", None) is None:
             return
+        waiter = getattr(self, "_waiter", None)
+        if waiter is not None and waiter is not threading.current_thread():
+            waiter.join(START_WAIT_S)  # a run shorter than the start still hears the address
         if self._dead is None and hasattr(self, "_fd"):
             self.flush()
         self._stop()
 
     def _stop(self) -> None:
         proc, self._proc = self._proc, None
+        if proc is None:
+            return
         atexit.unregister(self.close)
         with contextlib.suppress(OSError):
             proc.stdin.close()  # the server's input ends: it stops
+        with contextlib.suppress(OSError):
+            proc.stdout.close()
         try:
             proc.wait(2.0)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        if self._waiter is not None and self._waiter is not threading.current_thread():
+            self._waiter.join(START_S)
 
     def __deepcopy__(self, memo: dict) -> LiveServer:
         """The same server: it is a running process, not a value (a deep copy of whatever holds

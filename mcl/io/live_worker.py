@@ -6,9 +6,8 @@ Run by path (``python -P live_worker.py STATUS_FD``), it imports only the standa
 writes without ever blocking), logs them on foxglove-sdk channels, and says where it listens in
 one JSON line on its standard output. Clients do not reach foxglove-sdk directly: a gate on the
 public address accepts at most ``max_clients`` at once and on average
-[ACCEPT_RATE][mcl.io.live_worker.ACCEPT_RATE] new ones a second (one more gets ``HTTP 503`` and is
-closed),
-closes a client that sends no handshake within [HANDSHAKE_S][mcl.io.live_worker.HANDSHAKE_S] or
+[ACCEPT_RATE][mcl.io.live_worker.ACCEPT_RATE] new ones a second (one more gets ``HTTP 503``
+after [REFUSE_DELAY_S][mcl.io.live_worker.REFUSE_DELAY_S] and is closed), closes a client that sends no handshake within [HANDSHAKE_S][mcl.io.live_worker.HANDSHAKE_S] or
 reads nothing for [STALL_S][mcl.io.live_worker.STALL_S], and forwards the rest to the SDK's server
 on a private loopback port through bounded buffers (the SDK then drops the oldest messages of a
 slow client, ``message_backlog_size`` of them kept).
@@ -57,6 +56,16 @@ ACCEPT_RATE = 5.0
 """New clients the gate accepts per second on average (bursts of up to ``max_clients``); one more
 is refused like a client over the bound, so that a client connecting in a loop cannot keep the
 server (and the machine the drive runs on) busy."""
+REFUSE_DELAY_S = 1.0
+"""Seconds the gate holds a refused connection before its ``HTTP 503`` (at most
+[MAX_HELD][mcl.io.live_worker.MAX_HELD] at once; more are refused at once): a client that connects
+in a loop then tries about once a second, not hundreds of times, and costs the machine next to
+nothing."""
+MAX_HELD = 64
+"""Refused connections the gate holds at once (each an open socket)."""
+STOP_S = 0.5
+"""Seconds the process gives foxglove-sdk's server to close its clients when its input ends (a
+client that reads nothing cannot hold up the drive's end)."""
 CHUNK = 65536
 """Bytes forwarded at a time; with asyncio's write limits, what the gate buffers per client."""
 _REFUSAL = (
@@ -97,6 +106,7 @@ class Gate:
     def __init__(self, status: Status, upstream: int, max_clients: int) -> None:
         self.status, self.upstream, self.max_clients = status, upstream, max_clients
         self.active = 0
+        self.held = 0
         self.tokens, self.refilled = float(max_clients), time.monotonic()
         self.loop = asyncio.new_event_loop()
 
@@ -123,6 +133,12 @@ class Gate:
         status = self.status
         if self.active >= self.max_clients or not self.take_token():
             status.add(REFUSED)
+            if self.held < MAX_HELD:  # the tarpit (REFUSE_DELAY_S)
+                self.held += 1
+                try:
+                    await asyncio.sleep(REFUSE_DELAY_S)
+                finally:
+                    self.held -= 1
             text = (
                 f"racecar-sim live view: too many clients (at most {self.max_clients} at once, "
                 f"{ACCEPT_RATE:g} new ones a second)\n"
@@ -269,7 +285,7 @@ def serve(status_fd: int) -> None:
             if not chunk:
                 break
             buffer += chunk
-        at = 0
+        at = logged = 0
         while len(buffer) - at >= HEADER.size:
             n, topic, ns = HEADER.unpack_from(buffer, at)
             if len(buffer) - at - HEADER.size < n:
@@ -280,9 +296,10 @@ def serve(status_fd: int) -> None:
                 last[topic] = (data, ns)
             if topic < len(channels):
                 channels[topic].log(data, log_time=ns)
-                status.add(LOGGED)
+                logged += 1
         if at:
             del buffer[:at]
+            status.add(LOGGED, logged)
         while not resend.empty():
             topic = resend.get()
             if topic in last:
@@ -293,8 +310,9 @@ def serve(status_fd: int) -> None:
             for i, channel in enumerate(channels):
                 status.flag(i, channel.has_sinks())
     status.set(STATE, 3)
-    with contextlib.suppress(Exception):
-        server.stop()
+    stopping = threading.Thread(target=server.stop, daemon=True)
+    stopping.start()
+    stopping.join(STOP_S)
     os._exit(0)
 
 

@@ -32,13 +32,13 @@ RACE_TOPICS: dict[str, str] = {
 """Topic -> ROS 2 message type of the race's live view."""
 
 
-def start_race_live(address: str | int) -> LiveServer:
+def start_race_live(address: str | int, wait: bool = True) -> LiveServer:
     """A Foxglove WebSocket server for [`RACE_TOPICS`][mcl.io.race_stream.RACE_TOPICS] at
-    ``"[HOST:]PORT"``."""
+    ``"[HOST:]PORT"`` (``wait``: see [LiveServer][mcl.io.live.LiveServer])."""
     from rosbags.typesys import Stores, get_typestore
 
     return LiveServer(
-        address, RACE_TOPICS, get_typestore(Stores.ROS2_HUMBLE), name="racecar-sim race"
+        address, RACE_TOPICS, get_typestore(Stores.ROS2_HUMBLE), name="racecar-sim race", wait=wait
     )
 
 

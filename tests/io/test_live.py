@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import math
 import os
 import re
 import struct
@@ -159,7 +160,7 @@ def test_drive_live_streams_to_a_client_and_drives_the_same(tmp_path: Path) -> N
     assert plain.wait(600) == 0, plain.stderr.read()
     live = _drive(tmp_path, "live", "--live", "0", "--live-speed", "1")
     url = None
-    for line in live.stderr:  # the server says where it listens before the drive starts
+    for line in live.stderr:  # the server says where it listens once it does
         match = re.search(r"ws://localhost:(\d+)", line)
         if match:
             url = int(match.group(1))
@@ -262,3 +263,82 @@ def test_a_live_rate_out_of_range_is_refused_naming_it(rate) -> None:
     env = LocalizationWrapper(gym.make("RacecarSim-v0", map="corridor"), {"filter": {"n_particles": 50}})
     with pytest.raises(ValueError, match="live_rate must be 1 to 1000"):
         DriveRecorder(None, env, live_rate=rate)
+
+
+def test_both_transforms_of_a_scan_step_reach_the_viewer() -> None:
+    """A scan step publishes ``/tf`` twice (odom -> base_link from the odometry, map -> odom from
+    the estimate); the step's batch sends both, neither replaces the other."""
+    from mcl.io import DriveRecorder, start_live
+
+    env = LocalizationWrapper(gym.make("RacecarSim-v0", map="office"), {"filter": {"n_particles": 200}})
+    server = start_live(0)
+    recorder = DriveRecorder(None, env, live=server)
+    env.add_step_hook(recorder)
+    env.reset(seed=3)
+    client = Client(server.port, {"/tf"}, lambda m: len(m.get("/tf", [])) >= 10, timeout=60)
+    client.start()
+    assert client.subscribed.wait(60), client.error
+    _wait(lambda: server.wants("/tf"))
+    for _ in range(40):  # 1 s: 20 live frames, each with a fresh scan
+        env.step([0.0, 1.0])
+    client.join(60)
+    recorder.close()
+    server.close()
+    assert client.error is None, client.error
+    messages = [TYPESTORE.deserialize_cdr(m, "tf2_msgs/msg/TFMessage") for m in client.messages["/tf"]]
+    pairs = {(t.header.frame_id, t.child_frame_id) for m in messages for t in m.transforms}
+    assert pairs == {("odom", "base_link"), ("map", "odom")}
+    assert server.n_dropped == 0
+
+
+def test_a_server_started_without_waiting_serves_what_was_published_before_it_listened() -> None:
+    """``wait=False`` returns before the server process listens (the drive goes on meanwhile);
+    the latched ``/map`` published then reaches a client that subscribes later."""
+    from mcl.io import start_live
+
+    server = start_live(0, wait=False)
+    try:
+        payload = bytes(range(256)) * 10
+        server.publish("/map", 5, payload)  # the pipe holds it until the server reads it
+        client = Client(server.port, {"/map"}, lambda m: "/map" in m, timeout=60)
+        client.start()
+        client.join(90)
+        assert client.error is None, client.error
+        assert client.messages["/map"] == [payload]
+    finally:
+        server.close()
+
+
+class _Sink:
+    """A live server stand-in that wants every topic and keeps (topic, log time) of each message."""
+
+    def __init__(self) -> None:
+        self.messages: list[tuple[str, int]] = []
+
+    def wants(self, topic: str) -> bool:
+        return True
+
+    def publish(self, topic: str, log_time_ns: int, data: bytes, flush: bool = True) -> None:
+        self.messages.append((topic, log_time_ns))
+
+    def flush(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("wall_rate", [None, 1.0])
+def test_a_wall_rate_bounds_the_frames_of_a_drive_faster_than_real_time(wall_rate) -> None:
+    from mcl.io import DriveRecorder
+
+    env = LocalizationWrapper(gym.make("RacecarSim-v0", map="corridor"), {"filter": {"n_particles": 50}})
+    sink = _Sink()
+    env.add_step_hook(DriveRecorder(None, env, live=sink, live_wall_rate=wall_rate))
+    start = time.perf_counter()
+    env.reset(seed=0)
+    for _ in range(40):  # 1 s of simulated time at dt = 0.025 s
+        env.step([0.0, 1.0])
+    elapsed = time.perf_counter() - start
+    frames = {ns for topic, ns in sink.messages if topic == "/ground_truth"}
+    if wall_rate is None:
+        assert len(frames) == 21  # 20 a simulated second, from the reset's
+    else:  # the reset's, then at most one a wall-clock second
+        assert 1 <= len(frames) <= 1 + math.floor(elapsed * wall_rate)

@@ -250,3 +250,32 @@ def test_attack_runs_every_kind_against_a_server() -> None:
     finally:
         server.close()
     assert counts["stuck subscribed"] == 1 and counts["silent"] == 1
+
+
+def test_a_refused_connection_waits_before_its_503() -> None:
+    """The gate holds a refused connection REFUSE_DELAY_S before answering, so a client that
+    reconnects in a loop is slowed to about one try a second (a lower bound: never flaky)."""
+    from mcl.io.live_worker import REFUSE_DELAY_S
+
+    server = start_live(0)
+    try:
+
+        async def refused_after() -> float:
+            keep = []
+            for _ in range(MAX_CLIENTS):  # the bound, filled with clients that send nothing
+                keep.append(await asyncio.open_connection("127.0.0.1", server.port))
+            while server.stats()["clients"] < MAX_CLIENTS:
+                await asyncio.sleep(0.05)
+            start = time.monotonic()
+            reader, writer = await asyncio.open_connection("127.0.0.1", server.port)
+            head = await asyncio.wait_for(reader.readuntil(b"\r\n\r\n"), 60)
+            waited = time.monotonic() - start
+            assert b" 503 " in head
+            for _, w in [*keep, (reader, writer)]:
+                w.transport.abort()
+            return waited
+
+        assert asyncio.run(refused_after()) >= 0.9 * REFUSE_DELAY_S
+    finally:
+        server.close()
+    assert server.stats()["refused"] == 1
