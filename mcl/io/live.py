@@ -324,6 +324,11 @@ class LiveServer:
     def _died(self, exc: BaseException) -> None:
         """The server process is gone: one warning, then the drive goes on without it."""
         code = self._proc.poll()
+        if code is None:  # the pipe broke as it died: give the system a moment to reap it
+            try:
+                code = self._proc.wait(timeout=0.5)
+            except subprocess.TimeoutExpired:
+                code = None
         reason = self._status[worker.REASON_AT : worker.REASON_AT + 1024].split(b"\0", 1)[0]
         why = f"exit code {code}" if code is not None else type(exc).__name__
         if reason:
