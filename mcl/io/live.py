@@ -14,12 +14,11 @@ the pipe is full, a topic's unsent messages are replaced by its newer ones (newe
 in [LiveServer.n_dropped][mcl.io.live.LiveServer.n_dropped]); the server holds at most
 [MAX_CLIENTS][mcl.io.live.MAX_CLIENTS] clients at once and accepts on average
 [ACCEPT_RATE][mcl.io.live_worker.ACCEPT_RATE] new ones a second (one more is refused with HTTP
-503 after [REFUSE_DELAY_S][mcl.io.live_worker.REFUSE_DELAY_S]), and keeps [BACKLOG][mcl.io.live.BACKLOG] messages per client (the oldest dropped for a
-slow one). The server process ends with the drive; if it dies first, the drive warns in one line
-and goes on.
+503 after [REFUSE_DELAY_S][mcl.io.live_worker.REFUSE_DELAY_S]), keeps [BACKLOG][mcl.io.live.BACKLOG]
+messages per client (the oldest dropped for a slow one) and ends with the drive; if it dies first,
+the drive warns in one line and goes on.
 
-Open Foxglove, "Open connection", ``ws://localhost:PORT`` (WebSocket subprotocol
-``foxglove.sdk.v1``).
+Open Foxglove, "Open connection", ``ws://localhost:PORT`` (subprotocol ``foxglove.sdk.v1``).
 """
 
 from __future__ import annotations
@@ -63,8 +62,7 @@ START_WAIT_S = 5.0
 
 
 def parse_live_address(text: str | int) -> tuple[str, int]:
-    """``"[HOST:]PORT"`` as (host, port); the host defaults to
-    [DEFAULT_HOST][mcl.io.live.DEFAULT_HOST].
+    """``"[HOST:]PORT"`` as (host, port); the host defaults to [DEFAULT_HOST][mcl.io.live.DEFAULT_HOST].
 
     Raises:
         ValueError: not ``PORT`` or ``HOST:PORT`` with a port in 0-65535 (0: any free port).
@@ -325,10 +323,8 @@ class LiveServer:
         """The server process is gone: one warning, then the drive goes on without it."""
         code = self._proc.poll()
         if code is None:  # the pipe broke as it died: give the system a moment to reap it
-            try:
+            with contextlib.suppress(subprocess.TimeoutExpired):
                 code = self._proc.wait(timeout=0.5)
-            except subprocess.TimeoutExpired:
-                code = None
         reason = self._status[worker.REASON_AT : worker.REASON_AT + 1024].split(b"\0", 1)[0]
         why = f"exit code {code}" if code is not None else type(exc).__name__
         if reason:
