@@ -142,6 +142,7 @@ class LostDetector:
         self._found_fit = 0.0  # the averaged fit at which a jumped car counts as found
         self._since_dip = math.inf  # seconds since the continuity last dipped under jump_below
         self._scans: ScanContinuity | None = None  # built at the first scan (needs the lidar)
+        self._fit_beams: tuple[tuple[int, int], np.ndarray, np.ndarray] = ((-1, -1), *(np.zeros(0),) * 2)
         self._odometry_fed = False
 
     def restart(self) -> None:
@@ -259,8 +260,11 @@ class LostDetector:
         sm = pf.sensor_model
         z = np.asarray(scan, dtype=np.float64).reshape(-1)
         n = z.size
-        idx = np.unique(np.floor(np.linspace(0, n - 1, min(p.beams, n)) + 0.5).astype(np.int64))
-        angles = _beam_angles(sm, n)[idx]
+        key, idx, angles = self._fit_beams
+        if key != (n, id(sm)):  # the beams compared, kept while the scan and model stay
+            idx = np.unique(np.floor(np.linspace(0, n - 1, min(p.beams, n)) + 0.5).astype(np.int64))
+            angles = _beam_angles(sm, n)[idx]
+            self._fit_beams = ((n, id(sm)), idx, angles)
         z = z[idx]
         lidar = sm.lidar_poses(estimate[None, :])[0]
         max_range = float(sm.max_range)

@@ -134,6 +134,7 @@ class ScanContinuity:
         self.continuity = math.nan
         self._motion = np.zeros(3)  # the car's motion since the last scan, in its frame then
         self._before: tuple[np.ndarray, np.ndarray] | None = None
+        self._subset_of: tuple[int, np.ndarray] = (-1, np.zeros(0, dtype=np.int64))
 
     def restart(self) -> None:
         """Forget the last scan and the motion since (a new belief)."""
@@ -168,5 +169,8 @@ class ScanContinuity:
         return self.continuity
 
     def _subset(self, n: int) -> np.ndarray:
-        """Indices of ``beams`` evenly spaced beams of ``n``."""
-        return np.unique(np.rint(np.linspace(0, n - 1, min(self.beams, n))).astype(np.int64))
+        """Indices of ``beams`` evenly spaced beams of ``n`` (kept for the last ``n``)."""
+        if self._subset_of[0] != n:
+            idx = np.unique(np.rint(np.linspace(0, n - 1, min(self.beams, n))).astype(np.int64))
+            self._subset_of = (n, idx)
+        return self._subset_of[1]

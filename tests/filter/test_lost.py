@@ -161,6 +161,7 @@ def test_the_flag_is_in_the_single_and_the_vector_wrappers_info() -> None:
     assert info["localization"]["lost"] is False
     _, _, _, _, info = single.step(np.array([0.0, 1.0]))
     assert isinstance(info["localization"]["lost"], bool)
+    assert single.lost_detector.continuity > 0.9  # the odometry reaches the jump check
     vec = LocalizedVectorEnv(
         gym.make_vec("RacecarSim-v0", num_envs=2, vectorization_mode="vector_entry_point",
                      map="basement_loop"),
@@ -172,6 +173,17 @@ def test_the_flag_is_in_the_single_and_the_vector_wrappers_info() -> None:
     lost = infos["localization"]["lost"]
     assert lost.shape == (2,) and lost.dtype == np.bool_ and not lost.any()
     assert infos["localization"]["_lost"].all()
+    # each car's odometry reaches its flag's jump check: a kidnap of car 1 is a jump of car 1's
+    assert all(d.continuity > 0.9 for d in vec.lost_detectors)
+    car = vec.unwrapped.envs[1]
+    start = car.pose
+    kidnap_to = car.random_start()
+    while np.hypot(*(kidnap_to - start)[:2]) < 3.0:
+        kidnap_to = car.random_start()
+    car.teleport(kidnap_to)
+    _, _, _, _, infos = vec.step(np.tile([0.0, 1.0], (2, 1)))
+    assert [d.jumps for d in vec.lost_detectors] == [0, 1]
+    assert infos["localization"]["lost"].tolist() == [False, True]
 
 
 def test_the_flag_is_in_the_race_wrappers_info() -> None:
@@ -187,6 +199,7 @@ def test_the_flag_is_in_the_race_wrappers_info() -> None:
         "car_0": False,
         "car_1": False,
     }
+    assert all(race.lost_detectors[a].continuity > 0.9 for a in race.agents)  # odometry fed
 
 
 def test_a_log_written_before_the_lost_column_reads_as_never_lost(tmp_path) -> None:
