@@ -120,13 +120,15 @@ def test_openings_lengthen_the_beams_on_them_only():
 )
 def test_opening_kernel_against_geometry(r, along, depth):
     """A wall across the beam at x = r, an opening on it from y = -0.5 to 0.5: the beam towards
-    (r, along) passes through it exactly when |along| <= 0.5 (+ the face tolerance)."""
+    (r, along) passes through it exactly when |along| <= 0.5 (+ the face tolerance). At the
+    opening's very edge the beam's end point is rounded to either side (|along| = 0.5 itself fails
+    in about 6 % of cases), so the edge is given a nanometre either way."""
     angle = math.atan2(along, r)
     true = math.hypot(r, along)
     openings = np.array([[r, -0.5, r, 0.5, depth]])
     ranges = np.array([true])
     opening_ranges(0.0, 0.0, 0.0, np.array([angle]), openings, 30.0, ranges)
-    if abs(along) <= 0.5:
+    if abs(along) <= 0.5 - 1e-9:
         assert ranges[0] == pytest.approx(min(true + depth, 30.0))
     elif abs(along) > 0.5 + 0.08 + 1e-9:
         assert ranges[0] == true
