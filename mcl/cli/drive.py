@@ -63,7 +63,7 @@ from mcl.experiments.video import FrameWriter
 from mcl.filter.motion_model import MotionModelParams
 from mcl.filter.params import DEFAULT_PARTICLES
 from mcl.io import DriveRecorder
-from mcl.io.bag_writer import LIVE_RATE
+from mcl.io.bag_writer import LIVE_RATE, UNPACED_LIVE_RATE
 from mcl.io.live import LiveServer
 from mcl.wrappers.error_log import read_error_log
 from mcl.wrappers.hooks import StepHook, StepRecord
@@ -246,8 +246,9 @@ def _drive(
         def record(step: StepRecord) -> None:
             if not recorder:  # made at the reset's record, so a drive that fails first leaves no bag
                 # the live view: 20 frames a second of simulated time and of wall time (a drive
-                # faster than real time streams a screen's worth, not every frame)
-                recorder.append(DriveRecorder(bag, wrapped, live=live, live_wall_rate=LIVE_RATE))
+                # faster than real time streams a screen's worth, not every frame); 10 unpaced
+                wall = LIVE_RATE if live_speed > 0 else UNPACED_LIVE_RATE
+                recorder.append(DriveRecorder(bag, wrapped, live=live, live_wall_rate=wall))
             recorder[0](step)
             pace(step.time)
 

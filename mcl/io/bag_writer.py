@@ -35,10 +35,12 @@ if TYPE_CHECKING:
     from mcl.io.live import LiveServer
     from mcl.wrappers.hooks import StepRecord
 
-__all__ = ["EPOCH_NS", "TOPICS", "BagRecorder", "DriveRecorder", "start_live"]
+__all__ = ["EPOCH_NS", "LIVE_RATE", "TOPICS", "UNPACED_LIVE_RATE", "BagRecorder", "DriveRecorder", "start_live"]
 
 LIVE_RATE = 20.0
 """The live view's default frames per second (simulated time): what a screen shows smoothly."""
+UNPACED_LIVE_RATE = 10.0
+"""Frames per wall-clock second of ``drive --live-speed 0`` (it shares the cores with the server)."""
 
 EPOCH_NS = 946_684_800 * 10**9
 """Nanoseconds of the bag's time 0 (2000-01-01 00:00:00 UTC)."""
