@@ -253,7 +253,7 @@ class AmclPeer(PeerProcess):
         self._tmp = tempfile.TemporaryDirectory(prefix="amcl-peer-") if work is None else None
         self.work = Path(self._tmp.name if self._tmp else work)
         self.work.mkdir(parents=True, exist_ok=True)
-        self._grid_path = self.work / f"grid_{os.getpid()}_{id(self)}.npz"
+        self._grid_path = _new_file(self.work / f"grid_{os.getpid()}_{id(self)}.npz")
         origin_x, origin_y = grid.amcl_origin
         np.savez(self._grid_path, data=grid.data, resolution=grid.resolution,
                  origin_x=origin_x, origin_y=origin_y)  # fmt: skip
@@ -274,6 +274,8 @@ class AmclPeer(PeerProcess):
         ranges = amcl_ranges(drive.scans[drive.scan_rows[at]], drive.beam_angles, drive.max_range)
         self._count += 1
         stem = self.work / f"run_{os.getpid()}_{id(self)}_{self._count}"
+        for made in (f"{stem}_in.npz", f"{stem}_out.npy"):  # ours to write, later to remove
+            _new_file(Path(made))
         np.savez(f"{stem}_in.npz", ranges=ranges, odom=poses[at], range_max=drive.max_range,
                  mount_offset=drive.mount_offset, init_pose=drive.truth[0],
                  init_var=np.square(np.asarray(init_spread, dtype=np.float64)))  # fmt: skip
@@ -326,3 +328,11 @@ def localize_with_amcl(python: str, grid: AmclGrid, drive: RecordedDrive, seed: 
         return peer.collect()[0]
     finally:
         peer.close()
+
+
+def _new_file(path: Path) -> Path:
+    """``path``, a name this peer will write and later remove: refused if something is already
+    there (the peer removes only files it made)."""
+    if os.path.lexists(path):
+        raise FileExistsError(f"amcl peer: {path} exists; it writes and removes only its own files")
+    return path
