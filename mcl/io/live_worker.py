@@ -209,11 +209,17 @@ def _config(fd: int) -> tuple[dict, bytearray]:
     return config, buffer[HEADER.size + n :]
 
 
+def hard_exit(code: int) -> None:
+    """End this process now with ``code``: the server's own threads (foxglove-sdk's) may never
+    stop, so a normal exit could wait on them forever. The one place the worker leaves this way."""
+    os._exit(code)
+
+
 def _watch_parent(parent: int) -> None:
     """End this process when its parent is gone (also when the main thread is stuck)."""
     while os.getppid() == parent:
         time.sleep(0.5)
-    os._exit(0)
+    hard_exit(0)
 
 
 def _death_signal() -> None:
@@ -269,7 +275,7 @@ def serve(status_fd: int) -> None:
         status.set(STATE, 2)
         status.reason(f"{type(exc).__name__}: {exc}")
         print(json.dumps({"error": str(exc) or type(exc).__name__}), flush=True)
-        os._exit(1)
+        hard_exit(1)
     status.set(PORT, port)
     status.set(STATE, 1)
     print(json.dumps({"port": port}), flush=True)
@@ -313,7 +319,7 @@ def serve(status_fd: int) -> None:
     stopping = threading.Thread(target=server.stop, daemon=True)
     stopping.start()
     stopping.join(STOP_S)
-    os._exit(0)
+    hard_exit(0)
 
 
 if __name__ == "__main__":
@@ -324,4 +330,4 @@ if __name__ == "__main__":
     except BaseException as exc:  # one line for the drive's warning, never a traceback
         with contextlib.suppress(Exception):
             Status(int(sys.argv[1])).reason(f"{type(exc).__name__}: {exc}")
-        os._exit(1)
+        hard_exit(1)
