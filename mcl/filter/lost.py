@@ -49,13 +49,12 @@ Frames and units: world frame; metres, radians, seconds.
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 
 from mcl.filter.lost_params import LostParams
 from mcl.filter.particle_filter import ParticleFilter
-from mcl.filter.scan_continuity import ScanContinuity
+from mcl.filter.scan_continuity import ScanContinuity, scan_bearings
 from mcl.filter.step_kernels import pose_moments
 
 __all__ = ["LostDetector", "scan_agreement"]
@@ -93,16 +92,6 @@ def scan_agreement(
     agree = np.abs(diff) <= tolerance
     counted = agree.size - (int(np.count_nonzero(diff < -tolerance)) if skip_short else 0)
     return float(np.count_nonzero(agree) / counted) if counted > 0 else math.nan
-
-
-def _beam_angles(sensor_model: Any, n: int) -> np.ndarray:
-    """(n,) the bearings of a scan's ``n`` beams in the lidar frame (radians): the sensor model's
-    own when it has them for ``n`` beams, else evenly over its field of view."""
-    angles = sensor_model.beam_angles
-    if angles is not None and angles.size == n:
-        return np.asarray(angles, dtype=np.float64)
-    fov = float(sensor_model.params.fov)
-    return np.linspace(-fov / 2, fov / 2, n) if n > 1 else np.zeros(1)
 
 
 class LostDetector:
@@ -230,7 +219,7 @@ class LostDetector:
         if self._scans is None:
             mount = sm.lidar_poses(np.zeros((1, 3)))[0]
             self._scans = ScanContinuity(mount, float(sm.max_range), p.beams)
-        continuity = self._scans.observe(z, _beam_angles(sm, z.size))
+        continuity = self._scans.observe(z, scan_bearings(sm, z.size))
         self.continuity = continuity if self._odometry_fed else math.nan
         if p.jump_below > 0.0 and self.continuity < p.jump_below:  # NaN compares False
             self._since_dip = 0.0
@@ -263,7 +252,7 @@ class LostDetector:
         key, idx, angles = self._fit_beams
         if key != (n, id(sm)):  # the beams compared, kept while the scan and model stay
             idx = np.unique(np.floor(np.linspace(0, n - 1, min(p.beams, n)) + 0.5).astype(np.int64))
-            angles = _beam_angles(sm, n)[idx]
+            angles = scan_bearings(sm, n)[idx]
             self._fit_beams = ((n, id(sm)), idx, angles)
         z = z[idx]
         lidar = sm.lidar_poses(estimate[None, :])[0]

@@ -16,6 +16,7 @@ from mcl.filter.bounds import FILTER_BOUNDS, check_filter
 from mcl.filter.kld import KLDParams
 from mcl.filter.odometry_scale import OdometryScaleParams
 from mcl.filter.resampling import RESAMPLERS
+from mcl.filter.standstill import StandstillParams
 from mcl.filter.uncertainty import ClusterParams
 from racecar_sim.settings.config import nested
 from racecar_sim.settings.validation import short
@@ -59,6 +60,9 @@ class ParticleFilterParams:
         clusters: [`ClusterParams`][mcl.filter.uncertainty.ClusterParams] of `uncertainty()`.
         odometry_scale: [OdometryScaleParams][mcl.filter.odometry_scale.OdometryScaleParams]: the forward
             speed scale learned online from where the scan pins the car (on by default).
+        standstill: [StandstillParams][mcl.filter.standstill.StandstillParams]: predict no
+            motion while the scans say the car stands and the odometry says it drives (wheels
+            turning against a wall; on by default).
     """
 
     n_particles: int = DEFAULT_PARTICLES
@@ -76,6 +80,7 @@ class ParticleFilterParams:
     kld: KLDParams = field(default_factory=KLDParams)
     odometry_scale: OdometryScaleParams = field(default_factory=OdometryScaleParams)
     clusters: ClusterParams = field(default_factory=ClusterParams)
+    standstill: StandstillParams = field(default_factory=StandstillParams)
 
     def __post_init__(self) -> None:
         owner = "ParticleFilterParams"  # bounds and their reasons: mcl.filter.bounds
@@ -137,6 +142,7 @@ class ParticleFilterParams:
             ("kld", KLDParams),
             ("clusters", ClusterParams),
             ("odometry_scale", OdometryScaleParams),
+            ("standstill", StandstillParams),
         ):
             object.__setattr__(
                 self, name, nested(getattr(self, name), cls, f"ParticleFilterParams.{name}")

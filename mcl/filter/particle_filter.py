@@ -43,7 +43,9 @@ from mcl.filter.odometry_scale import OdometryScale
 from mcl.filter.params import ParticleFilterParams, spread_sd
 from mcl.filter.recovery import GlobalRecovery
 from mcl.filter.resampling import resample_particles
+from mcl.filter.scan_continuity import scan_bearings
 from mcl.filter.sensor_model import SensorModel
+from mcl.filter.standstill import Standstill
 from mcl.filter.step_kernels import bayes_step
 from racecar_sim.maps import OccupancyMap
 
@@ -120,6 +122,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         self._moved = [math.inf, math.inf]  # metres, radians of odometry since the last used scan
         self._global_count: int | None = None
         self.odometry_scale = OdometryScale(params.odometry_scale)
+        self.standstill = Standstill(params.standstill)
         self.searching = False  # whether the last correction scored with the wide search hit
         self._search_motion: MotionModel | None = None
 
@@ -190,12 +193,14 @@ class ParticleFilter(Belief, GlobalRecovery):
         self.recovery_share, self._shrink_to, self._before_burst = 0.0, None, None
         self._moved = [math.inf, math.inf]
         self.odometry_scale.restart()
+        self.standstill.restart()
         self.searching = False
 
     # ------------------------------------------------------------------ update steps
     def predict(self, twist: np.ndarray, dt: float) -> None:
         """Move the particles by a car-frame twist [vx, vy, omega] held for ``dt`` seconds (its
-        forward speed times the learned [odometry_scale][mcl.filter.odometry_scale.OdometryScale])."""
+        forward speed times the learned [odometry_scale][mcl.filter.odometry_scale.OdometryScale]);
+        by none while the [standstill][mcl.filter.standstill.Standstill] check says the car stands."""
         self._require()
         twist = np.asarray(twist, dtype=np.float64)
         if twist.shape != (3,) or not all(map(math.isfinite, twist.tolist())):
@@ -203,6 +208,9 @@ class ParticleFilter(Belief, GlobalRecovery):
         if not (math.isfinite(dt) and dt >= 0):
             raise ValueError(f"dt must be a non-negative number of seconds, got {dt!r}")
         scale = self.odometry_scale
+        self.standstill.advance(scale.scaled(twist), dt)  # as the filter would move
+        if self.standstill.standing:
+            twist = np.zeros(3)
         if scale.needs_estimate() and self._particles is not None:
             covariance = self.covariance()
             spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
@@ -319,6 +327,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         dropped, wrong length or negative ranges rejected with ``ValueError``).
         """
         self._require()
+        self._check_standstill(scan)
         if not self.should_correct():
             self.n_skipped += 1
             return False
@@ -349,6 +358,17 @@ class ParticleFilter(Belief, GlobalRecovery):
             self.resample()
             return True
         return False
+
+    def _check_standstill(self, scan: np.ndarray) -> None:
+        """Give the scan to the standstill check (before the filter decides to use it)."""
+        if self.params.standstill.enabled:
+            sm = self.sensor_model
+            z = np.asarray(scan, dtype=np.float64).reshape(-1)
+            mount = sm.lidar_poses(np.zeros((1, 3)))[0]
+            self.standstill.observe(z, scan_bearings(sm, z.size), mount, float(sm.max_range))
+            take_back, self.standstill.take_back = self.standstill.take_back, None
+            if take_back is not None:  # the car stood while the filter followed its wheels
+                self.move(take_back)
 
     def update(self, twist: np.ndarray, dt: float, scan: np.ndarray | None) -> np.ndarray:
         """``predict``, then ``correct`` when a scan is given, then return ``estimate()``."""

@@ -19,11 +19,22 @@ lidar's mount pose in the car frame, given by the sensor model); metres, radians
 
 from __future__ import annotations
 
+import functools
 import math
+from typing import Any
 
 import numpy as np
 
-__all__ = ["ScanContinuity", "compose", "invert", "odometry_motion", "scan_continuity"]
+__all__ = [
+    "ScanContinuity",
+    "both_ways",
+    "compose",
+    "even_subset",
+    "invert",
+    "odometry_motion",
+    "scan_bearings",
+    "scan_continuity",
+]
 
 
 def compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -100,6 +111,49 @@ def scan_continuity(
     return float(np.count_nonzero(diff[counted] <= tol[counted]) / n)
 
 
+def scan_bearings(sensor_model: Any, n: int) -> np.ndarray:
+    """(n,) the bearings of a scan's ``n`` beams in the lidar frame (radians): the sensor model's
+    own when it has them for ``n`` beams, else evenly over its field of view."""
+    angles = sensor_model.beam_angles
+    if angles is not None and angles.size == n:
+        return np.asarray(angles, dtype=np.float64)
+    fov = float(sensor_model.params.fov)
+    return np.linspace(-fov / 2, fov / 2, n) if n > 1 else np.zeros(1)
+
+
+@functools.lru_cache(maxsize=16)
+def even_subset(n: int, k: int) -> np.ndarray:
+    """Indices of ``min(k, n)`` evenly spaced beams of ``n`` (read-only)."""
+    idx = np.unique(np.rint(np.linspace(0, n - 1, min(k, n))).astype(np.int64))
+    idx.setflags(write=False)
+    return idx
+
+
+def both_ways(
+    before: np.ndarray,
+    before_angles: np.ndarray,
+    after: np.ndarray,
+    after_angles: np.ndarray,
+    motion: np.ndarray,
+    beams: int,
+    max_range: float,
+    tolerance: float,
+    tolerance_per_m: float,
+) -> float:
+    """The smaller of [scan_continuity][mcl.filter.scan_continuity.scan_continuity] one way
+    (``beams`` evenly spaced points of ``before`` found in ``after``) and the other (``after``'s
+    in ``before``, by the inverse ``motion``): a point hidden one way is a point missing the other
+    way. ``motion`` is the later lidar pose in the earlier lidar frame [x m, y m, theta rad]; NaN
+    when too few points count either way."""
+    args = (max_range, tolerance, tolerance_per_m)
+    ib, ia = even_subset(before.size, beams), even_subset(after.size, beams)
+    forward = scan_continuity(before[ib], before_angles[ib], after, after_angles, motion, *args)
+    backward = scan_continuity(after[ia], after_angles[ia], before, before_angles,
+                               invert(motion), *args)  # fmt: skip
+    both = [f for f in (forward, backward) if not math.isnan(f)]
+    return min(both) if both else math.nan
+
+
 class ScanContinuity:
     """The continuity of one car's consecutive scans (module docstring): fed the odometry every
     step and each scan as it comes. Both ways are checked (the earlier scan's points in the later
@@ -134,7 +188,6 @@ class ScanContinuity:
         self.continuity = math.nan
         self._motion = np.zeros(3)  # the car's motion since the last scan, in its frame then
         self._before: tuple[np.ndarray, np.ndarray] | None = None
-        self._subset_of: tuple[int, np.ndarray] = (-1, np.zeros(0, dtype=np.int64))
 
     def restart(self) -> None:
         """Forget the last scan and the motion since (a new belief)."""
@@ -155,22 +208,10 @@ class ScanContinuity:
         if self._before is not None:
             before, before_angles = self._before
             motion = compose(compose(invert(self.mount), self._motion), self.mount)
-            idx_before = self._subset(before.size)
-            idx_after = self._subset(z.size)
-            args = (self.max_range, self.tolerance, self.tolerance_per_m)
-            forward = scan_continuity(before[idx_before], before_angles[idx_before], z, angles,
-                                      motion, *args)  # fmt: skip
-            backward = scan_continuity(z[idx_after], angles[idx_after], before, before_angles,
-                                       invert(motion), *args)  # fmt: skip
-            both = [f for f in (forward, backward) if not math.isnan(f)]
-            self.continuity = min(both) if both else math.nan
+            self.continuity = both_ways(
+                before, before_angles, z, angles, motion, self.beams, self.max_range,
+                self.tolerance, self.tolerance_per_m,
+            )  # fmt: skip
         self._before = (z, angles.copy())
         self._motion = np.zeros(3)
         return self.continuity
-
-    def _subset(self, n: int) -> np.ndarray:
-        """Indices of ``beams`` evenly spaced beams of ``n`` (kept for the last ``n``)."""
-        if self._subset_of[0] != n:
-            idx = np.unique(np.rint(np.linspace(0, n - 1, min(self.beams, n))).astype(np.int64))
-            self._subset_of = (n, idx)
-        return self._subset_of[1]

@@ -1,0 +1,117 @@
+"""Wheels that turn while the car stands: the filter stops following an odometry its scans
+contradict, and only then (mcl.filter.standstill)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mcl.experiments.recorded import RecordedDrive, localize_recorded
+from mcl.filter.scan_continuity import compose, odometry_motion
+from mcl.filter.standstill import Standstill, StandstillParams
+from racecar_sim.env import RacecarEnv
+
+ENV = RacecarEnv("basement_loop")
+LIDAR = ENV.lidar
+MOUNT = np.array([ENV.lidar_params.mount_offset, 0.0, 0.0])
+MAX_RANGE = ENV.lidar_params.max_range
+DT = 0.025
+
+
+def _free_pose(seed: int) -> np.ndarray:
+    ENV.reset(seed=seed)
+    return ENV.pose
+
+
+def _run(poses: list[np.ndarray], twist: np.ndarray) -> Standstill:
+    """The check fed the exact scan at each pose, ``twist`` as the odometry between them."""
+    check = Standstill()
+    check.observe(LIDAR.true_ranges(poses[0]), LIDAR.angles, MOUNT, MAX_RANGE)
+    for pose in poses[1:]:
+        check.advance(twist, DT)
+        check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE)
+    return check
+
+
+@settings(max_examples=40)
+@given(st.integers(0, 10_000), st.floats(0.5, 2.0), st.floats(-1.0, 1.0))
+def test_a_car_that_drives_as_its_odometry_says_never_stands(seed, speed, omega) -> None:
+    twist = np.array([speed, 0.0, omega])
+    poses = [_free_pose(seed)]
+    for _ in range(40):  # 1 s: several comparisons of 0.2 m or 0.2 rad
+        poses.append(compose(poses[-1], odometry_motion(twist, DT)))
+    check = _run(poses, twist)
+    assert not check.standing and check.n_standing == 0
+
+
+@pytest.mark.parametrize("seed", [0, 3, 7])
+def test_a_pinned_car_stands_and_the_streak_is_taken_back(seed) -> None:
+    pose = _free_pose(seed)
+    twist = np.array([1.0, 0.0, -0.5])  # the wheels push on and the steering is turned
+    check = Standstill()
+    check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE)
+    applied, took_back, steps = np.zeros(3), None, 0
+    while took_back is None:
+        steps += 1
+        assert steps < 200, "never found standing"
+        check.advance(twist, DT)
+        applied = compose(applied, odometry_motion(twist, DT))
+        check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE)
+        took_back = check.take_back
+    assert check.standing
+    # two comparisons of 0.2 m: the odometry said the car drove about 0.4 m
+    assert 0.35 < math.hypot(applied[0], applied[1]) < 0.5
+    back = compose(applied, took_back)  # what the filter did, then the take-back: nothing
+    assert np.allclose(back, 0.0, atol=1e-9)
+
+
+def test_the_check_lets_go_when_the_car_moves_again() -> None:
+    pose = _free_pose(5)
+    twist = np.array([1.0, 0.0, 0.0])
+    poses = [pose] * 30 + [compose(pose, odometry_motion(twist, DT * k)) for k in range(1, 30)]
+    check = Standstill()
+    check.observe(LIDAR.true_ranges(poses[0]), LIDAR.angles, MOUNT, MAX_RANGE)
+    states = []
+    for p in poses[1:]:
+        check.advance(twist, DT)
+        check.observe(LIDAR.true_ranges(p), LIDAR.angles, MOUNT, MAX_RANGE)
+        states.append(check.standing)
+    assert any(states[:29]) and not states[-1]
+
+
+def test_standstill_params_are_checked() -> None:
+    with pytest.raises(ValueError, match="in_a_row"):
+        StandstillParams(in_a_row=0)
+    with pytest.raises(ValueError, match="still_above"):
+        StandstillParams(still_above=1.5)
+    with pytest.raises(ValueError, match="enabled"):
+        StandstillParams(enabled="yes")
+
+
+def _pinned_drive(seed: int, seconds: float) -> RecordedDrive:
+    """A car that stands at a free pose for ``seconds`` with its wheels reporting 1 m/s."""
+    pose = _free_pose(seed)
+    n = int(round(seconds / DT)) + 1
+    scan = LIDAR.true_ranges(pose).astype(np.float32)
+    odom = np.tile(np.array([1.0, 0.0, 0.3], dtype=np.float32), (n, 1))
+    odom[0] = 0.0
+    return RecordedDrive(
+        time=np.arange(n) * DT, dt_steps=np.r_[0.0, np.full(n - 1, DT)],
+        truth=np.tile(pose, (n, 1)), odom=odom, fresh=np.ones(n, dtype=bool),
+        scans=np.tile(scan, (n, 1)), beam_angles=np.asarray(LIDAR.angles, dtype=np.float64),
+        mount_offset=float(MOUNT[0]), max_range=float(MAX_RANGE), dt=DT,
+        world_map="basement_loop",
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("seed", [1, 4])
+def test_the_filter_stays_with_a_car_whose_wheels_spin(seed) -> None:
+    drive = _pinned_drive(seed, 4.0)
+    held = localize_recorded(drive).position_error
+    followed = localize_recorded(drive, {"filter": {"standstill": {"enabled": False}}})
+    assert followed.position_error[-1] > 1.0  # following the wheels drives the estimate away
+    assert held[-1] < 0.2 and held.max() < 0.5
