@@ -280,7 +280,7 @@ def _drive(
     s = result.stats
     assert s is not None
     print(
-        f"Localized drive on {Path(spec.map).stem}: {s.duration:.1f} s simulated in {wall:.1f} s "
+        f"Localized drive on {Path(spec.map).stem}: {s.duration:.1f} s simulated in {wall:.2f} s "
         f"of wall time ({s.n_steps} steps, {spec.n_particles} particles, "
         f"{result.n_collisions} steps touching a wall)"
     )
