@@ -15,9 +15,16 @@ alpha_fast 0.1). All three start around the true start pose (standard deviations
 Per seed: mean position error and the percentage of the time it exceeds 1 m; per world and
 filter: the median of the means and the runs lost (more than 2 % of the time over 1 m). Printed as
 markdown and written to ``--out`` (``amcl_results.csv``, ``amcl_results.md``; recorded drives are
-kept in ``--out/drives`` and reused when the same drive is asked again; the results of drives
-already in ``amcl_results.csv`` are kept and those drives not run again, so a run cut short
-continues where it stopped).
+kept in ``--out/drives`` and reused when the same drive is asked again; the rows already in
+``amcl_results.csv`` are kept and a filter runs on a drive only when its row of that world and
+seed is missing, so a run cut short continues where it stopped).
+
+``--amcl-rerun ours`` (any of [FILTERS][mcl.bench.amcl_bench.FILTERS]) drops the named filters'
+rows of the worlds and seeds asked and runs only those filters again, on the recorded drives,
+keeping the others' rows: after a change of our defaults, ``racecar-sim bench peers --only amcl
+--amcl-worlds cluttered clean --amcl-rerun ours --out DIR`` reruns ours alone (amcl's
+subprocesses are not even started). Deleting a filter's rows from ``amcl_results.csv`` by hand
+does the same; a rerun cut short continues when called again without ``--amcl-rerun``.
 """
 
 from __future__ import annotations
@@ -118,27 +125,42 @@ def run_benchmark(
     out: Path,
     config: LocalizationConfig | None = None,
     echo: Callable[[str], None] = print,
+    rerun: Sequence[str] = (),
 ) -> list[dict[str, Any]]:
     """Record the drives, run the three filters, write ``out/amcl_results.{csv,md}`` as rows come
-    in; returns the rows (one per world, seed and filter)."""
+    in; returns the rows (one per world, seed and filter).
+
+    A filter runs on a drive only when ``amcl_results.csv`` has no row of that world, seed and
+    filter; ``rerun`` (names from [FILTERS][mcl.bench.amcl_bench.FILTERS]) first drops those
+    filters' rows of ``worlds`` and seeds 0..``seeds``-1, so they run again on the recorded drives
+    while the other filters' rows stay. amcl's subprocesses start only when an amcl row is missing.
+    """
     from mcl.bench.amcl_inputs import amcl_grid
-    from mcl.bench.peer_amcl import NAV2_DEFAULTS, WITH_RECOVERY, AmclPeer
+    from mcl.bench.peer_amcl import NAV2_DEFAULTS, WITH_RECOVERY, AmclParams, AmclPeer
     from racecar_sim.maps import load_map
 
+    unknown = sorted(set(rerun) - set(FILTERS))
+    if unknown:
+        raise ValueError(f"rerun: unknown filters {unknown}; the filters are {list(FILTERS)}")
     maps = shared_dir() / "maps"
     config = config or LocalizationConfig()
     filter_map = load_map(maps / FILTER_MAP)
-    grid = amcl_grid(filter_map)
     out.mkdir(parents=True, exist_ok=True)
-    peers = {"amcl": AmclPeer(python, grid, NAV2_DEFAULTS, out / "work"),
-             "amcl_recovery": AmclPeer(python, grid, WITH_RECOVERY, out / "work")}  # fmt: skip
+    params: dict[str, AmclParams] = {"amcl": NAV2_DEFAULTS, "amcl_recovery": WITH_RECOVERY}
+    peers: dict[str, AmclPeer] = {}
+
+    def peer(name: str) -> AmclPeer:  # started on first use: a rerun of ours alone needs none
+        if name not in peers:
+            peers[name] = AmclPeer(python, amcl_grid(filter_map), params[name], out / "work")
+        return peers[name]
+
     rows: list[dict[str, Any]] = []
-    waiting: list[tuple[str, int]] = []
+    waiting: list[tuple[str, int, list[str]]] = []
 
     def collect() -> None:
-        world, seed = waiting.pop(0)
-        for name, peer in peers.items():
-            run, cpu = peer.collect()
+        world, seed, names = waiting.pop(0)
+        for name in names:
+            run, cpu = peers[name].collect()
             rows.append(_row(world, seed, name, run, cpu))
         _write(out, rows, seeds, duration, worlds)
         mine = {r["filter"]: r for r in rows if (r["world"], r["seed"]) == (world, seed)}
@@ -146,30 +168,35 @@ def run_benchmark(
             f"{n} {mine[n]['mean_error_m']:.3f} m ({mine[n]['pct_over_1m']:.1f} % > 1 m)"
             for n in FILTERS if n in mine))  # fmt: skip
 
-    rows += read_rows(out / "amcl_results.csv")  # every world and seed stays in the file
-    done = {(r["world"], r["seed"]) for r in rows if r["filter"] == FILTERS[-1]}
-    rows[:] = [r for r in rows if (r["world"], r["seed"]) in done]
-    if done:
-        echo(f"kept {len(done)} drives' results from {out / 'amcl_results.csv'}")
+    rows += [  # every world and seed stays in the file, but for the rows asked to run again
+        r for r in read_rows(out / "amcl_results.csv")
+        if not (r["filter"] in rerun and r["world"] in worlds and r["seed"] < seeds)
+    ]  # fmt: skip
+    have = {(r["world"], r["seed"], r["filter"]) for r in rows}
+    if rows:
+        echo(f"kept {len(rows)} rows (world, seed, filter) from {out / 'amcl_results.csv'}")
     try:
         for seed in range(seeds):  # seeds outside: a run cut short still covers every world
             for world in worlds:
-                if (world, seed) in done:
+                todo = [n for n in FILTERS if (world, seed, n) not in have]
+                if not todo:
                     continue
                 drive = _drive(out, world, seed, duration, maps)
-                for peer in peers.values():
-                    peer.submit(drive, seed, config.filter.init_spread)
-                t0 = time.process_time()
-                ours = localize_recorded(drive, config, filter_map, seed)
-                rows.append(_row(world, seed, "ours", ours, time.process_time() - t0))
-                waiting.append((world, seed))
+                names = [n for n in todo if n in params]
+                for name in names:
+                    peer(name).submit(drive, seed, config.filter.init_spread)
+                if "ours" in todo:
+                    t0 = time.process_time()
+                    ours = localize_recorded(drive, config, filter_map, seed)
+                    rows.append(_row(world, seed, "ours", ours, time.process_time() - t0))
+                waiting.append((world, seed, names))
                 if len(waiting) > 1:  # amcl works on this drive while the next one is recorded
                     collect()
         while waiting:
             collect()
     finally:
-        for peer in peers.values():
-            peer.close()
+        for p in peers.values():
+            p.close()
     return rows
 
 

@@ -261,7 +261,7 @@ class AmclPeer(PeerProcess):
             [python, "-c", PEER_SCRIPT], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
             stderr=subprocess.PIPE, text=True, bufsize=1,
         )  # fmt: skip
-        self._answer("ready")
+        self.answer("ready")
         self._pending: list[tuple[RecordedDrive, np.ndarray, np.ndarray, Path]] = []
         self._count = 0
 
@@ -298,7 +298,7 @@ class AmclPeer(PeerProcess):
             RuntimeError: amcl failed on the run (its error) or the subprocess ended.
         """
         drive, poses, at, stem = self._pending.pop(0)
-        msg = self._answer("done")
+        msg = self.answer("done")
         Path(f"{stem}_in.npz").unlink(missing_ok=True)
         if msg["done"] is None:
             raise RuntimeError(f"amcl failed: {msg.get('error')}")

@@ -25,14 +25,15 @@
   (PyPI ``amcl``, GPL-3: its own venv, ``--amcl-python`` / ``$AMCL_PYTHON`` or made in
   ``out/peers/amcl-venv`` on first use, run as a subprocess) on the same recorded 60 s drives,
   ``--seeds`` seeds in the honest world (cluttered and clean scenes) and the ideal one; tables in
-  ``--out``; skipped with a message when the venv cannot be made.
+  ``--out``, kept per world, seed and filter (``--amcl-rerun ours`` runs ours again on the
+  recorded drives and keeps amcl's rows); skipped with a message when the venv cannot be made.
 
 Other peers add their part as a function ``part(args) -> int`` in `PARTS` and their options
 in `add_arguments()`. Every part prints its workload (particles, beams, range, threads) and
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
-        [--only rangelibc|spread|f1tenth|race|amcl] [--seeds 20] [--amcl-worlds cluttered clean ideal] [--amcl-python PY] [--out DIR] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
+        [--only rangelibc|spread|f1tenth|race|amcl] [--seeds 20] [--amcl-worlds cluttered clean ideal] [--amcl-python PY] [--amcl-rerun ours] [--out DIR] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
         [--sim-steps 1000] [--sim-runs 5] [--num-envs 32]
 """
 
@@ -105,6 +106,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--amcl-python", help="python of a venv with PyPI amcl (default: $AMCL_PYTHON, else "
         "out/peers/amcl-venv, made on first use)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--amcl-rerun", nargs="+", default=[], choices=("ours", "amcl", "amcl_recovery"),
+        help="drop these filters' rows from --out's amcl_results.csv and run them again on the "
+        "recorded drives, keeping the other filters' rows (amcl part)",
     )  # fmt: skip
     parser.add_argument("--out", type=Path, default=Path("out/peers/amcl"),
                         help="folder of the amcl part's tables and drives")  # fmt: skip
@@ -258,7 +264,7 @@ def amcl_part(args: argparse.Namespace) -> int:
           f"amcl from {python}; results into {args.out}")  # fmt: skip
     claim_folder(args.out)
     rows = amcl_bench.run_benchmark(
-        python, args.amcl_worlds, args.seeds, args.amcl_duration, args.out
+        python, args.amcl_worlds, args.seeds, args.amcl_duration, args.out, rerun=args.amcl_rerun
     )
     print(amcl_bench.results_md(rows, args.seeds, args.amcl_duration, args.amcl_worlds))
     return 0

@@ -25,7 +25,7 @@ from mcl.filter.motion_model import compose, twist_to_odometry
 from racecar_sim.maps import OccupancyMap, resolve_map
 from racecar_sim.raycast import RayCaster
 from tests.conftest import SHARED_MAPS, lidar_pose, room_map
-from tests.skips import shared_missing
+from tests.skips import need_shared, shared_missing
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -257,3 +257,43 @@ def test_results_survive_a_restart_and_the_report_covers_the_seeds_asked(tmp_pat
     # seeds 0 and 1 only: means 0.1 and 0.2 (median 0.150), seed 1 at 3 % over 1 m is lost
     assert "| cluttered | ours | 2 | 0.150 | 1/2 | 1.5 |" in report
     assert "\n| 1 | 0.200 |" in report and "\n| 2 | " not in report  # per-seed rows: 0, 1
+
+
+def test_rerun_of_ours_keeps_amcls_rows_and_the_recorded_drive(tmp_path):
+    """Rows are kept per world, seed and filter: ``rerun=["ours"]`` or deleting ours' row runs
+    ours alone on the drive recorded before; amcl's (planted) rows stay and amcl never starts
+    (its python does not exist, so starting it would raise)."""
+    need_shared("maps/stata_basement.yaml", "maps/basement_fixed_aligned.yaml")
+    out, no_amcl = tmp_path / "amcl", "/nonexistent/amcl-python"
+    planted = [
+        {"world": "clean", "seed": 0, "filter": f, "mean_error_m": 7.0, "p95_error_m": 7.0,
+         "max_error_m": 7.0, "pct_over_1m": 100.0, "lost": True, "cpu_s": 1.0}
+        for f in amcl_bench.FILTERS
+    ]  # fmt: skip
+    out.mkdir()
+    amcl_bench._write(out, planted, 1, 2.0, ["clean"])
+    said: list[str] = []
+    assert amcl_bench.run_benchmark(no_amcl, ["clean"], 1, 2.0, out, echo=said.append) == planted
+    assert not (out / "drives").exists() and not any("seed 0:" in s for s in said)
+
+    def by_filter() -> dict[str, float]:
+        rows = amcl_bench.read_rows(out / "amcl_results.csv")
+        assert len(rows) == 3
+        return {r["filter"]: r["mean_error_m"] for r in rows}
+
+    amcl_bench.run_benchmark(no_amcl, ["clean"], 1, 2.0, out, echo=said.append, rerun=["ours"])
+    first = by_filter()
+    assert first["amcl"] == first["amcl_recovery"] == 7.0 and first["ours"] < 0.5
+    drive = out / "drives" / "clean_seed0_2s.npz"
+    recorded = drive.stat().st_mtime_ns
+    # ours' row deleted by hand: ours alone runs again, on the same recorded drive
+    kept = [r for r in amcl_bench.read_rows(out / "amcl_results.csv") if r["filter"] != "ours"]
+    amcl_bench._write(out, kept, 1, 2.0, ["clean"])
+    amcl_bench.run_benchmark(no_amcl, ["clean"], 1, 2.0, out, echo=said.append)
+    again = by_filter()
+    assert again["amcl"] == again["amcl_recovery"] == 7.0 and again["ours"] < 0.5
+    assert drive.stat().st_mtime_ns == recorded
+    with pytest.raises(ValueError, match="unknown filters"):
+        amcl_bench.run_benchmark(no_amcl, ["clean"], 1, 2.0, out, rerun=["amcl_fast"])
+    # the command line offers the same names
+    assert peers_args(["--amcl-rerun", *amcl_bench.FILTERS]).amcl_rerun == list(amcl_bench.FILTERS)
