@@ -366,9 +366,6 @@ class ParticleFilter(Belief, GlobalRecovery):
             z = np.asarray(scan, dtype=np.float64).reshape(-1)
             mount = sm.lidar_poses(np.zeros((1, 3)))[0]
             self.standstill.observe(z, scan_bearings(sm, z.size), mount, float(sm.max_range))
-            take_back, self.standstill.take_back = self.standstill.take_back, None
-            if take_back is not None:  # the car stood while the filter followed its wheels
-                self.move(take_back)
 
     def update(self, twist: np.ndarray, dt: float, scan: np.ndarray | None) -> np.ndarray:
         """``predict``, then ``correct`` when a scan is given, then return ``estimate()``."""

@@ -101,9 +101,6 @@ class Standstill:
 
     Attributes:
         standing: the last comparison found the car standing (the filter predicts no motion).
-        take_back: when the car has just been found standing, the car-frame motion [x m, y m,
-            theta rad] that undoes what the odometry moved the filter while the car only looked
-            standing (the filter applies it once and sets it to None).
         n_standing: comparisons that found it standing since the start.
     """
 
@@ -113,8 +110,6 @@ class Standstill:
         self.n_standing = 0
         self._in_a_row = 0
         self._motion = np.zeros(3)  # the car's motion by the odometry since the reference scan
-        self._streak = np.zeros(3)  # the motion the filter applied while the car looked standing
-        self.take_back: np.ndarray | None = None
         self._reference: tuple[np.ndarray, np.ndarray] | None = None
 
     def restart(self) -> None:
@@ -122,8 +117,6 @@ class Standstill:
         self.standing = False
         self._in_a_row = 0
         self._motion = np.zeros(3)
-        self._streak = np.zeros(3)
-        self.take_back = None
         self._reference = None
 
     def advance(self, twist: np.ndarray, dt: float) -> None:
@@ -162,11 +155,7 @@ class Standstill:
         as_standing = both_ways(before, before_angles, z, angles, np.zeros(3), *args)
         looks_standing = as_standing >= p.still_above and as_standing - as_odometry >= p.margin
         self._in_a_row = self._in_a_row + 1 if looks_standing else 0  # NaN compares False
-        applied = np.zeros(3) if self.standing else m  # the filter moved by what it was told
-        self._streak = compose(self._streak, applied) if looks_standing else np.zeros(3)
-        was_standing, self.standing = self.standing, self._in_a_row >= p.in_a_row
-        if self.standing and not was_standing:  # the odometry of the whole streak was wrong
-            self.take_back, self._streak = invert(self._streak), np.zeros(3)
+        self.standing = self._in_a_row >= p.in_a_row
         self.n_standing += self.standing
         self._reference = (z.copy(), np.asarray(angles, dtype=np.float64).copy())
         self._motion = np.zeros(3)
