@@ -125,6 +125,7 @@ class LostDetector:
         self.jumps = 0
         self.lost = False
         self._since_scan = 0.0  # seconds of driving since the last scan observed
+        self._low_for = 0.0  # seconds the averaged fit has said lost without the flag up
         self._reference_age = 0.0  # seconds of driving folded into reference_fit
         self._since_burst = math.inf
         self._since_jump = math.inf
@@ -180,7 +181,7 @@ class LostDetector:
                     a = 1.0 - math.exp(-dt / p.reference_s)
                     self.reference_fit += a * (self.smoothed_fit - self.reference_fit)
                     self._reference_age += dt
-        self._since_scan = 0.0
+        since_scan, self._since_scan = self._since_scan, 0.0
         s = self.smoothed_fit
         if math.isfinite(s):
             # the usual misfit, once the record holds reference_s of driving (inf before)
@@ -190,7 +191,12 @@ class LostDetector:
             if self.fit_lost and s > p.clear_above and 1.0 - s < 0.5 * p.misfit_ratio * usual:
                 self.fit_lost = False
             elif not self.fit_lost and (s < p.raise_below or 1.0 - s > p.misfit_ratio * usual):
-                self.fit_lost = True
+                self._low_for += since_scan
+                self.fit_lost = self._low_for >= p.raise_after_s
+            elif s > p.clear_above:  # a good fit again; in between, the time so far is kept
+                self._low_for = 0.0
+            if self.fit_lost:
+                self._low_for = 0.0
         cov = pf.covariance()
         self.position_sd = float(math.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
         self.lost = self.fit_lost or self.position_sd > p.max_position_sd or self.jumped

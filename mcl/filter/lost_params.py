@@ -27,6 +27,9 @@ class LostParams:
         beams: beams of the scan compared (evenly spaced).
         window_s: seconds of driving over which the fit is averaged (exponential time constant).
         raise_below: the flag goes up when the averaged fit falls below this fraction.
+        raise_after_s: ... and has stayed under it (or over the misfit bound) this many seconds:
+            a filter keeps the car for a while on its odometry where the map has changed, and a
+            kidnap raises the flag at once through the jump check (0: at once).
         clear_above: the flag goes down when the averaged fit rises above this fraction
             (at least ``raise_below``: hysteresis).
         misfit_ratio: the flag also goes up when the averaged misfit exceeds this many times
@@ -68,6 +71,7 @@ class LostParams:
     beams: int = 100
     window_s: float = 0.75
     raise_below: float = 0.5
+    raise_after_s: float = 1.5
     clear_above: float = 0.65
     misfit_ratio: float = 6.0
     reference_s: float = 20.0
@@ -105,6 +109,10 @@ class LostParams:
                 raise ValueError(f"LostParams.{name} = {short(v)} must be a number")
             return float(v)
 
+        if not 0.0 <= number("raise_after_s") <= 60.0:
+            raise ValueError(
+                f"LostParams.raise_after_s = {short(self.raise_after_s)} must lie in [0, 60] seconds"
+            )
         checks = {
             "fit_tolerance": (0.0, 10.0, "metres"),
             "window_s": (0.0, 60.0, "seconds"),
