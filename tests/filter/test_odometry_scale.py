@@ -116,3 +116,14 @@ def test_the_filter_loads_the_setting_from_a_mapping_and_applies_it():
     before = pf.particles.copy()
     pf.predict(np.array([2.0, 0.0, 0.0]), 1.0)
     assert np.allclose(pf.particles[:, 0] - before[:, 0], 2.2)
+
+
+@settings(deadline=None, max_examples=20)
+@given(k=st.floats(0.3, 3.0))
+def test_one_window_moves_the_scale_a_fifth_of_the_way_even_the_first(k):
+    # a first window taken where the estimate lagged (k < 1) or ran ahead must not set the scale
+    # on its own: it moves gain = 0.2 of the way to the window's ratio, within [low, high]
+    steps = int(40 * k) + 3  # one window of 2 m of reported travel (2 / k m/s, 25 ms steps)
+    scale = _drive(OdometryScale(OdometryScaleParams()), k, "truth", steps=steps)
+    assert scale.windows_used == 1
+    assert scale.scale == pytest.approx(min(1.25, max(0.8, 1.0 + 0.2 * (k - 1.0))), abs=0.01)
