@@ -10,6 +10,7 @@ from mcl.filter.motion_model import MotionModelParams
 from mcl.filter.odometry_scale import OdometryScaleParams
 from mcl.filter.params import ParticleFilterParams
 from mcl.filter.sensor_params import SensorModelParams
+from mcl.filter.standstill import StandstillParams
 from mcl.wrappers.error_log import read_error_log
 from mcl.wrappers.localization import LocalizationConfig
 from tests.skips import need_shared
@@ -40,3 +41,24 @@ def test_the_default_filter_holds_a_drive_the_old_defaults_lost(tmp_path):
     )
     error_old = _drive(tmp_path, old, "old")
     assert error_old.max() > 1.0  # the drive is one that used to lose the car
+
+
+def test_the_filter_stays_with_a_car_whose_wheels_spin_against_the_clutter(tmp_path):
+    """Clean seed 18 at 6-9 s: the wall follower pins the car (0.1 m/s) while the VESC reports
+    1 m/s and a turn. Following the wheels turned the estimate away; the standstill check holds
+    it (docs/localization_changing_world.md)."""
+    world, stata = need_shared("maps/basement_fixed_aligned.yaml", "maps/stata_basement.yaml")
+    clean = (("noise_profile", "mit_racecar"), ("scene", "clean"))
+    errors = {}
+    for name, standstill in (("held", True), ("followed", False)):
+        config = LocalizationConfig(
+            filter=ParticleFilterParams(
+                init_spread=(0.25, 0.25, 0.1), standstill=StandstillParams(enabled=standstill)
+            )
+        )
+        spec = RunSpec(map=str(world), filter_map=str(stata), seed=18, duration=14.0, env=clean,
+                       motion=config.motion, config=config)  # fmt: skip
+        run_one(spec, tmp_path / f"{name}.csv")
+        errors[name] = read_error_log(tmp_path / f"{name}.csv").position_error
+    assert errors["followed"].max() > 1.0  # the drive is one where the wheels mislead
+    assert errors["held"].max() < 0.6, errors["held"].max()
