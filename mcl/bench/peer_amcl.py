@@ -16,9 +16,17 @@ Parameters: [AmclParams][mcl.bench.peer_amcl.AmclParams] defaults are nav2's
 is ``likelihood_field``, the bindings have only ``beam``. What the bindings fix and nav2 would
 set: the KLD bounds (``pf_err`` 0.01 and ``pf_z`` 3, pf.c's own, where nav2 sets 0.05 and 0.99) and
 ``resample_interval`` 1 (nav2's default too); the estimate is the weighted mean of all particles
-(nav2 publishes the mean of the heaviest cluster: the same while tracking one pose). The
-filter's random numbers (drand48) are seeded by the run's seed; the recovery's random poses
-come from ``std::random_device`` and are not repeatable.
+(nav2 publishes the mean of the heaviest cluster: the same while tracking one pose).
+
+Repeatability: every run goes through a process of its own, forked from the subprocess after it
+loaded amcl and the map and before any filter existed, so no run sees another's state. The
+state that leaked before: pf_pdf.c reseeds drand48 with a process-wide counter at every initial
+pose (``srand48(++pf_pdf_seed)``), so the k-th run of a process drew from the stream of seed k,
+whatever seed it was given (cluttered seed 1 of the 20-seed bench: 0.786 m alone, 0.674 m after
+seed 0). Now the initial particles come from that stream of seed 1 (as in a freshly started
+nav2), then drand48 is seeded from the run's seed for everything after (motion noise,
+resampling). The recovery's random poses come from ``std::random_device`` and are not
+repeatable: an ``amcl_recovery`` run repeats only while the recovery injects no pose.
 """
 
 from __future__ import annotations
@@ -180,12 +188,64 @@ def _has_amcl(python: str) -> bool:
 
 
 PEER_SCRIPT = r"""
-import ctypes, json, sys, time
+import ctypes, json, os, sys, time
 import numpy as np
 import amcl
 
-libc = ctypes.CDLL(None)  # pf.c draws from drand48: seeded below, after pf_alloc seeds it by time
+libc = ctypes.CDLL(None)
 grids = {}
+
+
+def localize(req):
+    p = req["params"]
+    d = np.load(req["input"])
+    loc = amcl.AMCL(p["min_particles"], p["max_particles"], p["recovery_alpha_slow"],
+                    p["recovery_alpha_fast"],
+                    amcl.MotionParameters(p["alpha1"], p["alpha2"], p["alpha3"], p["alpha4"],
+                                          p["alpha5"]),
+                    amcl.LaserParameters(p["z_hit"], p["z_short"], p["z_max"], p["z_rand"],
+                                         p["sigma_hit"], p["lambda_short"], 0.0, p["max_beams"]),
+                    "differential")
+    loc.set_map(grids[req["grid"]])
+    loc.set_laser_pose(amcl.Vector3D(float(d["mount_offset"]), 0.0, 0.0))
+    var = d["init_var"]
+    # pf_init reseeds drand48 with pf_pdf.c's process-wide counter (1 in this fresh process)
+    loc.set_initial_pose(amcl.Vector3D(*[float(v) for v in d["init_pose"]]),
+                         amcl.create_diagonal_covariance(*[float(v) for v in var]))
+    seed = int(req["seed"])  # then the run's seed; low word 0x5EED: never a srand48(k) state
+    libc.seed48((ctypes.c_ushort * 3)(0x5EED, seed & 0xFFFF, (seed >> 16) & 0xFFFF))
+    ranges, odom, range_max = d["ranges"], d["odom"], float(d["range_max"])
+    out = np.empty((len(odom), 3))
+    t0 = time.process_time()
+    for u in range(len(odom)):
+        scan = amcl.create_laser_scan_from_list(ranges[u].tolist(), range_max)
+        loc.update(scan, amcl.Vector3D(*[float(v) for v in odom[u]]))
+        pose = loc.get_pose_mean()
+        out[u] = (pose.x, pose.y, pose.theta)
+    cpu = time.process_time() - t0
+    np.save(req["output"], out)
+    return {"done": req["output"], "cpu_s": cpu}
+
+
+def in_own_process(req):  # a forked child runs the filter: no state of one run reaches the next
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(r)
+        try:
+            msg = localize(req)
+        except BaseException as exc:
+            msg = {"done": None, "error": f"{type(exc).__name__}: {exc}"}
+        os.write(w, json.dumps(msg).encode())
+        os._exit(0)
+    os.close(w)
+    with os.fdopen(r) as f:
+        text = f.read()
+    status = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+    return json.loads(text) if text else {
+        "done": None, "error": f"the run's process ended with status {status}"}
+
+
 print(json.dumps({"ready": True}), flush=True)
 for line in sys.stdin:
     req = json.loads(line)
@@ -200,45 +260,22 @@ for line in sys.stdin:
                                       float(g["origin_y"]))
             grid.data = data.ravel().tolist()
             grids[req["grid"]] = grid
-        p = req["params"]
-        d = np.load(req["input"])
-        loc = amcl.AMCL(p["min_particles"], p["max_particles"], p["recovery_alpha_slow"],
-                        p["recovery_alpha_fast"],
-                        amcl.MotionParameters(p["alpha1"], p["alpha2"], p["alpha3"], p["alpha4"],
-                                              p["alpha5"]),
-                        amcl.LaserParameters(p["z_hit"], p["z_short"], p["z_max"], p["z_rand"],
-                                             p["sigma_hit"], p["lambda_short"], 0.0,
-                                             p["max_beams"]),
-                        "differential")
-        libc.srand48(ctypes.c_long(int(req["seed"])))
-        loc.set_map(grids[req["grid"]])
-        loc.set_laser_pose(amcl.Vector3D(float(d["mount_offset"]), 0.0, 0.0))
-        var = d["init_var"]
-        loc.set_initial_pose(amcl.Vector3D(*[float(v) for v in d["init_pose"]]),
-                             amcl.create_diagonal_covariance(*[float(v) for v in var]))
-        ranges, odom, range_max = d["ranges"], d["odom"], float(d["range_max"])
-        out = np.empty((len(odom), 3))
-        t0 = time.process_time()
-        for u in range(len(odom)):
-            scan = amcl.create_laser_scan_from_list(ranges[u].tolist(), range_max)
-            loc.update(scan, amcl.Vector3D(*[float(v) for v in odom[u]]))
-            pose = loc.get_pose_mean()
-            out[u] = (pose.x, pose.y, pose.theta)
-        cpu = time.process_time() - t0
-        np.save(req["output"], out)
-        print(json.dumps({"done": req["output"], "cpu_s": cpu}), flush=True)
+        msg = in_own_process(req)
     except Exception as exc:  # one failed run is reported, the peer keeps serving
-        print(json.dumps({"done": None, "error": f"{type(exc).__name__}: {exc}"}), flush=True)
+        msg = {"done": None, "error": f"{type(exc).__name__}: {exc}"}
+    print(json.dumps(msg), flush=True)
 """
 """The subprocess: per request (JSON line: ``grid``, ``input``, ``output`` .npz/.npy paths,
-``params``, ``seed``) one amcl filter through the drive's update steps; answers ``{"done": path,
-"cpu_s": s}`` or ``{"done": None, "error": ...}``."""
+``params``, ``seed``) one amcl filter through the drive's update steps, in a process forked for
+that run alone; answers ``{"done": path, "cpu_s": s}`` or ``{"done": None, "error": ...}``."""
 
 
 class AmclPeer(PeerProcess):
-    """One amcl subprocess with ``params``; runs are queued ([submit][mcl.bench.peer_amcl.AmclPeer.submit])
-    and collected in order ([collect][mcl.bench.peer_amcl.AmclPeer.collect]), so the caller can
-    run our filter meanwhile.
+    """One amcl subprocess with ``params``, each run in a process forked for it alone (a run's
+    result does not depend on the runs before it); runs are queued
+    ([submit][mcl.bench.peer_amcl.AmclPeer.submit]) and collected in order
+    ([collect][mcl.bench.peer_amcl.AmclPeer.collect]), so the caller can run our filter
+    meanwhile.
 
     Args:
         python: the amcl venv's Python ([amcl_python][mcl.bench.peer_amcl.amcl_python]).
