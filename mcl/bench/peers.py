@@ -62,6 +62,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
+        "--default-filter", action="store_true",
+        help="also time the default filter's per-scan work (rangelibc part; scans along a path)",
+    )  # fmt: skip
+    parser.add_argument(
         "--only",
         choices=("rangelibc", "spread", "f1tenth", "race", "amcl"),
         help="run one part only",
@@ -128,6 +132,7 @@ def rangelibc_part(args: argparse.Namespace) -> int:
         warmup=args.warmup,
         seed=args.seed,
         threads=tuple(args.threads),
+        default_filter=args.default_filter,
     )
     return 0
 
