@@ -327,8 +327,11 @@ def compare(
     if default_filter:
         from mcl.bench.default_update import DefaultUpdate
 
-        default = DefaultUpdate(grid, filters[min(threads)].sensor_model, n_particles, truth, TWIST,
-                                DT, warmup + updates, (0.5, 0.5, 0.2), seed)  # fmt: skip
+        try:
+            default = DefaultUpdate(grid, filters[min(threads)].sensor_model, n_particles, truth,
+                                    TWIST, DT, warmup + updates, (0.5, 0.5, 0.2), seed)  # fmt: skip
+        except ValueError as exc:  # the car would drive into a wall before the last scan
+            out(f"default filter: skipped ({exc})")
     state = {"p": truth + rng.normal(0.0, [0.5, 0.5, 0.2], size=(n_particles, 3))}
     runs: dict[str, list[dict[str, float]]] = {"glt": [], **{f"ours/{t}": [] for t in threads}}
     cpu: dict[str, list[float]] = {name: [] for name in (*runs, "default")}

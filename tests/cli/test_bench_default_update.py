@@ -48,3 +48,18 @@ def test_a_path_through_a_wall_is_refused(default_map) -> None:
         DefaultUpdate(
             default_map, sm, 50, start, np.array([400.0, 0.0, 0.0]), 1.0, 2, (0.1,) * 3, 0
         )
+
+
+def test_the_peers_flag_adds_the_default_filter_line(capsys) -> None:
+    from mcl.bench import peer_rangelibc, peers
+    from racecar_sim.maps import bundled
+
+    args = ["--only", "rangelibc", "--default-filter", "--map", str(bundled("basement_loop"))]
+    small = ["--particles", "200", "--beams", "10", "--updates", "2", "--warmup", "1"]
+    assert peers.main([*args, *small, "--threads", "1"]) in (0, None)
+    text = capsys.readouterr().out
+    if not peer_rangelibc.available():
+        assert "skipped" in text
+        return
+    line = next(x for x in text.splitlines() if x.startswith("default filter"))
+    assert "of 3 updates" in line and "lost flag up in 0" in line
