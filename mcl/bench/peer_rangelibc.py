@@ -239,6 +239,7 @@ def compare(
     seed: int = 0,
     threads: tuple[int, ...] = (1, 2),
     accuracy_poses: int = 1500,
+    default_filter: bool = False,
     out=print,
 ) -> dict[str, float]:
     """Our full MCL update against the kctess5-style GLT update, interleaved in one run.
@@ -247,7 +248,9 @@ def compare(
     both casters against our exact caster, and the median ms per stage with the ratios; returns the
     headline numbers. Ours: [`mcl.ParticleFilter`][mcl.ParticleFilter] with the ``lut`` caster (cast and score in
     one pass), resampling every update (the lab's policy, like the peer), on ``threads`` numba
-    threads; the peer on its one thread.
+    threads; the peer on its one thread. ``default_filter`` also times, last in each round on one
+    thread, the wrapper's per-scan work with the default settings
+    ([`DefaultUpdate`][mcl.bench.default_update.DefaultUpdate]) on scans along the odometry's path.
     """
     import numba
 
@@ -320,9 +323,19 @@ def compare(
         )
         pf.initialize(truth, spread=(0.5, 0.5, 0.2))
         filters[t] = pf
+    default = None
+    if default_filter:
+        from mcl.bench.default_update import DefaultUpdate
+
+        try:
+            default = DefaultUpdate(grid, filters[min(threads)].sensor_model, n_particles, truth,
+                                    TWIST, DT, warmup + updates, (0.5, 0.5, 0.2), seed)  # fmt: skip
+        except ValueError as exc:  # the car would drive into a wall before the last scan
+            out(f"default filter: skipped ({exc})")
     state = {"p": truth + rng.normal(0.0, [0.5, 0.5, 0.2], size=(n_particles, 3))}
     runs: dict[str, list[dict[str, float]]] = {"glt": [], **{f"ours/{t}": [] for t in threads}}
-    cpu: dict[str, list[float]] = {name: [] for name in runs}
+    cpu: dict[str, list[float]] = {name: [] for name in (*runs, "default")}
+    default_runs: list[dict[str, float]] = []
     default_threads = numba.get_num_threads()
     try:
         for k in range(warmup + updates):
@@ -342,6 +355,13 @@ def compare(
                 if k >= warmup:
                     runs[f"ours/{t}"].append(r)
                     cpu[f"ours/{t}"].append(time.process_time() - c)
+            if default is not None:
+                numba.set_num_threads(1)
+                c = time.process_time()
+                r = default.step()
+                if k >= warmup:
+                    default_runs.append(r)
+                    cpu["default"].append(time.process_time() - c)
             time.sleep(_ROUND_PAUSE_S)
     finally:
         numba.set_num_threads(default_threads)
@@ -369,4 +389,6 @@ def compare(
         results[f"{name}_ms"] = 1e3 * m["total"]
         results[f"{name}_ratio"] = glt_total / m["total"]
         results[f"{name}_cpu_ms"] = 1e3 * statistics.median(cpu[name])
+    if default is not None:
+        results.update(default.report(default_runs, cpu["default"], glt_total, glt_cpu, out))
     return results

@@ -2,7 +2,8 @@
 
 * range_libc ([`mcl.bench.peer_rangelibc`][mcl.bench.peer_rangelibc]): our full MCL update against a kctess5-style update
   on range_libc's giant lookup table, Stata basement, 4 000 particles x 100 beams by default;
-  skipped with a message when ``range_libc`` is not importable.
+  skipped with a message when ``range_libc`` is not importable. ``--default-filter`` also times
+  the default filter's whole per-scan work ([`mcl.bench.default_update`][mcl.bench.default_update]).
 
 * spread ([`mcl.bench.peer_spread`][mcl.bench.peer_spread]): the same update on clouds spread uniformly over the free
   space (global localization; ``--spread-particles``, 4 000 and 10 000 by default) and on a
@@ -33,7 +34,7 @@ in `add_arguments()`. Every part prints its workload (particles, beams, range, t
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
-        [--only rangelibc|spread|f1tenth|race|amcl] [--seeds 20] [--amcl-worlds cluttered clean ideal] [--amcl-python PY] [--amcl-rerun ours] [--out DIR] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
+        [--only rangelibc|spread|f1tenth|race|amcl] [--default-filter] [--seeds 20] [--amcl-worlds cluttered clean ideal] [--amcl-python PY] [--amcl-rerun ours] [--out DIR] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
         [--sim-steps 1000] [--sim-runs 5] [--num-envs 32]
 """
 
@@ -62,6 +63,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--threads", type=int, nargs="+", default=[1, 2], help="numba threads for ours"
     )
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--default-filter", action="store_true",
+        help="also time the default filter's per-scan work (rangelibc part; scans along a path)",
+    )  # fmt: skip
     parser.add_argument(
         "--only",
         choices=("rangelibc", "spread", "f1tenth", "race", "amcl"),
@@ -134,6 +139,7 @@ def rangelibc_part(args: argparse.Namespace) -> int:
         warmup=args.warmup,
         seed=args.seed,
         threads=tuple(args.threads),
+        default_filter=args.default_filter,
     )
     return 0
 
