@@ -33,6 +33,7 @@ from racecar_sim.settings.validation import short
 __all__ = [
     "INIT_MODES",
     "RESET_OPTIONS",
+    "TRACKING_INIT_SPREAD",
     "FilterFactory",
     "LocalizationConfig",
     "as_localization_config",
@@ -59,6 +60,10 @@ params=..., rng=...)`` (the signature of [`ParticleFilter`][mcl.filter.particle_
 such as augmented MCL passes its own class."""
 
 
+TRACKING_INIT_SPREAD: tuple[float, float, float] = (0.25, 0.25, 0.1)
+"""The default start cloud's standard deviations around the start pose (x m, y m, theta rad)."""
+
+
 @dataclass(frozen=True)
 class LocalizationConfig:
     """Settings of [`LocalizationWrapper`][mcl.wrappers.single.LocalizationWrapper] (loadable with ``racecar_sim.settings.config.from_mapping``).
@@ -83,7 +88,7 @@ class LocalizationConfig:
     motion: MotionModelParams = field(default_factory=MotionModelParams)
     sensor: SensorModelParams = field(default_factory=SensorModelParams)
     filter: ParticleFilterParams = field(
-        default_factory=lambda: ParticleFilterParams(init_spread=(0.25, 0.25, 0.1))
+        default_factory=lambda: ParticleFilterParams(init_spread=TRACKING_INIT_SPREAD)
     )
     render_particles: int = 2000
     adaptive: AdaptiveParams | None = None
@@ -100,8 +105,12 @@ class LocalizationConfig:
         object.__setattr__(
             self, "sensor", nested(self.sensor, SensorModelParams, "LocalizationConfig.sensor")
         )
+        filter_params = self.filter
+        if not isinstance(filter_params, ParticleFilterParams) and hasattr(filter_params, "keys"):
+            # a mapping of some fields: the others are this config's defaults, not the class's
+            filter_params = {"init_spread": TRACKING_INIT_SPREAD, **dict(filter_params)}
         object.__setattr__(
-            self, "filter", nested(self.filter, ParticleFilterParams, "LocalizationConfig.filter")
+            self, "filter", nested(filter_params, ParticleFilterParams, "LocalizationConfig.filter")
         )
         object.__setattr__(self, "lost", nested(self.lost, LostParams, "LocalizationConfig.lost"))
         if self.adaptive is not None:

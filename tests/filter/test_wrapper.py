@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+from dataclasses import replace
 from pathlib import Path
 
 import gymnasium as gym
@@ -20,8 +21,9 @@ from hypothesis import strategies as st
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
 from mcl import LocalizationConfig, LocalizationWrapper, ParticleFilter
+from mcl.filter.params import ParticleFilterParams
 from mcl.wrappers.error_log import HEADER, ErrorLogWriter, count_rows, read_error_log
-from mcl.wrappers.localization import filter_rng
+from mcl.wrappers.localization import as_localization_config, filter_rng
 from racecar_sim.env import RacecarEnv
 from racecar_sim.render import ESTIMATE_COLOUR, PARTICLE_COLOUR
 
@@ -387,6 +389,19 @@ def test_config_loads_from_yaml_with_nested_sections(tmp_path) -> None:
     path.write_text("localization:\n  motion: {scheme: wobbly}\n")
     with pytest.raises(ValueError, match="motion"):
         from_yaml(LocalizationConfig, path, section="localization")
+
+
+def test_a_partial_filter_section_keeps_the_configs_own_defaults() -> None:
+    # a mapping of a few filter fields (YAML, --filter, experiment scripts) must not bring back
+    # the bare ParticleFilterParams class defaults for the others (its 0.5 m start cloud)
+    default = LocalizationConfig()
+    partial = as_localization_config({"filter": {"n_particles": 321}})
+    assert partial.filter == replace(default.filter, n_particles=321)
+    assert (
+        partial.filter.init_spread
+        == default.filter.init_spread
+        != ParticleFilterParams().init_spread
+    )
 
 
 # ---------------------------------------------------------------------- misuse
