@@ -40,10 +40,7 @@ def _clients(kinds: list[str], ports, stop, out, ready) -> None:
     """The hostile clients, niced, against the port that comes through ``ports`` (None: none),
     until ``stop`` is set; their counts go to ``out``. ``ready`` is set once the imports are
     done, so that they do not run while the drive does."""
-    try:  # Linux: only when the drives leave a CPU idle, as the server runs
-        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
-    except (OSError, AttributeError):
-        os.nice(19)
+    os.nice(19)
     from mcl.bench.hostile_clients import HostileClients
 
     ready.set()

@@ -230,21 +230,12 @@ def _death_signal() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 
 
-def _lowest_priority() -> None:
-    """Run only when the drive leaves a CPU idle: Linux's ``SCHED_IDLE`` (a waking drive thread
-    takes the CPU at once), else the lowest nice value."""
-    with contextlib.suppress(OSError, AttributeError):
-        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
-        return
-    with contextlib.suppress(OSError):
-        os.nice(19)
-
-
 def serve(status_fd: int) -> None:
     """Read the configuration, start the SDK's server and the gate, then log every framed
     message of standard input until it ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the drive's; it closes our input
-    _lowest_priority()
+    with contextlib.suppress(OSError):  # the lowest priority: a viewer never takes the CPU from
+        os.nice(19)  # the drive (not Linux's idle class: on a busy machine it would show nothing)
     status = Status(status_fd)
     config, buffer = _config(0)
     if config.get("death_signal"):
