@@ -36,7 +36,7 @@ from gymnasium import spaces
 from mcl.agents.track import Track, track_for_map
 from mcl.filter.params import ParticleFilterParams
 from mcl.filter.sensor_model import SensorModel, SensorModelParams
-from mcl.wrappers.localization import LocalizationConfig
+from mcl.wrappers.localization import TRACKING_INIT_SPREAD, LocalizationConfig
 from mcl.wrappers.single import LocalizationWrapper
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import DEFAULT_MAP
@@ -163,7 +163,7 @@ class LapTaskConfig:
         return LocalizationConfig(
             sensor=SensorModelParams(num_beams_per_particle=self.filter_beams, parallel=False),
             filter=ParticleFilterParams(
-                n_particles=self.n_particles, init_spread=(0.25, 0.25, 0.1)
+                n_particles=self.n_particles, init_spread=TRACKING_INIT_SPREAD
             ),
         )
 

@@ -50,6 +50,7 @@ from mcl.bench.amcl_inputs import (
 )
 from mcl.bench.peer_process import PeerProcess
 from mcl.experiments.recorded import LocalizedRun, RecordedDrive, localized_run
+from mcl.wrappers.localization import TRACKING_INIT_SPREAD
 
 __all__ = [
     "AMCL_PACKAGE",
@@ -303,7 +304,7 @@ class AmclPeer(PeerProcess):
         self._count = 0
 
     def submit(self, drive: RecordedDrive, seed: int,
-               init_spread: tuple[float, float, float] = (0.25, 0.25, 0.1)) -> None:  # fmt: skip
+               init_spread: tuple[float, float, float] = TRACKING_INIT_SPREAD) -> None:  # fmt: skip
         """Queue ``drive`` for amcl, started on the reset's true pose with standard deviations
         ``init_spread`` (x m, y m, theta rad) and seeded with ``seed``."""
         poses = odometry_poses(drive.odom, drive.dt_steps)
@@ -341,7 +342,9 @@ class AmclPeer(PeerProcess):
             raise RuntimeError(f"amcl failed: {msg.get('error')}")
         output = Path(f"{stem}_out.npy")  # the file this run asked for, and only that one
         if Path(msg["done"]) != output:
-            raise RuntimeError(f"amcl answered with {msg['done']!r}, not the file asked for ({output})")
+            raise RuntimeError(
+                f"amcl answered with {msg['done']!r}, not the file asked for ({output})"
+            )
         updates = np.load(output)
         output.unlink(missing_ok=True)
         return localized_run(estimates_between(updates, at, poses), drive.truth), float(

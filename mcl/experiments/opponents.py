@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from mcl.agents.track import Track, track_for_map
+from mcl.wrappers.localization import TRACKING_INIT_SPREAD
 
 __all__ = ["OpponentsScenario", "box_corners"]
 
@@ -64,7 +65,7 @@ class OpponentsScenario:
         gaps: tuple[float, ...] = (2.0, 3.2, 4.4),
         length: float = CAR_LENGTH,
         width: float = CAR_WIDTH,
-        init_spread: tuple[float, float, float] = (0.25, 0.25, 0.1),
+        init_spread: tuple[float, float, float] = TRACKING_INIT_SPREAD,
         track: Track | None = None,
     ) -> None:
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:

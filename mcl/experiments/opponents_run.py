@@ -33,7 +33,7 @@ from mcl.experiments.run_bounds import check_duration
 from mcl.filter.params import DEFAULT_PARTICLES
 from mcl.filter.sensor_params import SensorModelParams
 from mcl.wrappers.error_log import read_error_log
-from mcl.wrappers.localization import LocalizationConfig
+from mcl.wrappers.localization import TRACKING_INIT_SPREAD, LocalizationConfig
 from mcl.wrappers.single import LocalizationWrapper
 
 __all__ = [
@@ -178,7 +178,7 @@ def _run_race(run: OpponentRun, log_path: str | Path, t0: float) -> OpponentRunR
     poses = np.array([[*line.point_at(s), line.heading_at(s)] for s in arc])
     pursuit = PurePursuit(line.points, speed=run.speed, loop=True, car=env.unwrapped.car_params)
     wrapped = LocalizationWrapper(env, run.config(), log_path=log_path)
-    options = {"poses": poses, "init": "pose", "init_spread": (0.25, 0.25, 0.1)}
+    options = {"poses": poses, "init": "pose", "init_spread": TRACKING_INIT_SPREAD}
     return _drive(run, wrapped, options, lambda obs, info: pursuit(obs, info["pose"]),
                   lambda step: None, log_path, t0)  # fmt: skip
 

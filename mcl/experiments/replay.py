@@ -36,7 +36,7 @@ from mcl.filter.params import ParticleFilterParams
 from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.sensor_model import SensorModel, SensorModelParams
 from mcl.io.bag_reader import BagData
-from mcl.wrappers.localization import LocalizationConfig
+from mcl.wrappers.localization import TRACKING_INIT_SPREAD, LocalizationConfig
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import RayCaster
 
@@ -117,7 +117,7 @@ class ReplayConfig:
     """
 
     init: str | tuple[float, float, float] = "global"
-    init_spread: tuple[float, float, float] = (0.25, 0.25, 0.1)
+    init_spread: tuple[float, float, float] = TRACKING_INIT_SPREAD
     seed: int = 0
     no_return: str = "max"
     fit_tolerance: float = 0.15

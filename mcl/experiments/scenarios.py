@@ -26,6 +26,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from mcl.wrappers.localization import TRACKING_INIT_SPREAD
+
 __all__ = [
     "SCENARIOS",
     "GlobalScenario",
@@ -64,7 +66,7 @@ class TrackingScenario:
         start: the car's start pose (world x m, y m, theta rad); None = the env's random start.
     """
 
-    init_spread: tuple[float, float, float] = (0.25, 0.25, 0.1)
+    init_spread: tuple[float, float, float] = TRACKING_INIT_SPREAD
     name: str = "tracking"
     start: tuple[float, float, float] | None = None
 
@@ -162,7 +164,7 @@ class KidnapScenario(_Recorder):
         kidnap_time: float = 5.0,
         min_distance: float = 2.0,
         clearance: float = 0.45,
-        init_spread: tuple[float, float, float] = (0.25, 0.25, 0.1),
+        init_spread: tuple[float, float, float] = TRACKING_INIT_SPREAD,
     ) -> None:
         super().__init__()
         for label, value in (

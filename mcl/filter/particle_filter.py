@@ -361,7 +361,7 @@ class ParticleFilter(Belief, GlobalRecovery):
 
     def _check_standstill(self, scan: np.ndarray) -> None:
         """Give the scan to the standstill check (before the filter decides to use it)."""
-        if self.params.standstill.enabled:
+        if self.standstill.due():  # only then the scan's bearings and the lidar's mount
             sm = self.sensor_model
             z = np.asarray(scan, dtype=np.float64).reshape(-1)
             mount = sm.lidar_poses(np.zeros((1, 3)))[0]

@@ -125,6 +125,16 @@ class Standstill:
         if self.params.enabled:
             self._motion = compose(self._motion, odometry_motion(twist, dt))
 
+    def due(self) -> bool:
+        """Whether the next scan is taken (the first one, or the odometry has moved the car far
+        enough since the reference): the caller need not work out the scan's bearings otherwise."""
+        if not self.params.enabled:
+            return False
+        m = self._motion
+        return self._reference is None or (
+            math.hypot(m[0], m[1]) >= self.params.min_distance or abs(m[2]) >= self.params.min_turn
+        )
+
     def observe(
         self, scan: np.ndarray, angles: np.ndarray, mount: np.ndarray, max_range: float
     ) -> bool:
@@ -138,15 +148,13 @@ class Standstill:
             max_range: metres; ranges at or beyond it are no return.
         """
         p = self.params
-        if not p.enabled:
-            return False
+        if not self.due():
+            return self.standing
         z = np.asarray(scan, dtype=np.float64).reshape(-1)
         if self._reference is None:
             self._reference = (z.copy(), np.asarray(angles, dtype=np.float64).copy())
             return self.standing
         m = self._motion
-        if math.hypot(m[0], m[1]) < p.min_distance and abs(m[2]) < p.min_turn:
-            return self.standing
         before, before_angles = self._reference
         mount = np.asarray(mount, dtype=np.float64)
         moved = compose(compose(invert(mount), m), mount)
