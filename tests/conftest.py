@@ -16,6 +16,8 @@ from tests.skips import shared_missing
 # on-disk cache (about a third of a second on a fresh machine), is not a flaky failure. Every property
 # test therefore runs without a deadline; tests/test_no_deadlines.py keeps any test from setting one.
 settings.register_profile("no_deadline", deadline=None)
+# `pytest --hypothesis-profile=stress` hunts for the edge cases CI would otherwise find one a run.
+settings.register_profile("stress", deadline=None, max_examples=1000)
 settings.load_profile("no_deadline")
 
 LONGEST_FIRST = (
