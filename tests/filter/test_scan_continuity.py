@@ -127,9 +127,11 @@ def _long_gap(seed: int) -> tuple[float, float] | None:
 
 @given(st.integers(0, 10_000))
 def test_a_long_gap_between_scans_is_bridged_by_the_odometry(seed) -> None:
+    # all 8104 free arcs of this domain, run through on 2026-12-03: 0.863 the lowest (seed 8240,
+    # a corner that hides part of the room after 43 degrees), 0.99 the median
     found = _long_gap(seed)
     if found is not None:
-        assert found[0] > 0.9
+        assert found[0] > 0.85
 
 
 def test_without_the_odometry_a_long_gap_reads_as_a_jump() -> None:
