@@ -200,7 +200,8 @@ class ParticleFilter(Belief, GlobalRecovery):
     def predict(self, twist: np.ndarray, dt: float) -> None:
         """Move the particles by a car-frame twist [vx, vy, omega] held for ``dt`` seconds (its
         forward speed times the learned [odometry_scale][mcl.filter.odometry_scale.OdometryScale]);
-        by none while the [standstill][mcl.filter.standstill.Standstill] check says the car stands."""
+        by less, or none, while the [standstill][mcl.filter.standstill.Standstill] check says the car
+        slips or stands."""
         self._require()
         twist = np.asarray(twist, dtype=np.float64)
         if twist.shape != (3,) or not all(map(math.isfinite, twist.tolist())):
@@ -209,8 +210,8 @@ class ParticleFilter(Belief, GlobalRecovery):
             raise ValueError(f"dt must be a non-negative number of seconds, got {dt!r}")
         scale = self.odometry_scale
         self.standstill.advance(scale.scaled(twist), dt)  # as the filter would move
-        if self.standstill.standing:
-            twist = np.zeros(3)
+        if self.standstill.slipping:
+            twist = self.standstill.scaled(twist)
         if scale.needs_estimate() and self._particles is not None:
             covariance = self.covariance()
             spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))

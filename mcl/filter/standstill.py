@@ -10,13 +10,22 @@ followed the spinning wheels 4 m away in 7 s).
 
 [Standstill][mcl.filter.standstill.Standstill] keeps a reference scan and the odometry's motion
 since. Once the odometry has moved the car ``min_distance`` metres or turned it ``min_turn``
-radians from there, it compares the newest scan with the reference twice, with the two scans'
+radians from there, it compares the newest scan with the reference, with the two scans'
 [continuity][mcl.filter.scan_continuity.both_ways] (no map involved): as the odometry says the
-car moved, and as if it had not moved at all. When the car standing still explains the scans
-(``still_above`` of the points seen again) better by ``margin`` than the odometry's motion in
-``in_a_row`` comparisons in a row, the car stands: the filter then predicts with no motion (its motion noise still applies) until a later
-comparison says the car moves. In a corridor whose walls look the same all along, both explain the
+car moved (and that turned by ``turn_slack`` either way, the odometry's noisier part), and as if
+it had not moved at all. When the car standing still explains the scans (``still_above`` of the
+points seen again) better by ``margin`` than the odometry's motion in ``in_a_row`` comparisons
+in a row, the car stands: the filter then predicts with no motion (its motion noise still
+applies) until a later comparison says the car moves. In a corridor whose walls look the same all along, both explain the
 side walls and the far ones decide: the odometry's motion wins whenever the car did move.
+
+A car that slips moves, but less than its wheels say: pinned at one corner, it pivots slowly while
+the wheels spin backwards and steer hard (cluttered seed 18 at 18-22 s: the VESC reported 0.6 m/s
+and 0.8 rad/s, the car turned at 0.12 rad/s and did not move). Neither standing nor the odometry
+explains its scans, so when the odometry's motion explains them poorly the check also tries
+shares of it (``shares``: of the odometry's translation and, apart, of its turn), and the best
+share that passes the same test is what the filter then predicts with
+([motion_shares][mcl.filter.standstill.Standstill.motion_shares]); standing is the share 0, 0.
 
 Frames and units: car frame and lidar frame (as in [mcl.filter.scan_continuity][]); metres,
 radians, seconds.
@@ -52,17 +61,24 @@ class StandstillParams:
         beams: points of each scan compared.
         tolerance: metres within which a point counts as seen again.
         tolerance_per_m: extra metres of tolerance per metre of range.
+        shares: the shares of the odometry's translation, and apart of its turn, tried as the
+            car's motion (each pair of them); 0 (standing) must be one. Empty: only standing.
+        turn_slack: radians; before a share is tried, the odometry's motion is also tried turned
+            this much more and less (its turn rate is the noisier part), and the best of the
+            three is what a share must beat.
     """
 
     enabled: bool = True
     min_distance: float = 0.2
     min_turn: float = 0.2
-    still_above: float = 0.75
+    still_above: float = 0.6
     margin: float = 0.3
-    in_a_row: int = 2
+    in_a_row: int = 3
     beams: int = 100
     tolerance: float = 0.05
     tolerance_per_m: float = 0.01
+    shares: tuple[float, ...] = (0.0, 0.25, 0.5)
+    turn_slack: float = 0.03
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
@@ -78,7 +94,7 @@ class StandstillParams:
                 f"StandstillParams.beams = {short(self.beams)} must be an integer >= 10"
             )
         for name in ("min_distance", "min_turn", "still_above", "margin", "tolerance",
-                     "tolerance_per_m"):  # fmt: skip
+                     "tolerance_per_m", "turn_slack"):  # fmt: skip
             value = getattr(self, name)
             if (
                 isinstance(value, bool)
@@ -89,6 +105,18 @@ class StandstillParams:
             object.__setattr__(self, name, float(value))
         if self.min_distance <= 0 or self.min_turn <= 0:
             raise ValueError("StandstillParams: min_distance and min_turn must be > 0")
+        shares = self.shares
+        if isinstance(shares, list):
+            shares = tuple(shares)
+        if not isinstance(shares, tuple) or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and 0 <= v < 1 for v in shares
+        ):
+            raise ValueError(
+                f"StandstillParams.shares = {short(self.shares)} must be numbers in [0, 1)"
+            )
+        object.__setattr__(self, "shares", tuple(float(v) for v in shares) or (0.0,))
+        if 0.0 not in self.shares:
+            raise ValueError("StandstillParams.shares must hold 0 (the car standing)")
         if self.still_above > 1 or self.margin > 1:
             raise ValueError("StandstillParams: still_above and margin are fractions in [0, 1]")
 
@@ -100,21 +128,38 @@ class Standstill:
         params: [StandstillParams][mcl.filter.standstill.StandstillParams].
 
     Attributes:
-        standing: the last comparison found the car standing (the filter predicts no motion).
-        n_standing: comparisons that found it standing since the start.
+        motion_shares: (2,) the shares of the odometry's translation and turn the car makes, by
+            the last comparison ([1, 1]: the odometry holds; [0, 0]: the car stands).
+        n_standing: comparisons that found it standing or slipping since the start.
     """
 
     def __init__(self, params: StandstillParams | None = None) -> None:
         self.params = params if params is not None else StandstillParams()
-        self.standing = False
+        self.motion_shares = np.ones(2)
         self.n_standing = 0
         self._in_a_row = 0
         self._motion = np.zeros(3)  # the car's motion by the odometry since the reference scan
         self._reference: tuple[np.ndarray, np.ndarray] | None = None
 
+    @property
+    def standing(self) -> bool:
+        """The last comparisons found the car standing: no motion at all."""
+        return not self.motion_shares.any()
+
+    @property
+    def slipping(self) -> bool:
+        """The last comparisons found the car moving less than the odometry says (or standing)."""
+        return bool((self.motion_shares < 1).any())
+
+    def scaled(self, twist: np.ndarray) -> np.ndarray:
+        """The car-frame ``twist`` [vx, vy, omega] as the car makes it: times
+        [motion_shares][mcl.filter.standstill.Standstill.motion_shares]."""
+        a, b = self.motion_shares
+        return np.asarray(twist, dtype=np.float64) * np.array([a, a, b])
+
     def restart(self) -> None:
         """Forget the reference scan and the motion since (a new belief)."""
-        self.standing = False
+        self.motion_shares = np.ones(2)
         self._in_a_row = 0
         self._motion = np.zeros(3)
         self._reference = None
@@ -139,7 +184,8 @@ class Standstill:
         self, scan: np.ndarray, angles: np.ndarray, mount: np.ndarray, max_range: float
     ) -> bool:
         """Compare ``scan`` (metres, at bearings ``angles`` in radians, ascending, evenly spaced)
-        with the reference once the odometry has moved far enough; returns `standing`.
+        with the reference once the odometry has moved far enough; returns
+        [slipping][mcl.filter.standstill.Standstill.slipping].
 
         Args:
             scan: the ranges.
@@ -149,22 +195,37 @@ class Standstill:
         """
         p = self.params
         if not self.due():
-            return self.standing
+            return self.slipping
         z = np.asarray(scan, dtype=np.float64).reshape(-1)
         if self._reference is None:
             self._reference = (z.copy(), np.asarray(angles, dtype=np.float64).copy())
-            return self.standing
+            return self.slipping
         m = self._motion
         before, before_angles = self._reference
         mount = np.asarray(mount, dtype=np.float64)
-        moved = compose(compose(invert(mount), m), mount)
+        inverse_mount = invert(mount)
         args = (p.beams, float(max_range), p.tolerance, p.tolerance_per_m)
-        as_odometry = both_ways(before, before_angles, z, angles, moved, *args)
-        as_standing = both_ways(before, before_angles, z, angles, np.zeros(3), *args)
-        looks_standing = as_standing >= p.still_above and as_standing - as_odometry >= p.margin
-        self._in_a_row = self._in_a_row + 1 if looks_standing else 0  # NaN compares False
-        self.standing = self._in_a_row >= p.in_a_row
-        self.n_standing += self.standing
+
+        def explains(motion: np.ndarray) -> float:
+            lidar_motion = compose(compose(inverse_mount, motion), mount)
+            return both_ways(before, before_angles, z, angles, lidar_motion, *args)
+
+        as_odometry = explains(m)
+        best, best_shares = explains(np.zeros(3)), (0.0, 0.0)
+        if as_odometry <= 1.0 - p.margin and p.turn_slack > 0:  # the odometry's turn, give or take
+            for slack in (-p.turn_slack, p.turn_slack):
+                as_odometry = max(as_odometry, explains(m + np.array([0.0, 0.0, slack])))
+        if as_odometry <= 1.0 - p.margin:  # else no share can beat the odometry by the margin
+            for a in p.shares:
+                for b in p.shares:
+                    if a or b:
+                        share = explains(np.array([a * m[0], a * m[1], b * m[2]]))
+                        if share > best + 0.02:  # the smaller shares win near-ties
+                            best, best_shares = share, (a, b)
+        looks_slipping = best >= p.still_above and best - as_odometry >= p.margin
+        self._in_a_row = self._in_a_row + 1 if looks_slipping else 0  # NaN compares False
+        self.motion_shares = np.array(best_shares if self._in_a_row >= p.in_a_row else (1.0, 1.0))
+        self.n_standing += self.slipping
         self._reference = (z.copy(), np.asarray(angles, dtype=np.float64).copy())
         self._motion = np.zeros(3)
-        return self.standing
+        return self.slipping
