@@ -11,7 +11,9 @@ whole command's wall time, their ratios (target <= 1.10), the CPU seconds of the
 command and of the watched one with its server (the clients' own are not counted: a difference
 in wall time with the same CPU time is the machine's cores shared with the clients), whether the
 error logs are identical (every column but ``update_s``, the filter's wall-clock time), and what
-the server did.
+the server did. The verdict on the median drive-loop ratio allows for the machine's noise: met
+only when 90 % of the medians of bootstrap resamples of the rounds lie at or under 1.10 (on the
+2-core VM a plain 20 s drive's loop took 2.6-3.7 s from one run to the next).
 
     racecar-sim bench live_hostile [--duration 20] [--rounds 3] [--particles 1500]
 """
@@ -29,6 +31,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+import numpy as np
 
 from mcl.bench.hostile_clients import KINDS as ALL_KINDS
 
@@ -100,6 +104,30 @@ def drive(folder: Path, args: argparse.Namespace, live: bool) -> dict:
     return {"loop": loop, "wall": wall, "cpu": cpu, "stderr": err_head + stderr, "counts": counts}
 
 
+def median_interval(
+    ratios: list[float], level: float = 0.9, draws: int = 4000, seed: int = 0
+) -> tuple[float, float]:
+    """The central ``level`` share of the medians of ``draws`` bootstrap resamples of
+    ``ratios``: how far the median of this many rounds can move on a machine this noisy."""
+    values = np.asarray(ratios, dtype=np.float64)
+    if values.size == 0 or not 0 < level < 1:
+        raise ValueError("median_interval needs at least one ratio and a level in (0, 1)")
+    picks = np.random.default_rng(seed).integers(0, values.size, (draws, values.size))
+    medians = np.median(values[picks], axis=1)
+    tail = 100 * (1 - level) / 2
+    low, high = np.percentile(medians, [tail, 100 - tail])
+    return float(low), float(high)
+
+
+def verdict(ratios: list[float], bound: float = 1.10) -> str:
+    """``met`` when the interval of [median_interval][mcl.bench.live_hostile.median_interval]
+    lies at or under ``bound``, ``NOT met`` when above it, else ``not resolved``."""
+    low, high = median_interval(ratios)
+    if high <= bound:
+        return "met"
+    return "NOT met" if low > bound else f"not resolved by {len(ratios)} rounds"
+
+
 def _children_cpu() -> float:
     """CPU seconds (user + system) of this process's finished children and theirs."""
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -113,8 +141,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--particles", type=int, default=1500)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--kinds", nargs="*", default=list(KINDS), choices=list(ALL_KINDS),
-                        help="the misbehaving clients (none: the server alone; default: %(default)s)")
+    parser.add_argument(
+        "--kinds",
+        nargs="*",
+        default=list(KINDS),
+        choices=list(ALL_KINDS),
+        help="the misbehaving clients (none: the server alone; default: %(default)s)",
+    )
     args = parser.parse_args(argv)
     if args.rounds < 1 or args.duration <= 0:
         parser.error("--rounds must be >= 1 and --duration > 0")
@@ -143,13 +176,19 @@ def main(argv: list[str] | None = None) -> int:
               f"{plain['wall']:.1f} | {live['wall']:.1f} | {wall_ratios[-1]:.3f} | "
               f"{plain['cpu']:.1f} | {live['cpu']:.1f} |")  # fmt: skip
     loop, wall = statistics.median(loop_ratios), statistics.median(wall_ratios)
-    print(f"wall-time ratio with --live / without (median of rounds): drive loop {loop:.3f}, "
-          f"whole command {wall:.3f} (target <= 1.10: {'met' if loop <= 1.10 else 'NOT met'})")
+    low, high = median_interval(loop_ratios)
+    print(
+        f"wall-time ratio with --live / without (median of rounds): drive loop {loop:.3f} "
+        f"(90 % of bootstrap medians {low:.3f}-{high:.3f}), whole command {wall:.3f} "
+        f"(target <= 1.10: {verdict(loop_ratios)})"
+    )
     print(f"error logs identical (all columns but update_s): {'yes' if same else 'NO'}")
     for r, runs in enumerate(rows):
         summary = re.search(r"live view: \d+ messages.*", runs[True]["stderr"])
-        print(f"round {r + 1}: clients {runs[True]['counts']}; "
-              f"{summary.group(0) if summary else 'no live-view summary'}")
+        print(
+            f"round {r + 1}: clients {runs[True]['counts']}; "
+            f"{summary.group(0) if summary else 'no live-view summary'}"
+        )
     return 0 if same else 1
 
 

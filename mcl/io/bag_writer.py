@@ -29,6 +29,7 @@ import numpy as np
 
 import mcl.io.cdr as cdr
 from mcl.io.bag_folder import remove_recording
+from mcl.io.cdr import ros2_typestore
 from racecar_sim.maps import OccupancyMap
 
 if TYPE_CHECKING:
@@ -96,7 +97,6 @@ class BagRecorder:
         epoch_ns: int = EPOCH_NS,
     ) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
-        from rosbags.typesys import Stores, get_typestore
 
         if path is None and live is None:
             raise ValueError("BagRecorder needs a bag folder, a live server or both")
@@ -105,7 +105,7 @@ class BagRecorder:
             if not overwrite:
                 raise FileExistsError(f"{self.path} exists")
             remove_recording(self.path, TOPICS)
-        self.ts = get_typestore(Stores.ROS2_HUMBLE)
+        self.ts = ros2_typestore()
         self.live, self.epoch_ns = live, int(epoch_ns)
         self._t = self.ts.types
         self.map = occupancy_map
@@ -294,11 +294,9 @@ def start_live(address: str | int, wait: bool = True) -> LiveServer:
     """A Foxglove WebSocket server for the recording's topics at ``"[HOST:]PORT"`` (bound to
     127.0.0.1 unless a host is given; ``wait``: see [LiveServer][mcl.io.live.LiveServer]); see
     [mcl.io.live][mcl.io.live]."""
-    from rosbags.typesys import Stores, get_typestore
-
     from mcl.io.live import LiveServer
 
-    return LiveServer(address, TOPICS, get_typestore(Stores.ROS2_HUMBLE), wait=wait)
+    return LiveServer(address, TOPICS, ros2_typestore(), wait=wait)
 
 
 class DriveRecorder:

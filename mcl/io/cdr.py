@@ -11,10 +11,15 @@ written as the quaternion (0, 0, sin(theta/2), cos(theta/2)).
 
 from __future__ import annotations
 
+import functools
 import math
 import struct
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from rosbags.typesys.store import Typestore
 
 __all__ = [
     "laser_scan",
@@ -22,6 +27,7 @@ __all__ = [
     "pose_array",
     "pose_stamped",
     "pose_with_covariance_stamped",
+    "ros2_typestore",
     "tf_message",
 ]
 
@@ -140,3 +146,12 @@ def pose_array(stamp_ns: int, frame_id: str, poses: np.ndarray) -> bytes:
     out[:, 0], out[:, 1] = poses[:, 0], poses[:, 1]
     out[:, 5], out[:, 6] = np.sin(poses[:, 2] / 2.0), np.cos(poses[:, 2] / 2.0)
     return body + out.astype("<f8").tobytes()
+
+
+@functools.cache
+def ros2_typestore() -> Typestore:
+    """The ROS 2 Humble message types (rosbags), made once per process: making them takes about
+    50 ms, which a live drive would otherwise spend twice, once inside its loop."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS2_HUMBLE)

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from mcl.io.bag_writer import EPOCH_NS, BagRecorder
-from mcl.io.cdr import pose_array
+from mcl.io.cdr import pose_array, ros2_typestore
 from mcl.io.live import LiveServer
 
 __all__ = ["RACE_TOPICS", "RaceStream", "start_race_live"]
@@ -35,10 +35,8 @@ RACE_TOPICS: dict[str, str] = {
 def start_race_live(address: str | int, wait: bool = True) -> LiveServer:
     """A Foxglove WebSocket server for [`RACE_TOPICS`][mcl.io.race_stream.RACE_TOPICS] at
     ``"[HOST:]PORT"`` (``wait``: see [LiveServer][mcl.io.live.LiveServer])."""
-    from rosbags.typesys import Stores, get_typestore
-
     return LiveServer(
-        address, RACE_TOPICS, get_typestore(Stores.ROS2_HUMBLE), name="racecar-sim race", wait=wait
+        address, RACE_TOPICS, ros2_typestore(), name="racecar-sim race", wait=wait
     )
 
 
