@@ -128,38 +128,42 @@ class Standstill:
         params: [StandstillParams][mcl.filter.standstill.StandstillParams].
 
     Attributes:
-        motion_shares: (2,) the shares of the odometry's translation and turn the car makes, by
-            the last comparison ([1, 1]: the odometry holds; [0, 0]: the car stands).
         n_standing: comparisons that found it standing or slipping since the start.
     """
 
     def __init__(self, params: StandstillParams | None = None) -> None:
         self.params = params if params is not None else StandstillParams()
-        self.motion_shares = np.ones(2)
+        self._shares = np.ones(2)
         self.n_standing = 0
         self._in_a_row = 0
         self._motion = np.zeros(3)  # the car's motion by the odometry since the reference scan
         self._reference: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
+    def motion_shares(self) -> np.ndarray:
+        """(2,) the shares of the odometry's translation and of its turn that the car makes, by
+        the last comparisons ([1, 1]: the odometry holds; [0, 0]: the car stands)."""
+        return self._shares.copy()
+
+    @property
     def standing(self) -> bool:
         """The last comparisons found the car standing: no motion at all."""
-        return not self.motion_shares.any()
+        return not self._shares.any()
 
     @property
     def slipping(self) -> bool:
         """The last comparisons found the car moving less than the odometry says (or standing)."""
-        return bool((self.motion_shares < 1).any())
+        return bool((self._shares < 1).any())
 
     def scaled(self, twist: np.ndarray) -> np.ndarray:
         """The car-frame ``twist`` [vx, vy, omega] as the car makes it: times
         [motion_shares][mcl.filter.standstill.Standstill.motion_shares]."""
-        a, b = self.motion_shares
+        a, b = self._shares
         return np.asarray(twist, dtype=np.float64) * np.array([a, a, b])
 
     def restart(self) -> None:
         """Forget the reference scan and the motion since (a new belief)."""
-        self.motion_shares = np.ones(2)
+        self._shares = np.ones(2)
         self._in_a_row = 0
         self._motion = np.zeros(3)
         self._reference = None
@@ -224,7 +228,7 @@ class Standstill:
                             best, best_shares = share, (a, b)
         looks_slipping = best >= p.still_above and best - as_odometry >= p.margin
         self._in_a_row = self._in_a_row + 1 if looks_slipping else 0  # NaN compares False
-        self.motion_shares = np.array(best_shares if self._in_a_row >= p.in_a_row else (1.0, 1.0))
+        self._shares = np.array(best_shares if self._in_a_row >= p.in_a_row else (1.0, 1.0))
         self.n_standing += self.slipping
         self._reference = (z.copy(), np.asarray(angles, dtype=np.float64).copy())
         self._motion = np.zeros(3)
