@@ -189,7 +189,7 @@ def _has_amcl(python: str) -> bool:
 
 
 PEER_SCRIPT = r"""
-import ctypes, json, os, sys, time
+import ctypes, json, multiprocessing, os, sys, time
 import numpy as np
 import amcl
 
@@ -228,23 +228,26 @@ def localize(req):
     return {"done": req["output"], "cpu_s": cpu}
 
 
+def run_and_send(req, send):
+    try:
+        msg = localize(req)
+    except BaseException as exc:
+        msg = {"done": None, "error": f"{type(exc).__name__}: {exc}"}
+    send.send(msg)
+
+
 def in_own_process(req):  # a forked child runs the filter: no state of one run reaches the next
-    r, w = os.pipe()
-    pid = os.fork()
-    if pid == 0:
-        os.close(r)
-        try:
-            msg = localize(req)
-        except BaseException as exc:
-            msg = {"done": None, "error": f"{type(exc).__name__}: {exc}"}
-        os.write(w, json.dumps(msg).encode())
-        os._exit(0)
-    os.close(w)
-    with os.fdopen(r) as f:
-        text = f.read()
-    status = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
-    return json.loads(text) if text else {
-        "done": None, "error": f"the run's process ended with status {status}"}
+    context = multiprocessing.get_context("fork")
+    receive, send = context.Pipe(duplex=False)
+    child = context.Process(target=run_and_send, args=(req, send))
+    child.start()
+    send.close()
+    try:
+        msg = receive.recv()
+    except EOFError:  # the child died before it answered
+        msg = None
+    child.join()
+    return msg or {"done": None, "error": f"the run's process ended with status {child.exitcode}"}
 
 
 print(json.dumps({"ready": True}), flush=True)
