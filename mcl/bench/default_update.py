@@ -20,6 +20,7 @@ Frames and units: world poses [x, y, theta] of the rear axle (metres, radians); 
 
 from __future__ import annotations
 
+import math
 import statistics
 import time
 from collections.abc import Callable
@@ -29,6 +30,7 @@ import numpy as np
 from mcl.filter.lost import LostDetector
 from mcl.filter.motion_model import twist_to_odometry
 from mcl.filter.particle_filter import ParticleFilter
+from mcl.filter.scan_continuity import compose
 from mcl.filter.sensor_model import SensorModel
 from mcl.wrappers.localization import LocalizationConfig
 from racecar_sim.maps import OccupancyMap
@@ -44,17 +46,12 @@ def odometry_path(start: np.ndarray, twist: np.ndarray, dt: float, n: int) -> np
     """(n, 3) world poses: ``start`` then each one ``twist`` [vx m/s, vy m/s, omega rad/s] held for
     ``dt`` seconds after the one before (the exact arc of
     [`twist_to_odometry()`][mcl.filter.motion_model.twist_to_odometry])."""
-    dx, dy, dth = twist_to_odometry(twist, dt)
+    step = twist_to_odometry(twist, dt)
     out = np.empty((n, 3))
     out[0] = start
-    for k in range(1, n):
-        x, y, th = out[k - 1]
-        c, s = np.cos(th), np.sin(th)
-        out[k] = (
-            x + c * dx - s * dy,
-            y + s * dx + c * dy,
-            (th + dth + np.pi) % (2 * np.pi) - np.pi,
-        )
+    for k in range(1, n):  # a loop over the steps of one path, not over particles
+        out[k] = compose(out[k - 1], step)
+        out[k, 2] = math.remainder(out[k, 2], 2 * math.pi)
     return out
 
 

@@ -25,13 +25,14 @@ from typing import Any
 
 import numpy as np
 
+from mcl.filter.motion_model import twist_to_odometry
+
 __all__ = [
     "ScanContinuity",
     "both_ways",
     "compose",
     "even_subset",
     "invert",
-    "odometry_motion",
     "scan_bearings",
     "scan_continuity",
 ]
@@ -48,18 +49,6 @@ def invert(a: np.ndarray) -> np.ndarray:
     """The inverse SE(2) pose of ``a`` = [x m, y m, theta rad]."""
     c, s = math.cos(a[2]), math.sin(a[2])
     return np.array([-c * a[0] - s * a[1], s * a[0] - c * a[1], -a[2]])
-
-
-def odometry_motion(twist: np.ndarray, dt: float) -> np.ndarray:
-    """The car's motion [dx m, dy m, dtheta rad] in its own frame at the start, driving the
-    car-frame ``twist`` [vx m/s, vy m/s, omega rad/s] for ``dt`` seconds (an arc: the SE(2)
-    exponential)."""
-    vx, vy, om = (float(v) for v in twist[:3])
-    th = om * dt
-    if abs(th) < 1e-9:
-        return np.array([vx * dt, vy * dt, th])
-    s, c = math.sin(th), math.cos(th)
-    return np.array([(vx * s + vy * (c - 1.0)) / om, (vx * (1.0 - c) + vy * s) / om, th])
 
 
 def scan_continuity(
@@ -198,7 +187,7 @@ class ScanContinuity:
     def advance(self, odometry: np.ndarray, dt: float) -> None:
         """The car drove the car-frame ``odometry`` twist [vx m/s, vy m/s, omega rad/s] for
         ``dt`` seconds."""
-        self._motion = compose(self._motion, odometry_motion(odometry, dt))
+        self._motion = compose(self._motion, twist_to_odometry(odometry, dt))
 
     def observe(self, scan: np.ndarray, angles: np.ndarray) -> float:
         """Compare ``scan`` (metres, at bearings ``angles`` in radians, evenly spaced, ascending)

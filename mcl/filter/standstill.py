@@ -38,10 +38,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mcl.filter.scan_continuity import both_ways, compose, invert, odometry_motion
+from mcl.filter.motion_model import twist_to_odometry
+from mcl.filter.scan_continuity import both_ways, compose, invert
 from racecar_sim.settings.validation import short
 
-__all__ = ["Standstill", "StandstillParams"]
+__all__ = ["NEAR_TIE", "Standstill", "StandstillParams"]
+
+NEAR_TIE = 0.02
+"""A share must explain this much more of the points than a smaller one to be preferred to it."""
 
 
 @dataclass(frozen=True)
@@ -134,6 +138,7 @@ class Standstill:
     def __init__(self, params: StandstillParams | None = None) -> None:
         self.params = params if params is not None else StandstillParams()
         self._shares = np.ones(2)
+        self._slipping = False  # asked at every prediction: kept, not worked out each time
         self.n_standing = 0
         self._in_a_row = 0
         self._motion = np.zeros(3)  # the car's motion by the odometry since the reference scan
@@ -153,7 +158,7 @@ class Standstill:
     @property
     def slipping(self) -> bool:
         """The last comparisons found the car moving less than the odometry says (or standing)."""
-        return bool((self._shares < 1).any())
+        return self._slipping
 
     def scaled(self, twist: np.ndarray) -> np.ndarray:
         """The car-frame ``twist`` [vx, vy, omega] as the car makes it: times
@@ -164,6 +169,7 @@ class Standstill:
     def restart(self) -> None:
         """Forget the reference scan and the motion since (a new belief)."""
         self._shares = np.ones(2)
+        self._slipping = False
         self._in_a_row = 0
         self._motion = np.zeros(3)
         self._reference = None
@@ -172,7 +178,7 @@ class Standstill:
         """The odometry says the car drove the car-frame ``twist`` [vx m/s, vy m/s, omega rad/s]
         for ``dt`` seconds."""
         if self.params.enabled:
-            self._motion = compose(self._motion, odometry_motion(twist, dt))
+            self._motion = compose(self._motion, twist_to_odometry(twist, dt))
 
     def due(self) -> bool:
         """Whether the next scan is taken (the first one, or the odometry has moved the car far
@@ -224,11 +230,12 @@ class Standstill:
                 for b in p.shares:
                     if a or b:
                         share = explains(np.array([a * m[0], a * m[1], b * m[2]]))
-                        if share > best + 0.02:  # the smaller shares win near-ties
+                        if share > best + NEAR_TIE:
                             best, best_shares = share, (a, b)
         looks_slipping = best >= p.still_above and best - as_odometry >= p.margin
         self._in_a_row = self._in_a_row + 1 if looks_slipping else 0  # NaN compares False
         self._shares = np.array(best_shares if self._in_a_row >= p.in_a_row else (1.0, 1.0))
+        self._slipping = bool((self._shares < 1).any())
         self.n_standing += self.slipping
         self._reference = (z.copy(), np.asarray(angles, dtype=np.float64).copy())
         self._motion = np.zeros(3)

@@ -9,11 +9,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from mcl.filter.lost_params import LostParams
+from mcl.filter.motion_model import twist_to_odometry
 from mcl.filter.scan_continuity import (
     ScanContinuity,
     compose,
     invert,
-    odometry_motion,
     scan_continuity,
 )
 from racecar_sim.env import RacecarEnv
@@ -50,13 +50,13 @@ def test_compose_with_the_inverse_is_the_identity(a, b) -> None:
     assert math.isclose(math.remainder(back[2] - a[2], 2 * math.pi), 0.0, abs_tol=1e-9)
 
 
-def test_the_odometry_motion_is_an_arc() -> None:
+def test_the_odometry_between_scans_is_an_arc() -> None:
     # a quarter circle of radius 2 m: 90 degrees left, 2 m ahead and 2 m to the left
     speed, radius = 1.5, 2.0
     dt = (math.pi / 2) * radius / speed
-    motion = odometry_motion(np.array([speed, 0.0, speed / radius]), dt)
+    motion = twist_to_odometry(np.array([speed, 0.0, speed / radius]), dt)
     assert np.allclose(motion, [radius, radius, math.pi / 2], atol=1e-12)
-    assert np.allclose(odometry_motion(np.array([2.0, 0.5, 0.0]), 0.5), [1.0, 0.25, 0.0])
+    assert np.allclose(twist_to_odometry(np.array([2.0, 0.5, 0.0]), 0.5), [1.0, 0.25, 0.0])
 
 
 @given(
@@ -67,7 +67,7 @@ def test_the_odometry_motion_is_an_arc() -> None:
 def test_a_scan_continues_the_last_one_where_the_odometry_moved_the_car(seed, speed, omega) -> None:
     pose = _free_pose(seed)
     twist = np.array([speed, 0.0, omega])
-    after = compose(pose, odometry_motion(twist, DT))
+    after = compose(pose, twist_to_odometry(twist, DT))
     assert _continuity(pose, twist, after) > 0.9
 
 
@@ -89,7 +89,7 @@ def test_a_scan_from_elsewhere_mostly_does_not_continue_the_last_one() -> None:
 def test_odometry_that_disagrees_with_the_motion_breaks_the_continuity() -> None:
     pose = _free_pose(3)
     twist = np.array([1.0, 0.0, 0.0])
-    after = compose(pose, odometry_motion(twist, DT))
+    after = compose(pose, twist_to_odometry(twist, DT))
     assert _continuity(pose, twist, after) > 0.95
     # the wheels say the car turned 40 degrees in one step: the scan did not
     assert _continuity(pose, twist, after, odometry=np.array([1.0, 0.0, 0.7 / DT])) < 0.5
@@ -111,7 +111,7 @@ def _long_gap(seed: int) -> tuple[float, float] | None:
     twist = np.array([1.2, 0.0, 1.5])  # 0.6 m and 0.75 rad over 0.5 s
     after = pose
     for _ in range(20):
-        after = compose(after, odometry_motion(twist, DT))
+        after = compose(after, twist_to_odometry(twist, DT))
     if not ENV.unwrapped.physics.pose_is_free(after):
         return None
     fed, unfed = ScanContinuity(MOUNT, MAX_RANGE), ScanContinuity(MOUNT, MAX_RANGE)

@@ -11,7 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mcl.experiments.recorded import RecordedDrive, localize_recorded
-from mcl.filter.scan_continuity import compose, odometry_motion
+from mcl.filter.motion_model import twist_to_odometry
+from mcl.filter.scan_continuity import compose
 from mcl.filter.standstill import Standstill, StandstillParams
 from racecar_sim.env import RacecarEnv
 
@@ -43,7 +44,7 @@ def test_a_car_that_drives_as_its_odometry_says_never_stands(seed, speed, omega)
     twist = np.array([speed, 0.0, omega])
     poses = [_free_pose(seed)]
     for _ in range(40):  # 1 s: several comparisons of 0.2 m or 0.2 rad
-        poses.append(compose(poses[-1], odometry_motion(twist, DT)))
+        poses.append(compose(poses[-1], twist_to_odometry(twist, DT)))
     check = _run(poses, twist)
     assert not check.standing and check.n_standing == 0
 
@@ -59,7 +60,7 @@ def test_a_pinned_car_stands_after_three_comparisons(seed) -> None:
         steps += 1
         assert steps < 200, "never found standing"
         check.advance(twist, DT)
-        driven = compose(driven, odometry_motion(twist, DT))
+        driven = compose(driven, twist_to_odometry(twist, DT))
         check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE)
     # three comparisons of 0.2 m each: the odometry said the car drove about 0.6 m
     assert 0.55 < math.hypot(driven[0], driven[1]) < 0.7
@@ -69,7 +70,7 @@ def test_a_pinned_car_stands_after_three_comparisons(seed) -> None:
 def test_the_check_lets_go_when_the_car_moves_again() -> None:
     pose = _free_pose(5)
     twist = np.array([1.0, 0.0, 0.0])
-    poses = [pose] * 30 + [compose(pose, odometry_motion(twist, DT * k)) for k in range(1, 30)]
+    poses = [pose] * 30 + [compose(pose, twist_to_odometry(twist, DT * k)) for k in range(1, 30)]
     check = Standstill()
     check.observe(LIDAR.true_ranges(poses[0]), LIDAR.angles, MOUNT, MAX_RANGE)
     states = []
