@@ -52,6 +52,7 @@ import math
 
 import numpy as np
 
+from mcl.filter.global_search import GlobalSearch
 from mcl.filter.lost_params import LostParams
 from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.scan_continuity import ScanContinuity, scan_bearings
@@ -111,6 +112,8 @@ class LostDetector:
         jumped: a jump was seen and the filter has not found the car again since.
         jumps: jumps seen since the restart.
         lost: the flag: ``fit_lost``, a spread cloud, or ``jumped``.
+        search: the search filter run after a jump
+            ([GlobalSearch][mcl.filter.global_search.GlobalSearch]).
     """
 
     def __init__(self, params: LostParams | None = None) -> None:
@@ -131,9 +134,16 @@ class LostDetector:
         self._since_jump = math.inf
         self._found_fit = 0.0  # the averaged fit at which a jumped car counts as found
         self._since_dip = math.inf  # seconds since the continuity last dipped under jump_below
+        self._since_search = math.inf  # seconds since the search filter started
         self._scans: ScanContinuity | None = None  # built at the first scan (needs the lidar)
-        self._fit_beams: tuple[tuple[int, int], np.ndarray, np.ndarray] = ((-1, -1), *(np.zeros(0),) * 2)
+        self._fit_beams: tuple[tuple[int, int], np.ndarray, np.ndarray] = (
+            (-1, -1),
+            *(np.zeros(0),) * 2,
+        )
         self._odometry_fed = False
+        p = self.params
+        self.search = GlobalSearch(p.search_converged_sd, adopt_margin=p.burst_accept,
+                                   adopt_after_s=p.search_adopt_s)  # fmt: skip
 
     def restart(self) -> None:
         """Forget the history (a new belief: a reset or a new start)."""
@@ -146,9 +156,12 @@ class LostDetector:
         self._since_burst += dt
         self._since_jump += dt
         self._since_dip += dt
+        self._since_search += dt
         if odometry is not None and self._scans is not None:
-            self._scans.advance(np.asarray(odometry, dtype=np.float64), dt)
+            twist = np.asarray(odometry, dtype=np.float64)
+            self._scans.advance(twist, dt)
             self._odometry_fed = True
+            self.search.predict(twist, dt)
 
     def observe(self, pf: ParticleFilter, scan: np.ndarray) -> bool:
         """Measure the fit of ``scan`` (metres, the filter's beams) at ``pf``'s estimate, update
@@ -157,20 +170,33 @@ class LostDetector:
         if not p.enabled:
             return False
         estimate = pf.estimate()
-        fit = self._fit(pf, estimate, scan)
+        fit = self.fit_at(pf, estimate, scan)
         prior = pf.burst_prior
         if prior is not None:  # a burst: keep its winner only when the scan fits it better
-            before = self._fit(pf, pose_moments(prior[0], prior[1], False)[0], scan)
+            before = self.fit_at(pf, pose_moments(prior[0], prior[1], False)[0], scan)
             if not fit >= before + p.burst_accept:
                 pf.undo_burst()
                 estimate = pf.estimate()
-                fit = self._fit(pf, estimate, scan)
+                fit = self.fit_at(pf, estimate, scan)
             else:  # a new estimate: the odometry scale's window spans the move, the average
                 pf.odometry_scale.restart()  # of the old estimate's fit is moot
                 if math.isfinite(fit):
                     self.smoothed_fit = fit
         self.fit = fit
+        jumps = self.jumps
         self._check_jump(pf, scan)
+        # a jump, or a dip of the continuity the fit did not confirm (the scan fits the old
+        # estimate as well: a look-alike place), starts the search filter
+        if p.search_filter and (
+            self.jumps > jumps or (self._since_dip == 0.0 and not self.search.running)
+        ):
+            self.search.start(pf)
+            self._since_search = 0.0
+        if self.search.running and self._search(pf, estimate, scan):
+            estimate = pf.estimate()
+            fit = self.fit = self.fit_at(pf, estimate, scan)
+            if math.isfinite(fit):
+                self.smoothed_fit = fit
         if math.isfinite(fit):
             if math.isnan(self.smoothed_fit):
                 self.smoothed_fit = self.reference_fit = fit
@@ -199,7 +225,17 @@ class LostDetector:
                 self._low_for = 0.0
         cov = pf.covariance()
         self.position_sd = float(math.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
+        was_lost = self.lost
         self.lost = self.fit_lost or self.position_sd > p.max_position_sd or self.jumped
+        if (
+            p.search_filter
+            and p.search_on_lost
+            and self.lost
+            and not was_lost
+            and not self.search.running
+        ):
+            self.search.start(pf)  # the next scan weighs it
+            self._since_search = 0.0
         # after a jump, a fit that says lost within jump_search_s resumes the search: the place
         # the search found may fit only where the car happened to be
         after_jump = self.jumped or (self.fit_lost and self._since_jump < p.jump_search_s)
@@ -213,6 +249,33 @@ class LostDetector:
                 self._since_burst = math.inf  # the next loss bursts at once
             pf.request_recovery(p.inject_share if searching else 0.0, burst)
         return self.lost
+
+    def _search(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> bool:
+        """One scan of the search filter; returns whether ``pf`` took its cloud (its fit beat
+        the filter's, module docstring). The search ends ``jump_search_s`` after it started, or
+        once it settles on the filter's place while the flag is down; it starts again after
+        an adoption, when it settles on the filter's place while the flag is up, and when it
+        settles on a place that fits worse than the filter's."""
+        search = self.search
+        if self._since_search > self.params.jump_search_s:
+            search.stop()
+            return False
+        search.correct(scan, self._since_scan)
+        if search.filter is None or search.converged_for <= 0.0:
+            return False
+        if search.settled() and search.agrees_with(estimate):
+            if self.lost:
+                search.start(pf)
+            else:
+                search.stop()
+            return False
+        search_fit = self.fit_at(search.filter, search.filter.estimate(), scan)
+        verdict = search.compare(search_fit, self.fit, self._since_scan)
+        if verdict > 0:
+            search.adopt(pf)
+        if verdict != 0:
+            search.start(pf)
+        return verdict > 0
 
     def _check_jump(self, pf: ParticleFilter, scan: np.ndarray) -> None:
         """Compare ``scan`` with the previous one (odometry fed since): a jump raises
@@ -249,8 +312,10 @@ class LostDetector:
         ):
             self.jumped = False
 
-    def _fit(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> float:
-        """The scan fit at ``estimate`` (module docstring)."""
+    def fit_at(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> float:
+        """The scan fit (fraction of beams, module docstring) of ``scan`` (metres, the filter's
+        beams) at the world pose ``estimate`` [x m, y m, theta rad], cast in ``pf``'s map with its
+        sensor model; NaN when no beam counts."""
         p = self.params
         sm = pf.sensor_model
         z = np.asarray(scan, dtype=np.float64).reshape(-1)

@@ -63,6 +63,15 @@ class LostParams:
             beats the fit at the cloud's estimate before the burst by this much; else the
             cloud before the burst is restored (the beam model may prefer a wrong place that a
             cluttered, out-of-date world happens to fit).
+        search_filter: after a jump, also run a global start of its own beside the filter
+            ([`mcl.filter.global_search`][mcl.filter.global_search]) until it confirms the
+            filter's place, the filter takes its cloud, or ``jump_search_s`` has passed.
+        search_on_lost: also start the search filter whenever the flag goes up without a jump.
+        search_converged_sd: metres; the search's cloud counts as converged (and is compared
+            with the filter's) when its position standard deviation is under this.
+        search_adopt_s: seconds; the filter takes the search's cloud when the search's scan fit
+            beats its own by ``burst_accept`` on average over this long (exponential time
+            constant), converged at least this long.
     """
 
     enabled: bool = True
@@ -88,9 +97,20 @@ class LostParams:
     burst_density: float = 20.0
     burst_max: int = 20_000
     burst_accept: float = 0.1
+    search_filter: bool = True
+    search_on_lost: bool = False
+    search_converged_sd: float = 0.5
+    search_adopt_s: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("enabled", "recover", "recover_after_jump", "skip_short"):
+        for name in (
+            "enabled",
+            "recover",
+            "recover_after_jump",
+            "skip_short",
+            "search_filter",
+            "search_on_lost",
+        ):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(
                     f"LostParams.{name} = {short(getattr(self, name))} must be true or false"
@@ -122,6 +142,8 @@ class LostParams:
             "jump_confirm_s": (0.0, 60.0, "seconds"),
             "jump_search_s": (0.0, 3600.0, "seconds"),
             "burst_density": (0.0, 10_000.0, "particles per m²"),
+            "search_converged_sd": (0.0, 100.0, "metres"),
+            "search_adopt_s": (0.0, 600.0, "seconds"),
         }
         for name, (low, high, unit) in checks.items():
             v = number(name)
@@ -129,7 +151,13 @@ class LostParams:
                 raise ValueError(
                     f"LostParams.{name} = {short(v)} must lie in ({low:g}, {high:g}] {unit}"
                 )
-        for name in ("raise_below", "clear_above", "burst_accept", "jump_below", "jump_found_within"):
+        for name in (
+            "raise_below",
+            "clear_above",
+            "burst_accept",
+            "jump_below",
+            "jump_found_within",
+        ):
             if not 0.0 <= number(name) <= 1.0:
                 raise ValueError(
                     f"LostParams.{name} = {short(getattr(self, name))} must be a fraction in [0, 1]"

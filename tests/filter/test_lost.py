@@ -49,6 +49,10 @@ DT = 0.025  # the env's default step
         ("jump_confirm_s", -1.0),
         ("jump_found_within", 2.0),
         ("jump_search_s", math.inf),
+        ("search_filter", 1),
+        ("search_on_lost", "no"),
+        ("search_converged_sd", 0.0),
+        ("search_adopt_s", -1.0),
     ],
 )
 def test_lost_params_refuse_bad_values_naming_the_field(field: str, value: object) -> None:
@@ -129,6 +133,30 @@ def test_without_the_jump_check_the_default_filter_does_not_find_a_kidnapped_car
     t, err, lost, _ = _drive(at + 8.0, at, seed=2, config={"lost": {"jump_below": 0.0}})
     assert (err[t > at + 1e-9] > 1.0).all()  # the jump check is what finds it above
     assert lost[-1]  # the fit says lost, after its 1.5 s of grace: 6.4 s after the kidnap
+
+
+@pytest.mark.parametrize("seed", [3, 6])
+def test_the_search_filter_alone_finds_a_kidnapped_car_that_no_burst_looks_for(seed: int) -> None:
+    at, no_bursts = 6.0, {"burst_max": 0}
+    t, err, _, _ = _drive(at + 15.0, at, seed=seed, config={"lost": no_bursts})
+    after = t > at + 1e-9
+    assert err[after][0] > 1.0
+    found = t[after & (err < 0.5)]
+    assert found.size and found[0] - at <= 2.0  # settled for 1 s, then 1 s of better fit
+    assert (err[t >= t[-1] - 5.0] < 0.5).all()
+    off = {"lost": {**no_bursts, "search_filter": False}}
+    t, err, _, _ = _drive(at + 15.0, at, seed=seed, config=off)
+    assert (err[t >= t[-1] - 5.0] > 1.0).all()  # the cloud alone stays on the wrong place
+
+
+def test_with_the_search_filter_a_kidnapped_car_stays_found_where_a_burst_alone_loses_it() -> None:
+    at = 6.0  # seed 4: a burst finds the car 2.2 s after the kidnap, then a look-alike wins
+    t, err, _, _ = _drive(at + 15.0, at, seed=4)
+    found = t[(t > at + 1e-9) & (err < 0.5)]
+    assert found.size and found[0] - at <= 2.0
+    assert (err[t >= found[0] + 1.0] < 0.5).all()
+    t, err, _, _ = _drive(at + 15.0, at, seed=4, config={"lost": {"search_filter": False}})
+    assert err[-1] > 5.0
 
 
 def test_lost_stays_down_on_a_clean_ideal_drive(tmp_path) -> None:

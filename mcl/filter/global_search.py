@@ -1,0 +1,172 @@
+"""A second filter that searches the whole map beside a filter that may hold the wrong place.
+
+After a jump (a kidnap) the filter's own cloud searches by bursts of uniform poses, one scan each
+([`mcl.filter.lost`][mcl.filter.lost]): a burst finds the car only when one of its poses happens to
+fall close enough to the car's to fit that scan, and a cloud that settled on a wrong place keeps
+it for as long as the scan fits there fairly (a corridor like the car's, a room turned round).
+[`GlobalSearch`][mcl.filter.global_search.GlobalSearch] runs a global start of its own instead: uniform
+poses over the filter map's free space (the filter's ``global_density`` per square metre, at most
+``global_max_particles``), moved by the same odometry and weighed by the same scans with the
+sensor model's wide search hit, so that the car's place wins over several scans as it does at a
+global start; once converged, the set is resampled down to the filter's particle count. Once its cloud has converged (position
+standard deviation under ``converged_sd``) the search's estimate is compared with the filter's on
+every scan by the scan fit (the lost flag's share of beams that agree with the map):
+
+- where the two agree (within ``agree_m`` and ``agree_rad``) the search has confirmed the filter's
+  place and stops;
+- where it fits better, by ``adopt_margin`` of the beams on average over ``adopt_after_s``
+  seconds, the filter takes the search's cloud ([adopt][mcl.filter.global_search.GlobalSearch.adopt]);
+- otherwise it tracks its own place on, a second hypothesis, until one of the two happens or the
+  search's time is up (``LostParams.jump_search_s`` after the jump).
+
+Frames and units: world poses [x m, y m, theta rad]; seconds; fits are fractions of beams.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mcl.filter.angles import wrap_angle
+from mcl.filter.particle_filter import ParticleFilter
+
+__all__ = ["GlobalSearch"]
+
+
+class GlobalSearch:
+    """The search filter of one [LostDetector][mcl.filter.lost.LostDetector] (module docstring).
+
+    Args:
+        converged_sd: metres; the search's cloud has converged when its position standard
+            deviation (largest axis) is under this.
+        agree_m: metres; a converged search this close to the filter's estimate ...
+        agree_rad: radians; ... and this close in heading confirms it.
+        adopt_margin: fraction of beams by which the search's fit must beat the filter's (on
+            average) for the filter to take the search's cloud.
+        adopt_after_s: seconds of driving over which the fit difference is averaged
+            (exponential time constant), and the least time converged before an adoption.
+
+    Attributes:
+        filter: the search's particle filter (None while no search runs).
+        fit_gap: the averaged difference of the scan fits, search minus filter (NaN before the
+            search converged).
+        converged_for: seconds since the search's cloud converged (0 before).
+        adoptions: how many times the filter took the search's cloud since the restart.
+    """
+
+    def __init__(
+        self,
+        converged_sd: float = 0.5,
+        agree_m: float = 1.0,
+        agree_rad: float = 0.5,
+        adopt_margin: float = 0.1,
+        adopt_after_s: float = 1.0,
+    ) -> None:
+        self.converged_sd = converged_sd
+        self.agree_m = agree_m
+        self.agree_rad = agree_rad
+        self.adopt_margin = adopt_margin
+        self.adopt_after_s = adopt_after_s
+        self.filter: ParticleFilter | None = None
+        self.fit_gap = math.nan
+        self.converged_for = 0.0
+        self.adoptions = 0
+
+    @property
+    def running(self) -> bool:
+        """Whether a search runs."""
+        return self.filter is not None
+
+    def start(self, pf: ParticleFilter) -> None:
+        """Start a global search beside ``pf``: its map, motion and sensor models and settings,
+        the odometry scale ``pf`` learned, and a generator seeded from ``pf``'s."""
+        search = ParticleFilter(
+            pf.map,
+            motion_model=pf.motion_model,
+            sensor_model=pf.sensor_model,
+            params=pf.params,
+            rng=int(pf.rng.integers(2**63 - 1)),
+        )
+        search.initialize_global()
+        search.odometry_scale.scale = pf.odometry_scale.scale
+        self.filter = search
+        self.fit_gap = math.nan
+        self.converged_for = 0.0
+
+    def stop(self) -> None:
+        """End the search (its particles are dropped)."""
+        self.filter = None
+        self.fit_gap = math.nan
+        self.converged_for = 0.0
+
+    def predict(self, twist: np.ndarray, dt: float) -> None:
+        """Move the search's particles by the car-frame odometry ``twist`` [vx m/s, vy m/s,
+        omega rad/s] held ``dt`` seconds (nothing while no search runs)."""
+        if self.filter is not None:
+            self.filter.predict(twist, dt)
+
+    def correct(self, scan: np.ndarray, dt: float) -> None:
+        """Weigh the search's particles by ``scan`` (metres, the filter's beams), taken ``dt``
+        seconds after the last. A cloud converged for ``adopt_after_s`` seconds of more
+        particles than the filter's count is resampled down to it (a global start's first scans
+        can gather its weight on a few poses that a later scan refutes)."""
+        search = self.filter
+        if search is None:
+            return
+        search.correct(scan)
+        if not self._spread_under(self.converged_sd):
+            self.converged_for, self.fit_gap = 0.0, math.nan
+            return
+        self.converged_for += dt
+        count = search.params.n_particles
+        if self.settled() and search.n_particles > count and not search.params.kld.enabled:
+            search.resample(count)
+
+    def _spread_under(self, metres: float) -> bool:
+        """Whether the search cloud's position standard deviation (largest axis) is under ``metres``."""
+        assert self.filter is not None
+        covariance = self.filter.covariance()
+        return math.sqrt(max(float(np.linalg.eigvalsh(covariance[:2, :2])[-1]), 0.0)) < metres
+
+    def settled(self) -> bool:
+        """Whether the search's cloud has stayed converged (position sd under ``converged_sd``)
+        for ``adopt_after_s`` seconds: only then is it compared with the filter."""
+        return self.filter is not None and self.converged_for >= self.adopt_after_s
+
+    def agrees_with(self, estimate: np.ndarray) -> bool:
+        """Whether the search's estimate lies within ``agree_m`` / ``agree_rad`` of ``estimate``."""
+        if self.filter is None:
+            return False
+        mine = self.filter.estimate()
+        turn = abs(float(wrap_angle(mine[2] - float(estimate[2]))))
+        return math.dist(mine[:2], estimate[:2]) <= self.agree_m and turn <= self.agree_rad
+
+    def compare(self, search_fit: float, filter_fit: float, dt: float) -> int:
+        """Fold one scan's fits (fractions of beams at the search's and the filter's estimate)
+        taken ``dt`` seconds after the last into `fit_gap`; returns 1 when the filter should
+        take the search's cloud (settled, the averaged gap at least ``adopt_margin``), -1 when
+        the search settled on a place that fits worse by as much (search again), else 0."""
+        gap = search_fit - filter_fit
+        if math.isfinite(gap):
+            if math.isnan(self.fit_gap):
+                self.fit_gap = gap
+            else:
+                self.fit_gap += (1.0 - math.exp(-dt / self.adopt_after_s)) * (gap - self.fit_gap)
+        if not self.settled() or math.isnan(self.fit_gap):
+            return 0
+        if self.fit_gap >= self.adopt_margin:
+            return 1
+        return -1 if self.fit_gap <= -self.adopt_margin else 0
+
+    def adopt(self, pf: ParticleFilter) -> None:
+        """Give ``pf`` the search's cloud, resampled to ``pf``'s particle count (KLD-sampling's
+        when ``pf`` has it on), and end this search."""
+        if self.filter is None:
+            raise RuntimeError("GlobalSearch.adopt: no search runs")
+        search = self.filter
+        pf.set_particles(np.array(search.particles), np.array(search.weights))
+        pf.resample(None if pf.params.kld.enabled else pf.params.n_particles)
+        pf.odometry_scale.restart()  # its window would span the move
+        self.adoptions += 1
+        self.stop()

@@ -1,0 +1,106 @@
+"""The search filter ([mcl.filter.global_search][]): its verdicts from the scan fits, agreement,
+the global start beside a filter that holds a wrong pose, and the adoption of its cloud (the
+``room`` map, a static car, exact casting)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mcl.filter.global_search import GlobalSearch
+from mcl.filter.lost import LostDetector
+from mcl.filter.lost_params import LostParams
+from mcl.filter.particle_filter import ParticleFilter, ParticleFilterParams
+from mcl.filter.sensor_model import SensorModel, SensorModelParams
+from racecar_sim.sensors.lidar import Lidar
+
+TRUTH = np.array([6.0, 0.0, 0.4])  # free, 1.95 m from the nearest wall of the room map
+ELSEWHERE = np.array([3.0, 3.5, -2.0])  # another free pose of the room map
+DT = 0.025
+
+
+@pytest.fixture(scope="module")
+def sensor(room) -> SensorModel:
+    return SensorModel(room, SensorModelParams(raycast_method="exact", parallel=False))
+
+
+def _pf(room, sensor, pose: np.ndarray, seed: int = 0) -> ParticleFilter:
+    pf = ParticleFilter(
+        room, sensor_model=sensor, params=ParticleFilterParams(n_particles=300), rng=seed
+    )
+    pf.initialize(pose, (0.02, 0.02, 0.01))
+    return pf
+
+
+# ---------------------------------------------------------------------- verdicts
+def test_the_verdict_waits_until_settled_and_needs_the_margin_either_way() -> None:
+    search = GlobalSearch(adopt_margin=0.1, adopt_after_s=1.0)
+    # not settled (no cloud converged yet): no verdict however large the gap
+    assert search.compare(0.9, 0.5, 0.5) == 0
+    assert search.fit_gap == pytest.approx(0.4)  # the first gap is taken whole
+    search.converged_for = 1.0
+    search.filter = object()  # settled() needs a running search
+    # the average moves 1 - exp(-dt / 1 s) of the way: 0.4 + (1 - e^-0.5) (0.0 - 0.4) = 0.243
+    assert search.compare(0.5, 0.5, 0.5) == 1
+    assert search.fit_gap == pytest.approx(0.4 * math.exp(-0.5))
+    # a long stretch of the search fitting worse by 0.3: the average passes -0.1
+    verdicts = [search.compare(0.5, 0.8, 0.5) for _ in range(6)]
+    assert verdicts[0] == 0 and verdicts[-1] == -1
+    search.fit_gap = 0.05
+    assert search.compare(0.55, 0.5, 0.5) == 0  # within the margin: track on
+
+
+def test_a_search_agrees_within_a_metre_and_half_a_radian(room, sensor) -> None:
+    search = GlobalSearch(agree_m=1.0, agree_rad=0.5)
+    assert not search.agrees_with(TRUTH)  # no search runs
+    pf = _pf(room, sensor, TRUTH)
+    search.start(pf)
+    assert search.running
+    search.filter.initialize(TRUTH, (0.01, 0.01, 0.01))
+    assert search.agrees_with(TRUTH + np.array([0.5, 0.5, 0.3]))
+    assert not search.agrees_with(TRUTH + np.array([1.0, 0.5, 0.0]))  # 1.12 m
+    assert not search.agrees_with(TRUTH + np.array([0.0, 0.0, 0.7]))
+    assert search.agrees_with(TRUTH + np.array([0.0, 0.0, 2 * math.pi - 0.2]))  # wrapped: 0.2 rad
+
+
+# ---------------------------------------------------------------------- the search
+def test_a_search_beside_a_wrong_filter_finds_the_car_and_the_filter_takes_its_cloud(
+    room, sensor
+) -> None:
+    pf = _pf(room, sensor, ELSEWHERE)  # sure of a pose 4.7 m from the car
+    lidar, rng = Lidar(room), np.random.default_rng(5)
+    search = GlobalSearch(converged_sd=0.5, adopt_margin=0.1, adopt_after_s=0.25)
+    search.start(pf)
+    first = search.filter.particles.copy()
+    assert first.shape[0] == pf.global_particle_count() > pf.params.n_particles
+    assert np.ptp(first[:, 0]) > 5.0  # uniform over the room, not around either pose
+    detector = LostDetector(LostParams())
+    verdict = 0
+    for _ in range(80):
+        scan = lidar.measure(TRUTH, rng)
+        pf.correct(scan)
+        search.correct(scan, DT)
+        if search.converged_for > 0:
+            mine = search.filter.estimate()
+            verdict = search.compare(
+                detector.fit_at(search.filter, mine, scan),
+                detector.fit_at(pf, pf.estimate(), scan),
+                DT,
+            )
+            if verdict:
+                break
+    assert verdict == 1
+    assert search.filter.n_particles == pf.params.n_particles  # shrunk once it settled
+    assert math.dist(search.filter.estimate()[:2], TRUTH[:2]) < 0.2
+    search.adopt(pf)
+    assert not search.running and search.adoptions == 1
+    assert pf.n_particles == 300
+    assert math.dist(pf.estimate()[:2], TRUTH[:2]) < 0.2
+    assert abs(math.remainder(pf.estimate()[2] - TRUTH[2], 2 * math.pi)) < 0.1
+
+
+def test_adopt_without_a_search_is_refused(room, sensor) -> None:
+    with pytest.raises(RuntimeError, match="no search runs"):
+        GlobalSearch().adopt(_pf(room, sensor, TRUTH))
