@@ -8,16 +8,21 @@ it for as long as the scan fits there fairly (a corridor like the car's, a room 
 poses over the filter map's free space (the filter's ``global_density`` per square metre, at most
 ``global_max_particles``), moved by the same odometry and weighed by the same scans with the
 sensor model's wide search hit, so that the car's place wins over several scans as it does at a
-global start; once converged, the set is resampled down to the filter's particle count. Once its cloud has converged (position
-standard deviation under ``converged_sd``) the search's estimate is compared with the filter's on
-every scan by the scan fit (the lost flag's share of beams that agree with the map):
+global start. Its cloud has *settled* once its position standard deviation has stayed under
+``converged_sd`` for ``adopt_after_s`` seconds (a global start's first scans can gather the weight
+on a few poses that later scans refute); it is then resampled down to the filter's particle
+count, and its estimate is compared with the filter's on every scan by the scan fit (the lost
+flag's share of beams that agree with the map, averaged over ``adopt_after_s``):
 
 - where the two agree (within ``agree_m`` and ``agree_rad``) the search has confirmed the filter's
-  place and stops;
-- where it fits better, by ``adopt_margin`` of the beams on average over ``adopt_after_s``
-  seconds, the filter takes the search's cloud ([adopt][mcl.filter.global_search.GlobalSearch.adopt]);
-- otherwise it tracks its own place on, a second hypothesis, until one of the two happens or the
-  search's time is up (``LostParams.jump_search_s`` after the jump).
+  place;
+- where it fits better by ``adopt_margin`` of the beams, the filter takes the search's cloud
+  ([adopt][mcl.filter.global_search.GlobalSearch.adopt]);
+- where it fits worse by as much, it settled on a wrong place;
+- otherwise it tracks its own place on, a second hypothesis.
+
+What follows each verdict (stop, search again) is the lost flag's decision
+([`LostDetector`][mcl.filter.lost.LostDetector]).
 
 Frames and units: world poses [x m, y m, theta rad]; seconds; fits are fractions of beams.
 """
@@ -51,7 +56,7 @@ class GlobalSearch:
         filter: the search's particle filter (None while no search runs).
         fit_gap: the averaged difference of the scan fits, search minus filter (NaN before the
             search converged).
-        converged_for: seconds since the search's cloud converged (0 before).
+        converged_for: seconds the search's cloud has stayed converged (0 while it is not).
         adoptions: how many times the filter took the search's cloud since the restart.
     """
 

@@ -43,6 +43,13 @@ is resampled back to its count. The cloud is kept, and the burst's outcome is ke
 scan fits the new estimate better (``burst_accept``) than the cloud's before the burst, so a false
 alarm costs time, not the track.
 
+The search filter (``search_filter``; [`mcl.filter.global_search`][mcl.filter.global_search]): a
+jump, or a dip of the continuity the fit did not confirm (the old estimate has a look-alike), starts
+a global start of its own beside the filter for up to ``jump_search_s``; once settled, the filter
+takes its cloud when it fits better by ``burst_accept`` on average over ``search_adopt_s``, and it
+starts again after that, when it settled on a worse place, or on the filter's place while the flag
+is up; on the filter's place with the flag down it stops.
+
 Frames and units: world frame; metres, radians, seconds.
 """
 
