@@ -5,10 +5,9 @@ disconnecting in a loop) hammer the live one's server.
 
 Each round runs the plain drive and the watched one (``--live 0 --live-speed 0``, unpaced, so the
 wall times compare), alternating which goes first; the clients run in a process of their own at
-the lowest priority (Linux's idle scheduling class: they stand for clients elsewhere; niced 19
-instead, the drive's second numba thread, which casts on both cores of a 2-core machine, waited
-for the clients' own CPU, 1.135 against 1.021 on the quiet VM), started (its imports done) before
-the watched drive, which gives it the port. Reported per round: the drive loop's wall time as the command prints it, the
+the lowest priority (Linux's idle scheduling class: they stand for clients elsewhere, as the
+drive casts on both cores of a 2-core machine; docs/drive.md has the rounds with the clients
+niced only), started (its imports done) before the watched drive, which gives it the port. Reported per round: the drive loop's wall time as the command prints it, the
 whole command's wall time, their ratios (target <= 1.10), the CPU seconds of the plain
 command and of the watched one with its server (the clients' own are not counted: a difference
 in wall time with the same CPU time is the machine's cores shared with the clients), whether the
