@@ -6,8 +6,9 @@ disconnecting in a loop) hammer the live one's server.
 Each round runs the plain drive and the watched one (``--live 0 --live-speed 0``, unpaced, so the
 wall times compare), alternating which goes first; the clients run in a process of their own at
 the lowest priority (Linux's idle scheduling class: they stand for clients elsewhere, as the
-drive casts on both cores of a 2-core machine; docs/drive.md has the rounds with the clients
-niced only), started (its imports done) before the watched drive, which gives it the port. Reported per round: the drive loop's wall time as the command prints it, the
+drive casts on both cores of a 2-core machine, and niced only their own CPU came out of its
+second thread: drive-loop medians 1.00-1.04 against 1.08-1.13 in three interleaved pairs of 10
+rounds, docs/drive.md), started (its imports done) before the watched drive, which gives it the port. Reported per round: the drive loop's wall time as the command prints it, the
 whole command's wall time, their ratios (target <= 1.10), the CPU seconds of the plain
 command and of the watched one with its server (the clients' own are not counted: a difference
 in wall time with the same CPU time is the machine's cores shared with the clients), whether the
