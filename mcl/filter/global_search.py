@@ -35,6 +35,7 @@ import numpy as np
 
 from mcl.filter.angles import wrap_angle
 from mcl.filter.particle_filter import ParticleFilter
+from mcl.filter.uncertainty import largest_position_sd
 
 __all__ = ["GlobalSearch"]
 
@@ -68,6 +69,12 @@ class GlobalSearch:
         adopt_margin: float = 0.1,
         adopt_after_s: float = 1.0,
     ) -> None:
+        for name, value in (("converged_sd", converged_sd), ("agree_m", agree_m),
+                            ("agree_rad", agree_rad), ("adopt_after_s", adopt_after_s)):  # fmt: skip
+            if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value < math.inf:
+                raise ValueError(f"GlobalSearch {name} = {value!r} must be a positive number")
+        if isinstance(adopt_margin, bool) or not 0 <= adopt_margin <= 1:
+            raise ValueError(f"GlobalSearch adopt_margin = {adopt_margin!r} must be a fraction in [0, 1]")
         self.converged_sd = converged_sd
         self.agree_m = agree_m
         self.agree_rad = agree_rad
@@ -120,19 +127,13 @@ class GlobalSearch:
         if search is None:
             return
         search.correct(scan)
-        if not self._spread_under(self.converged_sd):
+        if not largest_position_sd(search.covariance()) < self.converged_sd:
             self.converged_for, self.fit_gap = 0.0, math.nan
             return
         self.converged_for += dt
         count = search.params.n_particles
         if self.settled() and search.n_particles > count and not search.params.kld.enabled:
             search.resample(count)
-
-    def _spread_under(self, metres: float) -> bool:
-        """Whether the search cloud's position standard deviation (largest axis) is under ``metres``."""
-        assert self.filter is not None
-        covariance = self.filter.covariance()
-        return math.sqrt(max(float(np.linalg.eigvalsh(covariance[:2, :2])[-1]), 0.0)) < metres
 
     def settled(self) -> bool:
         """Whether the search's cloud has stayed converged (position sd under ``converged_sd``)
@@ -170,7 +171,7 @@ class GlobalSearch:
         if self.filter is None:
             raise RuntimeError("GlobalSearch.adopt: no search runs")
         search = self.filter
-        pf.set_particles(np.array(search.particles), np.array(search.weights))
+        pf.set_particles(search.particles, search.weights)  # copied there
         pf.resample(None if pf.params.kld.enabled else pf.params.n_particles)
         pf.odometry_scale.restart()  # its window would span the move
         self.adoptions += 1

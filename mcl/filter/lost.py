@@ -64,6 +64,7 @@ from mcl.filter.lost_params import LostParams
 from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.scan_continuity import ScanContinuity, scan_bearings
 from mcl.filter.step_kernels import pose_moments
+from mcl.filter.uncertainty import largest_position_sd
 
 __all__ = ["LostDetector", "scan_agreement"]
 
@@ -231,7 +232,7 @@ class LostDetector:
             if self.fit_lost:
                 self._low_for = 0.0
         cov = pf.covariance()
-        self.position_sd = float(math.sqrt(max(np.linalg.eigvalsh(cov[:2, :2])[-1], 0.0)))
+        self.position_sd = largest_position_sd(cov)
         was_lost = self.lost
         self.lost = self.fit_lost or self.position_sd > p.max_position_sd or self.jumped
         if (

@@ -28,7 +28,14 @@ import numpy as np
 from mcl.filter.angles import wrap_angle
 from racecar_sim.settings.validation import short
 
-__all__ = ["ClusterParams", "Clusters", "Uncertainty", "assess", "cluster_particles"]
+__all__ = [
+    "ClusterParams",
+    "Clusters",
+    "Uncertainty",
+    "assess",
+    "cluster_particles",
+    "largest_position_sd",
+]
 
 _MAX_GRID_CELLS = 20_000_000  # cells of the dense labelling grid before the bins are coarsened
 
@@ -200,6 +207,13 @@ def cluster_particles(
     return Clusters(labels=rank[labels], weights=cw[order], means=means[order], sizes=sizes[order])
 
 
+def largest_position_sd(covariance: np.ndarray) -> float:
+    """Metres: the standard deviation of a cloud's position along its widest axis, from its
+    (3, 3) pose covariance (world frame; the square root of the xy block's largest eigenvalue)."""
+    xy = np.asarray(covariance, dtype=np.float64)[:2, :2]
+    return float(math.sqrt(max(float(np.linalg.eigvalsh(xy)[-1]), 0.0)))
+
+
 def assess(
     particles: np.ndarray,
     weights: np.ndarray,
@@ -209,8 +223,7 @@ def assess(
     """The `Uncertainty` of a weighted cloud with covariance ``covariance`` (3, 3)."""
     cov = np.asarray(covariance, dtype=np.float64)
     clusters = cluster_particles(particles, weights, params.bin_size)
-    xy = cov[:2, :2]
-    position_sd = float(math.sqrt(max(float(np.linalg.eigvalsh(xy)[-1]), 0.0)))
+    position_sd = largest_position_sd(cov)
     heading_sd = float(math.sqrt(max(float(cov[2, 2]), 0.0)))
     cw = clusters.weights
     n_clusters = int(np.count_nonzero(cw >= params.min_weight))

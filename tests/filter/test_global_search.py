@@ -104,3 +104,21 @@ def test_a_search_beside_a_wrong_filter_finds_the_car_and_the_filter_takes_its_c
 def test_adopt_without_a_search_is_refused(room, sensor) -> None:
     with pytest.raises(RuntimeError, match="no search runs"):
         GlobalSearch().adopt(_pf(room, sensor, TRUTH))
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [("converged_sd", 0.0), ("agree_m", -1.0), ("agree_rad", math.inf), ("adopt_after_s", "1"),
+     ("adopt_margin", 1.5), ("converged_sd", True)],
+)  # fmt: skip
+def test_bad_settings_are_refused_naming_them(name: str, value: object) -> None:
+    with pytest.raises(ValueError, match=rf"GlobalSearch {name} = "):
+        GlobalSearch(**{name: value})
+
+
+def test_the_widest_position_sd_is_the_square_root_of_the_largest_xy_eigenvalue() -> None:
+    from mcl.filter.uncertainty import largest_position_sd
+
+    assert largest_position_sd(np.diag([4.0, 1.0, 9.0])) == pytest.approx(2.0)  # heading ignored
+    turned = np.array([[2.5, 1.5, 0.0], [1.5, 2.5, 0.0], [0.0, 0.0, 0.0]])  # eigenvalues 4 and 1
+    assert largest_position_sd(turned) == pytest.approx(2.0)
