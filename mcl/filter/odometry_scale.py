@@ -16,6 +16,12 @@ odometry, the observed ratio equals the scale, and the scale stays what it learn
 say something: it is a fixed point, not a drift. Windows taken while the cloud is spread (the
 estimate not trusted) or while the car turned more than it drove straight are not used.
 
+A car whose odometry has been calibrated (``racecar-sim calibrate-noise`` measures the wheels'
+speed bias from the car's own recordings: the MIT racecar's VESC reads 5.3 % slow, a scale of
+1 / (1 - 0.053) = 1.056) can start from that scale (``initial``) and hold it (``learn=False``):
+where the old map drags the estimate back along a corridor, the windows see it move less than
+the car and the learned scale follows the drag (``docs/localization_changing_world.md``).
+
 Units: metres, radians, seconds; the scale is dimensionless (1 = trust the wheels).
 """
 
@@ -37,7 +43,10 @@ class OdometryScaleParams:
     """Settings of the learned odometry speed scale.
 
     Attributes:
-        enabled: learn and apply the scale (False: the odometry is used as reported).
+        enabled: apply the scale (False: the odometry is used as reported).
+        initial: the scale at the start (dimensionless; 1 = trust the wheels, 1.056 = wheels that
+            read 5.3 % slow), e.g. from a calibration of the car's odometry.
+        learn: learn the scale online from the estimate (False: hold ``initial``).
         window: metres of odometry travel per comparison.
         gain: fraction of the way from the scale to a window's observed ratio taken per window.
         low: smallest scale (the wheels over-report by at most 1 / low - 1).
@@ -49,6 +58,8 @@ class OdometryScaleParams:
     """
 
     enabled: bool = True
+    initial: float = 1.0
+    learn: bool = True
     window: float = 2.0
     gain: float = 0.2
     low: float = 0.8
@@ -57,9 +68,12 @@ class OdometryScaleParams:
     min_straightness: float = 0.9
 
     def __post_init__(self) -> None:
-        if not isinstance(self.enabled, bool):
-            raise ValueError(f"OdometryScaleParams.enabled = {short(self.enabled)} must be a bool")
-        for name in ("window", "gain", "low", "high", "max_spread", "min_straightness"):
+        for name in ("enabled", "learn"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(
+                    f"OdometryScaleParams.{name} = {short(getattr(self, name))} must be a bool"
+                )
+        for name in ("initial", "window", "gain", "low", "high", "max_spread", "min_straightness"):
             value = getattr(self, name)
             if (
                 isinstance(value, bool)
@@ -78,6 +92,11 @@ class OdometryScaleParams:
                 f"OdometryScaleParams: low = {self.low!r} and high = {self.high!r} must satisfy "
                 "0 < low <= 1 <= high <= 10"
             )
+        if not self.low <= self.initial <= self.high:
+            raise ValueError(
+                f"OdometryScaleParams.initial = {self.initial!r} must lie in [low, high] = "
+                f"[{self.low!r}, {self.high!r}]"
+            )
         if self.max_spread <= 0:
             raise ValueError(f"OdometryScaleParams.max_spread = {self.max_spread!r} must be > 0")
         if not 0.0 <= self.min_straightness <= 1.0:
@@ -95,7 +114,7 @@ class OdometryScale:
 
     def __init__(self, params: OdometryScaleParams) -> None:
         self.params = params
-        self.scale = 1.0
+        self.scale = params.initial
         self.windows_used = 0
         self._anchor: np.ndarray | None = None  # estimate [x, y, theta] at the window's start
         self._odo = np.zeros(3)  # raw dead reckoning since the anchor, anchor frame
@@ -118,7 +137,8 @@ class OdometryScale:
     def needs_estimate(self) -> bool:
         """Whether the next [observe][mcl.filter.odometry_scale.OdometryScale.observe] needs the
         filter's estimate and spread (at a window's start or end only)."""
-        return self.params.enabled and (self._anchor is None or self._path >= self.params.window)
+        p = self.params
+        return p.enabled and p.learn and (self._anchor is None or self._path >= p.window)
 
     def observe(
         self,
@@ -131,7 +151,7 @@ class OdometryScale:
         [needs_estimate][mcl.filter.odometry_scale.OdometryScale.needs_estimate]) the filter's estimate
         (world [x m, y m, theta rad]) and position spread (metres) *before* the step."""
         p = self.params
-        if not p.enabled:
+        if not (p.enabled and p.learn):
             return
         if self.needs_estimate():
             if estimate is None:

@@ -91,6 +91,10 @@ def test_the_scale_is_bounded():
         ("max_spread", 0.0, "max_spread"),
         ("min_straightness", 2.0, "min_straightness"),
         ("enabled", "yes", "enabled"),
+        ("learn", 1, "learn"),
+        ("initial", 1.3, "initial"),
+        ("initial", 0.7, "initial"),
+        ("initial", math.inf, "initial"),
         ("window", math.nan, "window"),
     ],
 )
@@ -127,3 +131,34 @@ def test_one_window_moves_the_scale_a_fifth_of_the_way_even_the_first(k):
     scale = _drive(OdometryScale(OdometryScaleParams()), k, "truth", steps=steps)
     assert scale.windows_used == 1
     assert scale.scale == pytest.approx(min(1.25, max(0.8, 1.0 + 0.2 * (k - 1.0))), abs=0.01)
+
+
+@settings(deadline=None, max_examples=10)
+@given(k=st.floats(0.85, 1.2), initial=st.floats(0.9, 1.15))
+def test_a_calibrated_scale_is_held_where_the_learner_would_move_it(k, initial):
+    # wheels that read 1 / k of the speed, the scan pinning the car: the learner goes to k; a
+    # calibrated car given its scale with learning off keeps exactly that scale and uses it
+    held = _drive(OdometryScale(OdometryScaleParams(initial=initial, learn=False)), k, "truth",
+                  steps=2000)  # fmt: skip
+    assert held.scale == initial and held.windows_used == 0
+    assert held.scaled(np.array([2.0, 0.1, 0.3]))[0] == pytest.approx(2.0 * initial)
+    learned = _drive(OdometryScale(OdometryScaleParams(initial=initial)), k, "truth", steps=4000)
+    assert learned.scale == pytest.approx(k, abs=0.01)
+
+
+def test_a_filter_starts_from_the_initial_scale_given_in_a_mapping():
+    params = from_mapping(
+        ParticleFilterParams, {"odometry_scale": {"initial": 1.056, "learn": False}}
+    )
+    occupied = np.zeros((200, 200), dtype=bool)
+    occupied[0, :] = occupied[-1, :] = occupied[:, 0] = occupied[:, -1] = True
+    pf = ParticleFilter(
+        OccupancyMap(occupied, resolution=0.1),
+        motion_model=MotionModel(MotionModelParams(scheme="none")),
+        params=ParticleFilterParams(n_particles=50, odometry_scale=params.odometry_scale),
+        rng=0,
+    )
+    pf.initialize(np.array([5.0, 10.0, 0.0]), (0.0, 0.0, 0.0))
+    before = pf.particles.copy()
+    pf.predict(np.array([2.0, 0.0, 0.0]), 1.0)  # 2 m reported: 2.112 m moved
+    assert np.allclose(pf.particles[:, 0] - before[:, 0], 2.112)
