@@ -34,7 +34,7 @@ in `add_arguments()`. Every part prints its workload (particles, beams, range, t
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
-        [--only rangelibc|spread|f1tenth|race|amcl] [--default-filter] [--seeds 20] [--amcl-worlds cluttered clean ideal] [--amcl-python PY] [--amcl-rerun ours] [--out DIR] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
+        [--only rangelibc|spread|f1tenth|race|amcl] [--default-filter] [--seeds 20] [--amcl-worlds cluttered clean ideal] [--amcl-python PY] [--amcl-rerun ours] [--ours-filter KEY=VALUE] [--out DIR] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
         [--sim-steps 1000] [--sim-runs 5] [--num-envs 32]
 """
 
@@ -116,6 +116,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--amcl-rerun", nargs="+", default=[], choices=("ours", "amcl", "amcl_recovery"),
         help="drop these filters' rows from --out's amcl_results.csv and run them again on the "
         "recorded drives, keeping the other filters' rows (amcl part)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--ours-filter", action="append", default=[], metavar="KEY=VALUE",
+        help="a setting of our filter in the amcl part (LocalizationConfig, dotted, YAML values: "
+        "filter.odometry_scale.initial=1.056); with --amcl-rerun ours on a copy of --out",
     )  # fmt: skip
     parser.add_argument("--out", type=Path, default=Path("out/peers/amcl"),
                         help="folder of the amcl part's tables and drives")  # fmt: skip
@@ -249,8 +254,14 @@ def amcl_part(args: argparse.Namespace) -> int:
     """Localization error of our filter against nav2's amcl on the same drives (amcl in its own
     venv; skipped with the reason when it cannot be had)."""
     from mcl.bench import amcl_bench, peer_amcl
+    from mcl.wrappers.localization import as_localization_config, dotted_settings
 
     print("== localization vs nav2 amcl, the same recorded drives ==")
+    try:
+        config = as_localization_config(dotted_settings(args.ours_filter))
+    except (TypeError, ValueError) as exc:
+        print(f"racecar-sim bench peers: --ours-filter: {exc}", file=sys.stderr)
+        return 2
     problem = folder_problem(args.out)  # its tables are replaced: only in a folder of ours
     if problem is not None:
         print(f"racecar-sim bench peers: --out: {problem}", file=sys.stderr)
@@ -270,8 +281,9 @@ def amcl_part(args: argparse.Namespace) -> int:
           f"amcl from {python}; results into {args.out}")  # fmt: skip
     claim_folder(args.out)
     rows = amcl_bench.run_benchmark(
-        python, args.amcl_worlds, args.seeds, args.amcl_duration, args.out, rerun=args.amcl_rerun
-    )
+        python, args.amcl_worlds, args.seeds, args.amcl_duration, args.out, config,
+        rerun=args.amcl_rerun,
+    )  # fmt: skip
     print(amcl_bench.results_md(rows, args.seeds, args.amcl_duration, args.amcl_worlds))
     return 0
 

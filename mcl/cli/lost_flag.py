@@ -17,8 +17,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from mcl.cli.common import (
     Parser,
     check_out,
@@ -31,7 +29,7 @@ from mcl.cli.common import (
 )
 from mcl.cli.compile_notice import compile_notice
 from mcl.experiments.lost_flag import LostFlagConfig, default_worlds, run_lost_flag
-from mcl.wrappers.localization import as_localization_config
+from mcl.wrappers.localization import as_localization_config, dotted_settings
 
 EXAMPLES = """\
 examples:
@@ -70,24 +68,12 @@ def build_parser() -> Parser:
 
 def filter_settings(parser: Parser, items: list[str]) -> dict[str, Any]:
     """``KEY=VALUE`` items as a nested mapping of [`LocalizationConfig`][mcl.wrappers.localization.LocalizationConfig]
-    fields (values read as YAML); a malformed item fails naming ``--filter``."""
-    settings: dict[str, Any] = {}
-    for item in items:
-        key, sep, text = item.partition("=")
-        if not sep or not key.strip():
-            parser.fail("--filter", f"{item!r} is not KEY=VALUE (e.g. sensor.sigma_hit=2.0)")
-        try:
-            value = yaml.safe_load(text)
-        except yaml.YAMLError:
-            parser.fail("--filter", f"{item!r}: the value is not a YAML value")
-        *path, last = key.strip().split(".")
-        node = settings
-        for part in path:
-            node = node.setdefault(part, {})
-            if not isinstance(node, dict):
-                parser.fail("--filter", f"{item!r}: {part} is set twice")
-        node[last] = value
-    return settings
+    fields ([dotted_settings][mcl.wrappers.localization.dotted_settings]); a malformed item fails
+    naming ``--filter``."""
+    try:
+        return dotted_settings(items)
+    except ValueError as exc:
+        parser.fail("--filter", str(exc))
 
 
 def main(argv: list[str] | None = None) -> int:

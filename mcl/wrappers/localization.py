@@ -11,11 +11,12 @@ radians (theta in [-pi, pi)); times in seconds.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
+import yaml
 from gymnasium import spaces
 
 from mcl.filter.adaptive import AdaptiveParams
@@ -38,6 +39,7 @@ __all__ = [
     "LocalizationConfig",
     "as_localization_config",
     "correct_with_scan",
+    "dotted_settings",
     "filter_rng",
     "localization_report",
     "pose_error",
@@ -155,6 +157,33 @@ def as_localization_config(
     if not isinstance(config, LocalizationConfig):
         raise TypeError(f"config must be a LocalizationConfig or a mapping, got {config!r}")
     return config
+
+
+def dotted_settings(items: Sequence[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` items (dotted keys, YAML values: ``sensor.sigma_hit=2.0``,
+    ``filter.odometry_scale.learn=false``) as the nested mapping `as_localization_config` loads.
+
+    Raises:
+        ValueError: an item that is not ``KEY=VALUE``, a value that is not YAML, or a key set both
+            as a value and as a group; the message names the item.
+    """
+    settings: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"{item!r} is not KEY=VALUE (e.g. sensor.sigma_hit=2.0)")
+        try:
+            value = yaml.safe_load(text)
+        except yaml.YAMLError:
+            raise ValueError(f"{item!r}: the value is not a YAML value") from None
+        *path, last = key.strip().split(".")
+        node = settings
+        for part in path:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ValueError(f"{item!r}: {part} is set twice")
+        node[last] = value
+    return settings
 
 
 def filter_rng(seed: int | None) -> np.random.Generator:

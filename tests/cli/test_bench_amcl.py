@@ -317,3 +317,36 @@ def test_a_drive_gives_amcl_the_same_errors_whatever_ran_before():
         peer.close()
     np.testing.assert_array_equal(runs[1], alone)
     assert not np.array_equal(runs[2], alone)
+
+
+def test_our_filter_settings_reach_the_benchmark_and_bad_ones_are_one_line(
+    tmp_path, capsys, monkeypatch
+):
+    """``--ours-filter KEY=VALUE`` sets our filter's config in the amcl part (a calibrated
+    odometry scale here); a malformed or out-of-range one is a one-line error naming the flag,
+    before any folder is made."""
+    need_shared("maps/stata_basement.yaml", "maps/basement_fixed_aligned.yaml")
+    seen = {}
+
+    def fake_run(python, worlds, seeds, duration, out, config=None, echo=print, rerun=()):
+        seen["config"] = config
+        return []
+
+    monkeypatch.setattr(peer_amcl, "amcl_python", lambda given=None: ("/fake/python", ""))
+    monkeypatch.setattr(amcl_bench, "run_benchmark", fake_run)
+    monkeypatch.setattr(amcl_bench, "results_md", lambda *a: "")
+    out = tmp_path / "amcl"
+    args = ["--only", "amcl", "--out", str(out), "--amcl-worlds", "clean",
+            "--ours-filter", "filter.odometry_scale.initial=1.056",
+            "--ours-filter", "filter.odometry_scale.learn=false"]  # fmt: skip
+    assert peers.amcl_part(peers_args(args)) == 0
+    scale = seen["config"].filter.odometry_scale
+    assert scale.initial == 1.056 and scale.learn is False
+    for bad, says in (("filter.odometry_scale.initial=3", "initial"), ("nonsense", "KEY=VALUE"),
+                      ("filter.odometry_scale.learn=[", "YAML")):  # fmt: skip
+        fresh = tmp_path / f"bad_{len(says)}"
+        bad_args = ["--only", "amcl", "--out", str(fresh), "--ours-filter", bad]
+        assert peers.amcl_part(peers_args(bad_args)) == 2
+        err = capsys.readouterr().err
+        assert "--ours-filter" in err and says in err and "Traceback" not in err
+        assert len(err.strip().splitlines()) == 1 and not fresh.exists()
