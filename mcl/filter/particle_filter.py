@@ -198,8 +198,9 @@ class ParticleFilter(Belief, GlobalRecovery):
 
     # ------------------------------------------------------------------ update steps
     def predict(self, twist: np.ndarray, dt: float) -> None:
-        """Move the particles by a car-frame twist [vx, vy, omega] held for ``dt`` seconds (its
-        forward speed times the learned [odometry_scale][mcl.filter.odometry_scale.OdometryScale]);
+        """Move the particles by a car-frame twist [vx, vy, omega] held for ``dt`` seconds (the
+        calibrated ``odometry_bias`` undone, its forward speed times the learned
+        [odometry_scale][mcl.filter.odometry_scale.OdometryScale]);
         by less, or none, while the [standstill][mcl.filter.standstill.Standstill] check says the car
         slips or stands."""
         self._require()
@@ -208,6 +209,8 @@ class ParticleFilter(Belief, GlobalRecovery):
             raise ValueError(f"twist must be three finite numbers [vx, vy, omega], got {twist!r}")
         if not (math.isfinite(dt) and dt >= 0):
             raise ValueError(f"dt must be a non-negative number of seconds, got {dt!r}")
+        if not self.params.odometry_bias.is_zero:  # the car's calibrated odometry error
+            twist = self.params.odometry_bias.unbiased(twist)
         scale = self.odometry_scale
         self.standstill.advance(scale.scaled(twist), dt)  # as the filter would move
         if self.standstill.slipping:

@@ -258,3 +258,16 @@ class OdometryBias:
         s = np.asarray(self.scale)
         o = np.asarray(self.offset)
         return (np.asarray(odom, dtype=np.float64) * (1.0 + s) + o).astype(np.float32)
+
+    @property
+    def is_zero(self) -> bool:
+        """Whether the bias changes nothing (scale and offset all zero)."""
+        return not any(self.scale) and not any(self.offset)
+
+    def unbiased(self, reported: np.ndarray) -> np.ndarray:
+        """The (3,) float64 twist [vx m/s, vy m/s, omega rad/s] that reads as ``reported`` (3,):
+        ``(reported - offset) / (1 + scale)``, the inverse of [apply][racecar_sim.sensors.scan_effects.OdometryBias.apply]
+        (a filter given a car's calibrated odometry). Needs every ``1 + scale`` > 0."""
+        return (np.asarray(reported, dtype=np.float64) - np.asarray(self.offset)) / (
+            1.0 + np.asarray(self.scale)
+        )

@@ -162,3 +162,44 @@ def test_a_filter_starts_from_the_initial_scale_given_in_a_mapping():
     before = pf.particles.copy()
     pf.predict(np.array([2.0, 0.0, 0.0]), 1.0)  # 2 m reported: 2.112 m moved
     assert np.allclose(pf.particles[:, 0] - before[:, 0], 2.112)
+
+
+@settings(deadline=None, max_examples=20)
+@given(
+    scale=st.tuples(*[st.floats(-0.3, 0.3)] * 3),
+    offset=st.tuples(*[st.floats(-0.2, 0.2)] * 3),
+    true=st.tuples(st.floats(-3, 3), st.floats(-0.5, 0.5), st.floats(-2, 2)),
+)
+def test_a_calibrated_bias_is_undone_before_the_filter_moves(scale, offset, true):
+    # odometry that reads true x (1 + scale) + offset (the simulator's OdometryBias) moves a
+    # filter given that calibration exactly as the true twist moves a filter given none
+    from racecar_sim.sensors.scan_effects import OdometryBias
+
+    bias = OdometryBias(scale=scale, offset=offset)
+    reported = bias.apply(np.array(true)).astype(np.float64)
+    assert np.allclose(bias.unbiased(reported), true, atol=1e-5)
+    occupied = np.zeros((200, 200), dtype=bool)
+    occupied[0, :] = occupied[-1, :] = occupied[:, 0] = occupied[:, -1] = True
+    grid = OccupancyMap(occupied, resolution=0.1)
+    moved = []
+    for given_bias, twist in ((bias, reported), (OdometryBias(), np.array(true))):
+        params = ParticleFilterParams(
+            n_particles=20, odometry_bias=given_bias, odometry_scale=OdometryScaleParams(learn=False)
+        )
+        pf = ParticleFilter(grid, motion_model=MotionModel(MotionModelParams(scheme="none")),
+                            params=params, rng=0)  # fmt: skip
+        pf.initialize(np.array([10.0, 10.0, 0.3]), (0.0, 0.0, 0.0))
+        pf.predict(twist, 0.5)
+        moved.append(pf.particles.copy())
+    assert np.allclose(moved[0], moved[1], atol=1e-4)
+
+
+def test_a_calibration_loads_from_a_mapping_and_nonsense_is_named():
+    params = from_mapping(ParticleFilterParams, {"odometry_bias": {
+        "scale": [-0.0529, 0.0, 0.1013], "offset": [-0.0287, -0.0131, 0.0432]}})  # fmt: skip
+    assert params.odometry_bias.scale == (-0.0529, 0.0, 0.1013)
+    assert ParticleFilterParams().odometry_bias.is_zero
+    with pytest.raises(ValueError, match=r"odometry_bias\.scale"):
+        ParticleFilterParams(odometry_bias={"scale": [-0.95, 0.0, 0.0]})
+    with pytest.raises(ValueError, match="odometry_bias"):
+        from_mapping(ParticleFilterParams, {"odometry_bias": {"offset": [1, 2]}})
