@@ -60,13 +60,13 @@ from mcl.experiments.metrics import DIVERGED_M
 from mcl.experiments.plots import plot_error_vs_time
 from mcl.experiments.runs import DRIVERS, RunSpec, run_one
 from mcl.experiments.video import FrameWriter
-from mcl.filter.motion_model import MotionModelParams
 from mcl.filter.params import DEFAULT_PARTICLES
 from mcl.io import DriveRecorder
 from mcl.io.bag_writer import LIVE_RATE, UNPACED_LIVE_RATE
 from mcl.io.live import LiveServer
 from mcl.wrappers.error_log import read_error_log
 from mcl.wrappers.hooks import StepHook, StepRecord
+from mcl.wrappers.localization import as_localization_config, dotted_settings
 from mcl.wrappers.single import LocalizationWrapper
 from racecar_sim.maps import DEFAULT_MAP
 from racecar_sim.render import CAR_COLOUR, ESTIMATE_COLOUR, PARTICLE_COLOUR, SCAN_COLOUR
@@ -139,6 +139,11 @@ def build_parser() -> Parser:
     )
     parser.add_argument("--env", action="append", default=[], metavar="NAME=VALUE", help=ENV_HELP)
     parser.add_argument(
+        "--filter", action="append", default=[], metavar="KEY=VALUE",
+        help="a filter setting other than the defaults (LocalizationConfig, dotted, YAML values; "
+        "repeatable), e.g. filter.odometry_scale.learn=false; the motion noise as motion.*",
+    )  # fmt: skip
+    parser.add_argument(
         "--filter-map",
         default=None,
         metavar="NAME|YAML",
@@ -189,16 +194,21 @@ def main(argv: list[str] | None = None) -> int:
         check_bag(parser, args.bag, out)
     live = check_live(parser, args.live, args.live_speed)
     try:
+        config = as_localization_config(dotted_settings(args.filter))
+    except (TypeError, ValueError) as exc:
+        parser.fail("--filter", str(exc))
+    try:
         spec = RunSpec(
             map=str(args.map),
             driver=args.driver,
-            motion=MotionModelParams(),
+            motion=config.motion,
             seed=args.seed,
             duration=args.duration,
             n_particles=args.particles,
             series="drive",
             env=env,
             filter_map=args.filter_map,
+            config=config,
         )
     except ValueError as exc:
         if "particles" in str(exc):

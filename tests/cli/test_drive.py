@@ -117,3 +117,27 @@ def test_frame_writer_rejects_bad_frames(tmp_path) -> None:
         writer.write(np.zeros((6, 4, 3), dtype=np.uint8))
     with pytest.raises(ValueError, match="fps"):
         FrameWriter(tmp_path / "x.mp4", fps=0)
+
+
+def test_filter_settings_reach_the_filter_and_bad_ones_are_one_line(tmp_path, capsys) -> None:
+    """``--filter KEY=VALUE``: a calibration that says the wheels read 1 m/s over the truth makes
+    the filter move its estimate 1 m/s slower than the car, so it falls behind; the defaults
+    track. A malformed or out-of-range setting is a one-line error naming the flag, no folder."""
+    base = ["--duration", "2", "--particles", "150", "--quiet", "--video-fps", "0"]
+    errors = {}
+    for name, extra in (("defaults", []),
+                        ("biased", ["--filter", "filter.odometry_bias.offset=[1.0, 0.0, 0.0]",
+                                    "--filter", "filter.odometry_scale.learn=false"])):  # fmt: skip
+        assert drive.main([*base, "--out", str(tmp_path / name), *extra]) == 0
+        errors[name] = read_error_log(tmp_path / name / "error_log.csv").position_error
+    capsys.readouterr()
+    assert errors["defaults"].max() < 0.5
+    assert errors["biased"].mean() > 3 * errors["defaults"].mean()
+    for bad, says in (("nonsense", "KEY=VALUE"), ("filter.odometry_scale.initial=5", "initial"),
+                      ("filter.no_such_setting=1", "no_such_setting")):  # fmt: skip
+        out = tmp_path / f"bad_{says}"
+        with pytest.raises(SystemExit) as exited:
+            drive.main([*base, "--out", str(out), "--filter", bad])
+        err = capsys.readouterr().err
+        assert exited.value.code == 2 and "--filter" in err and says in err
+        assert "Traceback" not in err and len(err.strip().splitlines()) == 1 and not out.exists()
