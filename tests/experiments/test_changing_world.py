@@ -19,9 +19,13 @@ from tests.skips import need_shared
 HONEST = (("noise_profile", "mit_racecar"), ("scene", "cluttered"))
 
 
-def _drive(tmp_path, config: LocalizationConfig, name: str) -> np.ndarray:
+def _drive(
+    tmp_path, config: LocalizationConfig, name: str, seed: int = 5, duration: float = 36.0,
+    env: tuple[tuple[str, str], ...] = HONEST,
+) -> np.ndarray:
+    """Position errors (metres) of a drive in the rebuilt basement, the filter on the old map."""
     world, stata = need_shared("maps/basement_fixed_aligned.yaml", "maps/stata_basement.yaml")
-    spec = RunSpec(map=str(world), filter_map=str(stata), seed=5, duration=36.0, env=HONEST,
+    spec = RunSpec(map=str(world), filter_map=str(stata), seed=seed, duration=duration, env=env,
                    motion=config.motion, config=config)  # fmt: skip
     run_one(spec, tmp_path / f"{name}.csv")
     return read_error_log(tmp_path / f"{name}.csv").position_error
@@ -48,7 +52,6 @@ def test_the_filter_stays_with_a_car_whose_wheels_spin_against_the_clutter(tmp_p
     """Clean seed 18 at 6-9 s: the wall follower pins the car (0.1 m/s) while the VESC reports
     1 m/s and a turn. Following the wheels turned the estimate away; the standstill check holds
     it (docs/localization_changing_world.md)."""
-    world, stata = need_shared("maps/basement_fixed_aligned.yaml", "maps/stata_basement.yaml")
     clean = (("noise_profile", "mit_racecar"), ("scene", "clean"))
     errors = {}
     for name, standstill in (("held", True), ("followed", False)):
@@ -57,10 +60,7 @@ def test_the_filter_stays_with_a_car_whose_wheels_spin_against_the_clutter(tmp_p
                 init_spread=(0.25, 0.25, 0.1), standstill=StandstillParams(enabled=standstill)
             )
         )
-        spec = RunSpec(map=str(world), filter_map=str(stata), seed=18, duration=14.0, env=clean,
-                       motion=config.motion, config=config)  # fmt: skip
-        run_one(spec, tmp_path / f"{name}.csv")
-        errors[name] = read_error_log(tmp_path / f"{name}.csv").position_error
+        errors[name] = _drive(tmp_path, config, name, seed=18, duration=14.0, env=clean)
     assert errors["followed"].max() > 1.0  # the drive is one where the wheels mislead
     assert errors["held"].max() < 0.6, errors["held"].max()
 
@@ -72,7 +72,6 @@ def test_a_calibrated_odometry_scale_keeps_a_drive_the_learned_scale_loses(tmp_p
     vx 5.3 % low and 0.029 m/s under, omega 10.1 % high), undone with the scale held, keeps it;
     so does the calibrated speed scale alone, 1 / 0.947 = 1.056, held
     (docs/localization_changing_world.md)."""
-    world, stata = need_shared("maps/basement_fixed_aligned.yaml", "maps/stata_basement.yaml")
     errors = {}
     calibration = OdometryBias(scale=(-0.0529, 0.0, 0.1013), offset=(-0.0287, -0.0131, 0.0432))
     held = OdometryScaleParams(learn=False)
@@ -86,10 +85,7 @@ def test_a_calibrated_odometry_scale_keeps_a_drive_the_learned_scale_loses(tmp_p
                 init_spread=(0.25, 0.25, 0.1), odometry_bias=bias, odometry_scale=scale
             )
         )
-        spec = RunSpec(map=str(world), filter_map=str(stata), seed=3, duration=22.0, env=HONEST,
-                       motion=config.motion, config=config)  # fmt: skip
-        run_one(spec, tmp_path / f"{name}.csv")
-        errors[name] = read_error_log(tmp_path / f"{name}.csv").position_error
+        errors[name] = _drive(tmp_path, config, name, seed=3, duration=22.0)
     assert errors["learned"].max() > 1.0  # the drive is one the learned scale loses
     assert errors["calibrated"].max() < 0.8, errors["calibrated"].max()
     assert errors["scale_only"].max() < 0.8, errors["scale_only"].max()
