@@ -33,7 +33,7 @@ import csv
 import statistics
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +48,7 @@ __all__ = [
     "LOST_SHARE",
     "WORLDS",
     "World",
+    "calibrated",
     "lost",
     "read_rows",
     "results_md",
@@ -117,6 +118,16 @@ def _drive(out: Path, world: str, seed: int, duration: float, maps: Path) -> Rec
     return drive
 
 
+def calibrated(drive: RecordedDrive, config: LocalizationConfig) -> RecordedDrive:
+    """``drive`` with its odometry as our filter's calibration (``config.filter.odometry_bias``)
+    undoes it, for amcl, which has no such setting: both filters get the same calibration; the
+    drive itself when the calibration is zero."""
+    bias = config.filter.odometry_bias
+    if bias.is_zero:
+        return drive
+    return replace(drive, odom=bias.unbiased(np.asarray(drive.odom, dtype=np.float64)))
+
+
 def run_benchmark(
     python: str,
     worlds: Sequence[str],
@@ -134,6 +145,8 @@ def run_benchmark(
     filter; ``rerun`` (names from [FILTERS][mcl.bench.amcl_bench.FILTERS]) first drops those
     filters' rows of ``worlds`` and seeds 0..``seeds``-1, so they run again on the recorded drives
     while the other filters' rows stay. amcl's subprocesses start only when an amcl row is missing.
+    A calibration in ``config`` (``filter.odometry_bias``) is given to amcl too
+    ([calibrated][mcl.bench.amcl_bench.calibrated]).
     """
     from mcl.bench.amcl_inputs import amcl_grid
     from mcl.bench.peer_amcl import NAV2_DEFAULTS, WITH_RECOVERY, AmclParams, AmclPeer
@@ -184,7 +197,7 @@ def run_benchmark(
                 drive = _drive(out, world, seed, duration, maps)
                 names = [n for n in todo if n in params]
                 for name in names:
-                    peer(name).submit(drive, seed, config.filter.init_spread)
+                    peer(name).submit(calibrated(drive, config), seed, config.filter.init_spread)
                 if "ours" in todo:
                     t0 = time.process_time()
                     ours = localize_recorded(drive, config, filter_map, seed)

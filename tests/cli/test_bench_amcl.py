@@ -350,3 +350,21 @@ def test_our_filter_settings_reach_the_benchmark_and_bad_ones_are_one_line(
         err = capsys.readouterr().err
         assert "--ours-filter" in err and says in err and "Traceback" not in err
         assert len(err.strip().splitlines()) == 1 and not fresh.exists()
+
+
+def test_amcl_gets_the_same_odometry_calibration_as_ours():
+    """A calibration in our config (filter.odometry_bias) is undone in the odometry amcl gets, so
+    both filters run on the same calibrated odometry; without one amcl gets the drive as recorded."""
+    from mcl.wrappers.localization import as_localization_config
+    from racecar_sim.sensors.scan_effects import OdometryBias
+
+    drive = record_drive("basement_loop", seed=1, duration=1.0)
+    assert amcl_bench.calibrated(drive, as_localization_config(None)) is drive
+    bias = {"scale": [-0.05, 0.0, 0.1], "offset": [-0.03, -0.01, 0.04]}
+    config = as_localization_config({"filter": {"odometry_bias": bias}})
+    given = amcl_bench.calibrated(drive, config)
+    # reading the calibrated odometry through the bias gives back what was recorded
+    np.testing.assert_allclose(OdometryBias(**bias).apply(given.odom), drive.odom, atol=1e-5)
+    assert not np.allclose(given.odom, drive.odom)
+    np.testing.assert_array_equal(given.scans, drive.scans)
+    np.testing.assert_array_equal(given.truth, drive.truth)
