@@ -20,7 +20,8 @@ A car whose odometry has been calibrated (``racecar-sim calibrate-noise`` measur
 speed bias from the car's own recordings: the MIT racecar's VESC reads 5.3 % slow, a scale of
 1 / (1 - 0.053) = 1.056) can start from that scale (``initial``) and hold it (``learn=False``):
 where the old map drags the estimate back along a corridor, the windows see it move less than
-the car and the learned scale follows the drag (``docs/localization_changing_world.md``).
+the car and the learned scale follows the drag (``docs/localization_changing_world.md``). The
+whole calibration (scale and offset of each of vx, vy, omega) goes in ``filter.odometry_bias``.
 
 Units: metres, radians, seconds; the scale is dimensionless (1 = trust the wheels).
 """
