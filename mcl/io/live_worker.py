@@ -33,6 +33,7 @@ import struct
 import sys
 import threading
 import time
+from typing import NoReturn
 
 HEADER = struct.Struct("<IHQ")
 """A message's frame header: payload bytes (u32), topic index (u16), log time in ns (u64)."""
@@ -209,10 +210,12 @@ def _config(fd: int) -> tuple[dict, bytearray]:
     return config, buffer[HEADER.size + n :]
 
 
-def hard_exit(code: int) -> None:
+def hard_exit(code: int) -> NoReturn:
     """End this process now with ``code``: the server's own threads (foxglove-sdk's) may never
-    stop, so a normal exit could wait on them forever. The one place the worker leaves this way."""
-    os._exit(code)
+    stop, so a normal exit could wait on them forever. The process image is replaced by a bare
+    interpreter that exits with ``code`` (``execv`` ends every other thread at once, runs no exit
+    handler and flushes nothing). The one place the worker leaves this way."""
+    os.execv(sys.executable, [sys.executable, "-S", "-c", f"raise SystemExit({int(code)})"])
 
 
 def _watch_parent(parent: int) -> None:
