@@ -294,7 +294,8 @@ class AmclPeer(PeerProcess):
         self._tmp = tempfile.TemporaryDirectory(prefix="amcl-peer-") if work is None else None
         self.work = Path(self._tmp.name if self._tmp else work)
         self.work.mkdir(parents=True, exist_ok=True)
-        self._grid_path = _new_file(self.work / f"grid_{os.getpid()}_{id(self)}.npz")
+        self._ours: set[Path] = set()  # the files this peer named fresh: the only ones it removes
+        self._grid_path = self._claim(self.work / f"grid_{os.getpid()}_{id(self)}.npz")
         origin_x, origin_y = grid.amcl_origin
         np.savez(self._grid_path, data=grid.data, resolution=grid.resolution,
                  origin_x=origin_x, origin_y=origin_y)  # fmt: skip
@@ -316,7 +317,7 @@ class AmclPeer(PeerProcess):
         self._count += 1
         stem = self.work / f"run_{os.getpid()}_{id(self)}_{self._count}"
         for made in (f"{stem}_in.npz", f"{stem}_out.npy"):  # ours to write, later to remove
-            _new_file(Path(made))
+            self._claim(Path(made))
         np.savez(f"{stem}_in.npz", ranges=ranges, odom=poses[at], range_max=drive.max_range,
                  mount_offset=drive.mount_offset, init_pose=drive.truth[0],
                  init_var=np.square(np.asarray(init_spread, dtype=np.float64)))  # fmt: skip
@@ -340,7 +341,7 @@ class AmclPeer(PeerProcess):
         """
         drive, poses, at, stem = self._pending.pop(0)
         msg = self.answer("done")
-        Path(f"{stem}_in.npz").unlink(missing_ok=True)
+        self._remove(Path(f"{stem}_in.npz"))
         if msg["done"] is None:
             raise RuntimeError(f"amcl failed: {msg.get('error')}")
         output = Path(f"{stem}_out.npy")  # the file this run asked for, and only that one
@@ -349,15 +350,34 @@ class AmclPeer(PeerProcess):
                 f"amcl answered with {msg['done']!r}, not the file asked for ({output})"
             )
         updates = np.load(output)
-        output.unlink(missing_ok=True)
+        self._remove(output)
         return localized_run(estimates_between(updates, at, poses), drive.truth), float(
             msg["cpu_s"]
         )
 
+    def _claim(self, path: Path) -> Path:
+        """``path``, a name this peer will write and later remove: refused if something is
+        already there (the peer removes only files it made)."""
+        if os.path.lexists(path):
+            raise FileExistsError(
+                f"amcl peer: {path} exists; it writes and removes only its own files"
+            )
+        self._ours.add(path)
+        return path
+
+    def _remove(self, path: Path) -> None:
+        """Remove ``path`` if this peer claimed it (and it is a file, not a link or folder put
+        there since); anything else stays."""
+        if path not in self._ours:
+            return
+        self._ours.discard(path)
+        if path.is_file() and not path.is_symlink():
+            path.unlink()
+
     def close(self) -> None:
         """Stop the subprocess and remove its files."""
         super().close()
-        self._grid_path.unlink(missing_ok=True)
+        self._remove(self._grid_path)
         if self._tmp is not None:
             self._tmp.cleanup()
 
@@ -373,9 +393,3 @@ def localize_with_amcl(python: str, grid: AmclGrid, drive: RecordedDrive, seed: 
         peer.close()
 
 
-def _new_file(path: Path) -> Path:
-    """``path``, a name this peer will write and later remove: refused if something is already
-    there (the peer removes only files it made)."""
-    if os.path.lexists(path):
-        raise FileExistsError(f"amcl peer: {path} exists; it writes and removes only its own files")
-    return path

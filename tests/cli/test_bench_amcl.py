@@ -368,3 +368,27 @@ def test_amcl_gets_the_same_odometry_calibration_as_ours():
     assert not np.allclose(given.odom, drive.odom)
     np.testing.assert_array_equal(given.scans, drive.scans)
     np.testing.assert_array_equal(given.truth, drive.truth)
+
+
+def test_the_peer_removes_only_the_files_it_made(tmp_path):
+    """A file of the user's where the peer would write its next run's input is refused before
+    anything is written and stays; a finished run's files and the grid are removed at the end,
+    and a user file beside them in the work folder is left alone."""
+    python = _amcl_or_skip()
+    grid = amcl_grid(resolve_map("basement_loop"))
+    drive = record_drive("basement_loop", seed=4, duration=2.0)
+    mine = tmp_path / "mine.txt"
+    mine.write_text("keep\n")
+    peer = peer_amcl.AmclPeer(python, grid, work=tmp_path)
+    try:
+        peer.submit(drive, 1)
+        peer.collect()
+        stem = f"run_{os.getpid()}_{id(peer)}_2"
+        planted = tmp_path / f"{stem}_in.npz"
+        planted.write_text("the user's\n")
+        with pytest.raises(FileExistsError, match="only its own files"):
+            peer.submit(drive, 1)
+    finally:
+        peer.close()
+    assert planted.read_text() == "the user's\n" and mine.read_text() == "keep\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["mine.txt", planted.name])
