@@ -194,9 +194,12 @@ def main(argv: list[str] | None = None) -> int:
         check_bag(parser, args.bag, out)
     live = check_live(parser, args.live, args.live_speed)
     try:
-        config = as_localization_config(dotted_settings(args.filter))
+        settings = dotted_settings(args.filter)
+        config = as_localization_config(settings)
     except (TypeError, ValueError) as exc:
         parser.fail("--filter", str(exc))
+    if "n_particles" in settings.get("filter", {}):  # --particles sets the count
+        parser.fail("--filter", "filter.n_particles: give the count with --particles")
     try:
         spec = RunSpec(
             map=str(args.map),

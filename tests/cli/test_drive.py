@@ -134,7 +134,8 @@ def test_filter_settings_reach_the_filter_and_bad_ones_are_one_line(tmp_path, ca
     assert errors["defaults"].max() < 0.5
     assert errors["biased"].mean() > 3 * errors["defaults"].mean()
     for bad, says in (("nonsense", "KEY=VALUE"), ("filter.odometry_scale.initial=5", "initial"),
-                      ("filter.no_such_setting=1", "no_such_setting")):  # fmt: skip
+                      ("filter.no_such_setting=1", "no_such_setting"),
+                      ("filter.n_particles=500", "--particles")):  # fmt: skip
         out = tmp_path / f"bad_{says}"
         with pytest.raises(SystemExit) as exited:
             drive.main([*base, "--out", str(out), "--filter", bad])
