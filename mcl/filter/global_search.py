@@ -101,7 +101,7 @@ class GlobalSearch:
             rng=int(pf.rng.integers(2**63 - 1)),
         )
         search.initialize_global()
-        search.odometry_scale.scale = pf.odometry_scale.scale
+        search.odometry_scale.take(pf.odometry_scale)
         self.filter = search
         self.fit_gap = math.nan
         self.converged_for = 0.0

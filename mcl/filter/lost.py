@@ -63,6 +63,7 @@ from mcl.filter.global_search import GlobalSearch
 from mcl.filter.lost_params import LostParams
 from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.scan_continuity import ScanContinuity, scan_bearings
+from mcl.filter.scan_fit import ScanFit, scan_agreement
 from mcl.filter.step_kernels import pose_moments
 from mcl.filter.uncertainty import largest_position_sd
 
@@ -71,36 +72,6 @@ __all__ = ["LostDetector", "scan_agreement"]
 _MIN_MISFIT = 0.02
 """The smallest usual misfit the relative test assumes (a perfect record would flag any beam)."""
 
-
-def scan_agreement(
-    expected: np.ndarray,
-    measured: np.ndarray,
-    tolerance: float,
-    max_range: float,
-    skip_short: bool = False,
-) -> float:
-    """Fraction of beams whose measured range (metres) lies within ``tolerance`` of the expected
-    one, both clipped to ``max_range`` (so a no-return agrees with a cast that finds no wall);
-    NaN when no beam counts.
-
-    Args:
-        expected: (K,) ranges cast in the filter's map (metres).
-        measured: (K,) measured ranges (metres; NaN/inf beams are left out).
-        tolerance: metres.
-        max_range: metres, the filter's range.
-        skip_short: leave out the beams that return more than ``tolerance`` short of the cast
-            (something the map lacks stands in front: they neither confirm nor refute the pose).
-    """
-    z = np.asarray(measured, dtype=np.float64)
-    ok = np.isfinite(z)
-    if not ok.any():
-        return math.nan
-    diff = np.minimum(z[ok], max_range) - np.minimum(
-        np.asarray(expected, dtype=np.float64)[ok], max_range
-    )
-    agree = np.abs(diff) <= tolerance
-    counted = agree.size - (int(np.count_nonzero(diff < -tolerance)) if skip_short else 0)
-    return float(np.count_nonzero(agree) / counted) if counted > 0 else math.nan
 
 
 class LostDetector:
@@ -144,10 +115,7 @@ class LostDetector:
         self._since_dip = math.inf  # seconds since the continuity last dipped under jump_below
         self._since_search = math.inf  # seconds since the search filter started
         self._scans: ScanContinuity | None = None  # built at the first scan (needs the lidar)
-        self._fit_beams: tuple[tuple[int, int], np.ndarray, np.ndarray] = (
-            (-1, -1),
-            *(np.zeros(0),) * 2,
-        )
+        self._scan_fit = ScanFit(self.params.beams, self.params.fit_tolerance, self.params.skip_short)
         self._odometry_fed = False
         p = self.params
         self.search = GlobalSearch(p.search_converged_sd, adopt_margin=p.burst_accept,
@@ -324,30 +292,4 @@ class LostDetector:
         """The scan fit (fraction of beams, module docstring) of ``scan`` (metres, the filter's
         beams) at the world pose ``estimate`` [x m, y m, theta rad], cast in ``pf``'s map with its
         sensor model; NaN when no beam counts."""
-        p = self.params
-        sm = pf.sensor_model
-        z = np.asarray(scan, dtype=np.float64).reshape(-1)
-        n = z.size
-        key, idx, angles = self._fit_beams
-        if key != (n, id(sm)):  # the beams compared, kept while the scan and model stay
-            idx = np.unique(np.floor(np.linspace(0, n - 1, min(p.beams, n)) + 0.5).astype(np.int64))
-            angles = scan_bearings(sm, n)[idx]
-            self._fit_beams = ((n, id(sm)), idx, angles)
-        z = z[idx]
-        lidar = sm.lidar_poses(estimate[None, :])[0]
-        max_range = float(sm.max_range)
-        if sm.caster is not None:
-            expected = sm.caster.cast(lidar, angles)[0]
-            return scan_agreement(expected, z, p.fit_tolerance, max_range, p.skip_short)
-        # likelihood field: no caster; a beam agrees when its end point lies within the
-        # tolerance of a wall on the filter's map (no-returns agree only with open space)
-        ok = np.isfinite(z)
-        if not ok.any():
-            return math.nan
-        z, angles = z[ok], angles[ok]
-        far = z >= max_range - p.fit_tolerance
-        ends = lidar[:2] + z[:, None] * np.column_stack(
-            [np.cos(lidar[2] + angles), np.sin(lidar[2] + angles)]
-        )
-        near_wall = pf.map.distance_at(ends) <= p.fit_tolerance
-        return float(np.mean(np.where(far, True, near_wall)))
+        return self._scan_fit.at(pf.sensor_model, pf.map, estimate, scan)

@@ -5,23 +5,35 @@ drives: ``docs/honest_noise.md``). Where the scan pins the car along its path th
 it; in a long corridor, and worse where the map is out of date, nothing does, and the estimate falls
 behind the car at the scale error times the speed (0.1 m/s at 2 m/s: a metre in ten seconds).
 
-[OdometryScale][mcl.filter.odometry_scale.OdometryScale] compares, over windows of ``window`` metres of
-odometry travel, how far the filter's estimate moved (world frame, expressed in the car frame at the
-window's start) with how far the raw odometry says the car moved, and moves its scale a fraction
-``gain`` of the way to the observed ratio, from the first window on (a first window that counted in
-full, taken where the estimate lagged, set the scale to its floor and kept it there: clean seed 14
-of the honest world's 20, 6.96 m mean error). The filter multiplies the forward speed by the scale before
-its motion model. Where the scan says nothing along the path the estimate follows the scaled
-odometry, the observed ratio equals the scale, and the scale stays what it learned where the scan did
-say something: it is a fixed point, not a drift. Windows taken while the cloud is spread (the
-estimate not trusted) or while the car turned more than it drove straight are not used.
+[OdometryScale][mcl.filter.odometry_scale.OdometryScale] learns the scale **between poses the scan
+confirms**: a pose is confirmed when the scan fit at the filter's estimate
+([`mcl.filter.scan_fit`][mcl.filter.scan_fit], the fraction of beams the filter's map explains,
+averaged over the last ``fit_scans`` corrected scans) is at least ``fit_gate`` and the cloud's
+position spread is at most ``max_spread``. From one confirmed pose to the next at least ``window``
+metres of odometry travel later (a *bridge*), it integrates the raw odometry's displacement along
+the estimate's heading (the heading is taken from the estimate at every corrected scan, so turns
+do not mix heading and speed errors) and compares it with the estimate's displacement: the
+bridge's ratio is their dot product over the odometry's squared length. The scale is the mean of
+the bridges' ratios weighted by their lengths, with ``initial`` counted as ``prior_metres`` of
+bridges; it is clipped to [``low``, ``high``]. The first ``settle_bridges`` bridges after a start
+(the cloud still settling on the car) are not used, nor bridges whose odometry displacement is
+under ``min_straightness`` of the path driven, nor, once ``max_bridge`` metres have passed without
+a confirmed pose, the bridge in progress (the next confirmed pose starts a new one).
+
+Why bridges between confirmed poses: where the map is out of date, the scan drags the estimate
+back along a corridor; a learner that compared every window (as this one did before) saw the
+estimate move 0.85-0.95 of the odometry there and followed the drag, which let the estimate fall
+further behind. The drag's poses fit the old map poorly (0.48-0.79 of the beams in the honest
+world's cluttered seed 9) and are not confirmed; a bridge over them ends where the scan confirms
+the car again, after the estimate has caught up. The weighted mean does not let one short bridge
+move the scale far (``docs/localization_changing_world.md``). Where the scan says nothing along the
+path the estimate follows the scaled odometry, the ratios equal the scale, and the scale stays.
 
 A car whose odometry has been calibrated (``racecar-sim calibrate-noise`` measures the wheels'
 speed bias from the car's own recordings: the MIT racecar's VESC reads 5.3 % slow, a scale of
-1 / (1 - 0.053) = 1.056) can start from that scale (``initial``) and hold it (``learn=False``):
-where the old map drags the estimate back along a corridor, the windows see it move less than
-the car and the learned scale follows the drag (``docs/localization_changing_world.md``). The
-whole calibration (scale and offset of each of vx, vy, omega) goes in ``filter.odometry_bias``.
+1 / (1 - 0.053) = 1.056) can start from that scale (``initial``) and hold it (``learn=False``).
+The whole calibration (scale and offset of each of vx, vy, omega) goes in
+``filter.odometry_bias``.
 
 Units: metres, radians, seconds; the scale is dimensionless (1 = trust the wheels).
 """
@@ -41,32 +53,46 @@ __all__ = ["OdometryScale", "OdometryScaleParams"]
 
 @dataclass(frozen=True)
 class OdometryScaleParams:
-    """Settings of the learned odometry speed scale.
+    """Settings of the learned odometry speed scale (module docstring).
 
     Attributes:
         enabled: apply the scale (False: the odometry is used as reported).
         initial: the scale at the start (dimensionless; 1 = trust the wheels, 1.056 = wheels that
             read 5.3 % slow), e.g. from a calibration of the car's odometry.
         learn: learn the scale online from the estimate (False: hold ``initial``).
-        window: metres of odometry travel per comparison.
-        gain: fraction of the way from the scale to a window's observed ratio taken per window.
+        window: metres of odometry travel a bridge spans at least.
+        max_bridge: metres of odometry travel after which a bridge with no confirmed pose at its
+            end is dropped.
+        prior_metres: metres of bridges that ``initial`` counts as in the weighted mean.
+        settle_bridges: bridges not used after a start (the cloud settling on the car).
+        fit_gate: a pose is confirmed when the mean scan fit (fraction of beams) at the
+            estimate over the last ``fit_scans`` corrected scans is at least this.
+        fit_scans: corrected scans the fit is averaged over.
+        fit_beams: beams of the scan the fit compares (evenly spaced).
+        fit_tolerance: metres; a beam agrees when its range is this close to the cast.
         low: smallest scale (the wheels over-report by at most 1 / low - 1).
         high: largest scale.
-        max_spread: metres; a window is used only when the cloud's position standard deviation
-            (square root of the covariance's xy trace) is below this at both its ends.
-        min_straightness: a window is used only when the straight-line odometry displacement is at
-            least this fraction of the path length (turns mix heading and speed errors).
+        max_spread: metres; a pose is confirmed only when the cloud's position standard
+            deviation (square root of the covariance's xy trace) is at most this.
+        min_straightness: a bridge is used only when its odometry displacement (along the
+            estimate's heading) is at least this fraction of the path driven.
     """
 
     enabled: bool = True
     initial: float = 1.0
     learn: bool = True
     window: float = 2.0
-    gain: float = 0.2
+    max_bridge: float = 40.0
+    prior_metres: float = 5.0
+    settle_bridges: int = 1
+    fit_gate: float = 0.85
+    fit_scans: int = 3
+    fit_beams: int = 100
+    fit_tolerance: float = 0.2
     low: float = 0.8
     high: float = 1.25
     max_spread: float = 0.3
-    min_straightness: float = 0.9
+    min_straightness: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("enabled", "learn"):
@@ -74,7 +100,16 @@ class OdometryScaleParams:
                 raise ValueError(
                     f"OdometryScaleParams.{name} = {short(getattr(self, name))} must be a bool"
                 )
-        for name in ("initial", "window", "gain", "low", "high", "max_spread", "min_straightness"):
+        for name in ("settle_bridges", "fit_scans", "fit_beams"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise ValueError(
+                    f"OdometryScaleParams.{name} = {short(value)} must be a whole number"
+                )
+        for name in (
+            "initial", "window", "max_bridge", "prior_metres", "fit_gate", "fit_tolerance",
+            "low", "high", "max_spread", "min_straightness",
+        ):  # fmt: skip
             value = getattr(self, name)
             if (
                 isinstance(value, bool)
@@ -86,8 +121,30 @@ class OdometryScaleParams:
                 )
             object.__setattr__(self, name, float(value))
         check_filter("OdometryScaleParams", "window", self.window, "odometry_scale.window")
-        if not 0.0 < self.gain <= 1.0:
-            raise ValueError(f"OdometryScaleParams.gain = {self.gain!r} must be in (0, 1]")
+        if self.max_bridge < self.window:
+            raise ValueError(
+                f"OdometryScaleParams.max_bridge = {self.max_bridge!r} must be at least window "
+                f"= {self.window!r}"
+            )
+        if self.prior_metres <= 0:
+            raise ValueError(
+                f"OdometryScaleParams.prior_metres = {self.prior_metres!r} must be > 0"
+            )
+        if self.settle_bridges < 0:
+            raise ValueError(
+                f"OdometryScaleParams.settle_bridges = {self.settle_bridges!r} must be >= 0"
+            )
+        if self.fit_scans < 1 or self.fit_beams < 1:
+            raise ValueError(
+                f"OdometryScaleParams: fit_scans = {self.fit_scans!r} and fit_beams = "
+                f"{self.fit_beams!r} must be >= 1"
+            )
+        if not 0.0 <= self.fit_gate <= 1.0:
+            raise ValueError(f"OdometryScaleParams.fit_gate = {self.fit_gate!r} must be in [0, 1]")
+        if self.fit_tolerance <= 0:
+            raise ValueError(
+                f"OdometryScaleParams.fit_tolerance = {self.fit_tolerance!r} must be > 0"
+            )
         if not 0.0 < self.low <= 1.0 <= self.high <= 10.0:
             raise ValueError(
                 f"OdometryScaleParams: low = {self.low!r} and high = {self.high!r} must satisfy "
@@ -109,23 +166,50 @@ class OdometryScaleParams:
 class OdometryScale:
     """The learned forward-speed scale of one filter (module docstring).
 
+    The filter calls [observe][mcl.filter.odometry_scale.OdometryScale.observe] with every step's
+    odometry and [confirm][mcl.filter.odometry_scale.OdometryScale.confirm] after every corrected
+    scan.
+
     Args:
         params: the settings.
+
+    Attributes:
+        scale: the scale in use (dimensionless).
+        bridges_used: bridges that moved the scale.
     """
 
     def __init__(self, params: OdometryScaleParams) -> None:
         self.params = params
         self.scale = params.initial
-        self.windows_used = 0
-        self._anchor: np.ndarray | None = None  # estimate [x, y, theta] at the window's start
-        self._odo = np.zeros(3)  # raw dead reckoning since the anchor, anchor frame
+        self.bridges_used = 0
+        self._weighted = params.prior_metres * params.initial  # sum of ratio x length, metres
+        self._metres = params.prior_metres  # sum of lengths, metres
+        self._fits: list[float] = []  # the last corrected scans' fits
+        self._anchor: np.ndarray | None = None  # estimate [x, y] where the bridge started
+        self._odometry = np.zeros(2)  # raw odometry displacement since the anchor, world frame
+        self._heading = 0.0  # radians, world: the estimate's at the last scan, then odometry's
         self._path = 0.0  # metres of raw odometry travel since the anchor
+        self._settling = params.settle_bridges
+
+    @property
+    def learning(self) -> bool:
+        """Whether the scale is learned (enabled and ``learn``)."""
+        return self.params.enabled and self.params.learn
 
     def restart(self) -> None:
-        """Forget the window in progress (a new episode, a global start); the scale is kept."""
+        """Forget the bridge in progress and the recent fits (a new episode, a global start, a
+        jump); the scale and what it learned are kept, and the next ``settle_bridges`` bridges
+        are not used."""
         self._anchor = None
-        self._odo[:] = 0.0
+        self._fits.clear()
+        self._odometry[:] = 0.0
         self._path = 0.0
+        self._settling = self.params.settle_bridges
+
+    def take(self, other: OdometryScale) -> None:
+        """Start from what ``other`` learned (its scale and weighted sums), e.g. a search filter
+        beside the filter."""
+        self.scale, self._weighted, self._metres = other.scale, other._weighted, other._metres
 
     def scaled(self, twist: np.ndarray) -> np.ndarray:
         """``twist`` [vx m/s, vy m/s, omega rad/s] with its forward speed times the scale."""
@@ -135,51 +219,58 @@ class OdometryScale:
         out[0] *= self.scale
         return out
 
-    def needs_estimate(self) -> bool:
-        """Whether the next [observe][mcl.filter.odometry_scale.OdometryScale.observe] needs the
-        filter's estimate and spread (at a window's start or end only)."""
-        p = self.params
-        return p.enabled and p.learn and (self._anchor is None or self._path >= p.window)
-
-    def observe(
-        self,
-        twist: np.ndarray,
-        dt: float,
-        estimate: np.ndarray | None = None,
-        spread: float = math.inf,
-    ) -> None:
-        """Account for one step of raw odometry ``twist`` held ``dt`` seconds, given (when
-        [needs_estimate][mcl.filter.odometry_scale.OdometryScale.needs_estimate]) the filter's estimate
-        (world [x m, y m, theta rad]) and position spread (metres) *before* the step."""
-        p = self.params
-        if not (p.enabled and p.learn):
+    def observe(self, twist: np.ndarray, dt: float) -> None:
+        """Account for one step of raw odometry ``twist`` [vx m/s, vy m/s, omega rad/s] (car
+        frame) held ``dt`` seconds."""
+        if self._anchor is None or not self.learning:
             return
-        if self.needs_estimate():
-            if estimate is None:
-                raise ValueError("OdometryScale.observe needs the estimate at a window's ends")
-            if self._anchor is not None and spread <= p.max_spread:
-                self._learn(np.asarray(estimate, dtype=np.float64))
-            self._anchor = np.array(estimate, dtype=np.float64) if spread <= p.max_spread else None
-            self._odo[:] = 0.0
-            self._path = 0.0
         vx, vy, omega = float(twist[0]), float(twist[1]), float(twist[2])
-        theta = self._odo[2] + 0.5 * omega * dt
+        theta = self._heading + 0.5 * omega * dt
         c, s = math.cos(theta), math.sin(theta)
-        self._odo[0] += (vx * c - vy * s) * dt
-        self._odo[1] += (vx * s + vy * c) * dt
-        self._odo[2] += omega * dt
+        self._odometry[0] += (vx * c - vy * s) * dt
+        self._odometry[1] += (vx * s + vy * c) * dt
+        self._heading += omega * dt
         self._path += math.hypot(vx, vy) * dt
+
+    def confirm(self, estimate: np.ndarray, spread: float, fit: float) -> None:
+        """After a corrected scan: the filter's ``estimate`` (world [x m, y m, theta rad]), its
+        position spread (metres) and the scan fit there (a fraction of beams,
+        [ScanFit][mcl.filter.scan_fit.ScanFit] with ``fit_beams`` and ``fit_tolerance``; NaN when
+        no beam counted); ends a bridge at a confirmed pose."""
+        if not self.learning:
+            return
+        p = self.params
+        self._fits.append(float(fit))
+        del self._fits[: -p.fit_scans]
+        fits = [f for f in self._fits if math.isfinite(f)]
+        confirmed = bool(fits) and sum(fits) / len(fits) >= p.fit_gate and spread <= p.max_spread
+        here = np.asarray(estimate, dtype=np.float64)
+        if self._anchor is not None and self._path >= p.window and confirmed:
+            self._learn(here)
+            self._start_bridge(here)
+        elif self._anchor is not None and self._path >= p.max_bridge:
+            self._anchor = None
+        elif self._anchor is None and confirmed:
+            self._start_bridge(here)
+        self._heading = float(here[2])
+
+    def _start_bridge(self, estimate: np.ndarray) -> None:
+        self._anchor = estimate[:2].copy()
+        self._odometry[:] = 0.0
+        self._path = 0.0
 
     def _learn(self, estimate: np.ndarray) -> None:
         assert self._anchor is not None
         p = self.params
-        chord = math.hypot(self._odo[0], self._odo[1])
-        if self._path <= 0 or chord < p.min_straightness * self._path:
+        length = math.hypot(self._odometry[0], self._odometry[1])
+        if self._settling > 0:
+            self._settling -= 1
             return
-        ax, ay, at = self._anchor
-        dx, dy = estimate[0] - ax, estimate[1] - ay
-        c, s = math.cos(at), math.sin(at)
-        moved = np.array([c * dx + s * dy, -s * dx + c * dy])  # the estimate's move, anchor frame
-        ratio = float(moved @ self._odo[:2]) / (chord * chord)
-        self.scale = min(p.high, max(p.low, self.scale + p.gain * (ratio - self.scale)))
-        self.windows_used += 1
+        if length <= 0 or length < p.min_straightness * self._path:
+            return
+        moved = estimate[:2] - self._anchor
+        ratio = float(moved @ self._odometry) / (length * length)
+        self._weighted += ratio * length
+        self._metres += length
+        self.scale = min(p.high, max(p.low, self._weighted / self._metres))
+        self.bridges_used += 1

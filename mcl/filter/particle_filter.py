@@ -44,6 +44,7 @@ from mcl.filter.params import ParticleFilterParams, spread_sd
 from mcl.filter.recovery import GlobalRecovery
 from mcl.filter.resampling import resample_particles
 from mcl.filter.scan_continuity import scan_bearings
+from mcl.filter.scan_fit import ScanFit
 from mcl.filter.sensor_model import SensorModel
 from mcl.filter.standstill import Standstill
 from mcl.filter.step_kernels import bayes_step
@@ -122,6 +123,8 @@ class ParticleFilter(Belief, GlobalRecovery):
         self._moved = [math.inf, math.inf]  # metres, radians of odometry since the last used scan
         self._global_count: int | None = None
         self.odometry_scale = OdometryScale(params.odometry_scale)
+        scale = params.odometry_scale
+        self._scale_fit = ScanFit(scale.fit_beams, scale.fit_tolerance, skip_short=True)
         self.standstill = Standstill(params.standstill)
         self.searching = False  # whether the last correction scored with the wide search hit
         self._search_motion: MotionModel | None = None
@@ -215,12 +218,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         self.standstill.advance(scale.scaled(twist), dt)  # as the filter would move
         if self.standstill.slipping:
             twist = self.standstill.scaled(twist)
-        if scale.needs_estimate() and self._particles is not None:
-            covariance = self.covariance()
-            spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
-            scale.observe(twist, dt, self.estimate(), spread)
-        else:
-            scale.observe(twist, dt)
+        scale.observe(twist, dt)
         self.move(twist_to_odometry(scale.scaled(twist).tolist(), dt))
 
     def move(self, odometry: np.ndarray) -> None:
@@ -355,13 +353,25 @@ class ParticleFilter(Belief, GlobalRecovery):
             self.update_weights(log_likelihood)
         if shrink_to is not None:  # a recovery burst: back to the cloud's count (or KLD's)
             self.resample(None if self.params.kld.enabled else shrink_to)
+            self._confirm_scale(scan)
             return True
         squash = float(self.sensor_model.params.squash_exponent)
         self.averages.update(self.last_log_mean_likelihood, int(n_beams), squash)
-        if self.needs_resampling():
+        resampled = self.needs_resampling()
+        if resampled:
             self.resample()
-            return True
-        return False
+        self._confirm_scale(scan)
+        return resampled
+
+    def _confirm_scale(self, scan: np.ndarray) -> None:
+        """Give the learned odometry scale the corrected estimate, its spread and the scan's fit
+        there (skip_short: beams short of the map are furniture, people, cars)."""
+        if self.odometry_scale.learning:
+            covariance = self.covariance()
+            spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
+            estimate = self.estimate()
+            fit = self._scale_fit.at(self.sensor_model, self.map, estimate, scan)
+            self.odometry_scale.confirm(estimate, spread, fit)
 
     def _check_standstill(self, scan: np.ndarray) -> None:
         """Give the scan to the standstill check (before the filter decides to use it)."""
