@@ -206,10 +206,17 @@ class OdometryScale:
         self._path = 0.0
         self._settling = self.params.settle_bridges
 
+    @property
+    def evidence(self) -> tuple[float, float]:
+        """What the scale was learned from: (sum of the bridges' ratios times their lengths,
+        sum of their lengths), both in metres, the initial scale's ``prior_metres`` included."""
+        return self._weighted, self._metres
+
     def take(self, other: OdometryScale) -> None:
-        """Start from what ``other`` learned (its scale and weighted sums), e.g. a search filter
-        beside the filter."""
-        self.scale, self._weighted, self._metres = other.scale, other._weighted, other._metres
+        """Start from what ``other`` learned (its scale and evidence), e.g. a search filter beside
+        the filter."""
+        self.scale = other.scale
+        self._weighted, self._metres = other.evidence
 
     def scaled(self, twist: np.ndarray) -> np.ndarray:
         """``twist`` [vx m/s, vy m/s, omega rad/s] with its forward speed times the scale."""
