@@ -8,9 +8,11 @@ true pose and the time, plus the lidar's geometry and the maps' paths, in a
 [save][mcl.experiments.recorded.RecordedDrive.save] / [load][mcl.experiments.recorded.RecordedDrive.load]).
 [localize_recorded][mcl.experiments.recorded.localize_recorded] feeds it through the same filter
 code as [LocalizationWrapper][mcl.wrappers.single.LocalizationWrapper]
-(``mcl.wrappers.localization.start_filter``, ``predict`` with the step's odometry,
-``mcl.wrappers.localization.correct_with_scan`` on a fresh scan): with the same seed it
-gives the online run's estimates bit for bit. A peer filter (nav2's amcl,
+(``mcl.wrappers.localization.start_filter``, ``predict`` with the step's odometry, the lost
+flag's [LostDetector][mcl.filter.lost.LostDetector] advanced by it,
+``mcl.wrappers.localization.correct_with_scan`` on a fresh scan, the detector observing it and
+asking for its recovery): with the same seed it gives the online run's estimates and lost flags
+bit for bit. A peer filter (nav2's amcl,
 ``mcl.bench.peer_amcl``) gets the very same drives.
 
 The drive does not depend on the filter: the wall follower steers by the scan and pure pursuit by
@@ -36,6 +38,7 @@ import numpy as np
 
 from mcl.experiments.run_bounds import check_duration
 from mcl.filter.angles import wrap_angle
+from mcl.filter.lost import LostDetector
 from mcl.filter.motion_model import MotionModel
 from mcl.filter.sensor_model import SensorModel
 from mcl.wrappers.localization import (
@@ -258,12 +261,15 @@ class LocalizedRun:
         position_error: (n+1,) metres from the true position.
         heading_error: (n+1,) radians, estimate minus truth wrapped to [-pi, pi).
         n_particles: (n+1,) particles after each step.
+        lost: (n+1,) bool, the filter's ``lost`` flag after each step (all False for a filter
+            without one, e.g. amcl).
     """
 
     estimate: np.ndarray
     position_error: np.ndarray
     heading_error: np.ndarray
     n_particles: np.ndarray
+    lost: np.ndarray
 
 
 def localize_recorded(
@@ -279,7 +285,9 @@ def localize_recorded(
     ``config.filter.init_spread``) or uniformly (``"global"``) with the generator
     ``mcl.wrappers.localization.filter_rng`` derives from ``seed``, is corrected by the reset's
     scan, then per step predicts with the odometry held for ``drive.dt`` and corrects on a fresh
-    scan. With the drive's seed the estimates equal the online run's bit for bit.
+    scan; the lost flag ([LostDetector][mcl.filter.lost.LostDetector], ``config.lost``) follows
+    every step and asks for its recovery as it does online. With the drive's seed the estimates
+    and the flags equal the online run's bit for bit.
 
     Args:
         drive: the recorded drive.
@@ -303,34 +311,42 @@ def localize_recorded(
         grid, config, _sensor_model(grid, config, drive), MotionModel(config.motion),
         filter_rng(seed), config.init, drive.truth[0], None,
     )  # fmt: skip
+    detector = LostDetector(config.lost)
     n = len(drive.time)
     estimate = np.empty((n, 3))
     counts = np.empty(n, dtype=np.int64)
+    lost = np.zeros(n, dtype=bool)
     scans, odom, fresh, dt = drive.scans, drive.odom, drive.fresh, drive.dt
     row = 0
-    correct_with_scan(pf, scans[0], drive.max_range)
-    estimate[0], counts[0] = pf.estimate(), pf.n_particles
+    correct_with_scan(pf, scans[0], drive.max_range, detector)
+    estimate[0], counts[0], lost[0] = pf.estimate(), pf.n_particles, detector.lost
     for k in range(1, n):
         pf.predict(np.asarray(odom[k], dtype=np.float64), dt)
+        detector.advance(dt, odom[k])
         if fresh[k]:
             row += 1
-            correct_with_scan(pf, scans[row], drive.max_range)
-        estimate[k], counts[k] = pf.estimate(), pf.n_particles
-    return localized_run(estimate, drive.truth, counts)
+            correct_with_scan(pf, scans[row], drive.max_range, detector)
+        estimate[k], counts[k], lost[k] = pf.estimate(), pf.n_particles, detector.lost
+    return localized_run(estimate, drive.truth, counts, lost)
 
 
 def localized_run(
-    estimate: np.ndarray, truth: np.ndarray, n_particles: np.ndarray | None = None
+    estimate: np.ndarray,
+    truth: np.ndarray,
+    n_particles: np.ndarray | None = None,
+    lost: np.ndarray | None = None,
 ) -> LocalizedRun:
     """A [LocalizedRun][mcl.experiments.recorded.LocalizedRun] of estimates (n, 3) against the
-    truth (n, 3), errors as ``mcl.wrappers.localization.pose_error`` takes them (vectorised)."""
+    truth (n, 3), errors as ``mcl.wrappers.localization.pose_error`` takes them (vectorised);
+    ``n_particles`` -1 and ``lost`` False where not given."""
     estimate = np.asarray(estimate, dtype=np.float64)
     truth = np.asarray(truth, dtype=np.float64)
     position = np.hypot(estimate[:, 0] - truth[:, 0], estimate[:, 1] - truth[:, 1])
     heading = wrap_angle(estimate[:, 2] - truth[:, 2])
     if n_particles is None:
         n_particles = np.full(len(estimate), -1, dtype=np.int64)
-    return LocalizedRun(estimate, position, heading, np.asarray(n_particles))
+    lost = np.zeros(len(estimate), dtype=bool) if lost is None else np.asarray(lost, dtype=bool)
+    return LocalizedRun(estimate, position, heading, np.asarray(n_particles), lost)
 
 
 @lru_cache(maxsize=4)

@@ -1,5 +1,6 @@
 """Recorded drives: a replay through localize_recorded is the online LocalizationWrapper run bit
-for bit, and a drive survives save/load unchanged."""
+for bit (estimates and lost flags, the flag's recovery included), and a drive survives save/load
+unchanged."""
 
 from __future__ import annotations
 
@@ -8,52 +9,67 @@ import pytest
 
 from mcl.experiments.recorded import RecordedDrive, localize_recorded, record_drive
 from mcl.experiments.runs import make_driver
-from mcl.wrappers.localization import LocalizationConfig
+from mcl.wrappers.localization import LocalizationConfig, as_localization_config
 from mcl.wrappers.single import LocalizationWrapper
 from racecar_sim.env import RacecarEnv
 from racecar_sim.maps import resolve_map
 
 CONFIG = LocalizationConfig().with_particles(300)
+# a flag that asks for 99 % of the beams: in the cluttered honest world it goes up at once, and
+# bursts of uniform poses search the map (drawn from the filter's own generator)
+SEARCHING = as_localization_config({
+    "filter": {"n_particles": 300},
+    "lost": {"raise_below": 0.99, "clear_above": 0.995, "raise_after_s": 0.0, "recover": True},
+})  # fmt: skip
+HONEST = {"noise_profile": "mit_racecar", "scene": "cluttered", "lidar_rate": 20.0}  # scans every other step
 
 
-def _online(world: str, seed: int, steps: int, env: dict, filter_map: str | None = None):
-    """Position errors and estimates of a LocalizationWrapper run as run_one drives it."""
+def _online(world: str, seed: int, steps: int, env: dict, config: LocalizationConfig,
+            filter_map: str | None = None):  # fmt: skip
+    """Position errors, estimates and lost flags of a LocalizationWrapper run as run_one drives it."""
     sim = RacecarEnv(resolve_map(world), terminate_on_collision=False, **env)
-    wrapped = LocalizationWrapper(sim, CONFIG, filter_map=filter_map)
+    wrapped = LocalizationWrapper(sim, config, filter_map=filter_map)
     driver = make_driver("wall", sim, seed)
     obs, info = wrapped.reset(seed=seed)
     errors, estimates = [info["localization"]["position_error"]], [obs["pose_estimate"]]
+    lost = [info["localization"]["lost"]]
     for _ in range(steps):
         obs, _, _, _, info = wrapped.step(driver(obs, info))
         errors.append(info["localization"]["position_error"])
         estimates.append(obs["pose_estimate"])
+        lost.append(info["localization"]["lost"])
     wrapped.close()
-    return np.array(errors), np.stack(estimates)
+    return np.array(errors), np.stack(estimates), np.array(lost)
 
 
 @pytest.mark.parametrize(
-    "env",
+    ("env", "config", "filter_map"),
     [
-        {},  # ideal sensors, a scan every step
-        {"noise_profile": "mit_racecar", "scene": "cluttered", "lidar_rate": 20.0},  # every other
+        ({}, CONFIG, None),  # ideal sensors, a scan every step
+        (HONEST, CONFIG, None),
+        (HONEST, SEARCHING, None),
     ],
-    ids=["ideal", "honest-20Hz"],
+    ids=["ideal", "honest-20Hz", "lost-and-searching"],
 )
-def test_replay_is_the_online_wrapper_bit_for_bit(env):
+def test_replay_is_the_online_wrapper_bit_for_bit(env, config, filter_map):
     seed, steps = 3, 60
-    errors, estimates = _online("basement_loop", seed, steps, env)
+    errors, estimates, lost = _online("basement_loop", seed, steps, env, config, filter_map)
     drive = record_drive(
-        "basement_loop", seed=seed, duration=steps * 0.025,
+        "basement_loop", seed=seed, duration=steps * 0.025, filter_map=filter_map,
         noise_profile=env.get("noise_profile"), scene=env.get("scene"),
         env={k: v for k, v in env.items() if k not in ("noise_profile", "scene")},
     )  # fmt: skip
     assert drive.n_steps == steps
     if "lidar_rate" in env:  # the replay must skip the steps without a fresh scan
         assert 0 < np.count_nonzero(drive.fresh) < len(drive.fresh)
-    run = localize_recorded(drive, CONFIG)
+    run = localize_recorded(drive, config)
     np.testing.assert_array_equal(run.position_error, errors)
     np.testing.assert_array_equal(run.estimate, estimates)
-    assert errors[-1] < 0.5  # a filter that tracks, not two equal failures
+    np.testing.assert_array_equal(run.lost, lost)
+    if config is CONFIG:
+        assert errors[-1] < 0.5 and not lost.any()  # a filter that tracks, not two equal failures
+    else:  # the flag and its search ran: the replay must have run them too
+        assert lost.any()
 
 
 def test_replay_seed_changes_the_filter_not_the_drive():
