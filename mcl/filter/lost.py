@@ -43,6 +43,14 @@ is resampled back to its count. The cloud is kept, and the burst's outcome is ke
 scan fits the new estimate better (``burst_accept``) than the cloud's before the burst, so a false
 alarm costs time, not the track.
 
+Local bursts (``local_below``): while the averaged fit is under ``local_below`` without a jump
+(the estimate explains almost none of the scan: a car the cloud lost nearby), every
+``burst_every_s`` seconds ``local_particles`` poses drawn around the estimate (``local_sd``
+metres, ``local_heading_sd`` radians) are weighed with the cloud
+([ParticleFilter.request_local_burst][mcl.filter.particle_filter.ParticleFilter.request_local_burst]);
+the outcome is kept only when the scan fits it better by ``burst_accept``, at least
+``clear_above`` and at least the car's usual fit (the reference), else the cloud is restored.
+
 The search filter (``search_filter``; [`mcl.filter.global_search`][mcl.filter.global_search]): a
 jump, or a dip of the continuity the fit did not confirm (the old estimate has a look-alike), starts
 a global start of its own beside the filter for up to ``jump_search_s``; once settled, the filter
@@ -114,6 +122,8 @@ class LostDetector:
         self._found_fit = 0.0  # the averaged fit at which a jumped car counts as found
         self._since_dip = math.inf  # seconds since the continuity last dipped under jump_below
         self._since_search = math.inf  # seconds since the search filter started
+        self._since_local = math.inf  # seconds since the last local burst
+        self._local_burst = False  # the burst asked for is a local one
         self._scans: ScanContinuity | None = None  # built at the first scan (needs the lidar)
         self._scan_fit = ScanFit(self.params.beams, self.params.fit_tolerance, self.params.skip_short)
         self._odometry_fed = False
@@ -133,6 +143,7 @@ class LostDetector:
         self._since_jump += dt
         self._since_dip += dt
         self._since_search += dt
+        self._since_local += dt
         if odometry is not None and self._scans is not None:
             twist = np.asarray(odometry, dtype=np.float64)
             self._scans.advance(twist, dt)
@@ -149,8 +160,15 @@ class LostDetector:
         fit = self.fit_at(pf, estimate, scan)
         prior = pf.burst_prior
         if prior is not None:  # a burst: keep its winner only when the scan fits it better
+            local, self._local_burst = self._local_burst, False
             before = self.fit_at(pf, pose_moments(prior[0], prior[1], False)[0], scan)
-            if not fit >= before + p.burst_accept:
+            # a local burst's place must also fit as well as the car usually fits (the old map
+            # may be wrong all round a car it holds, and a place nearby explain more of the scan)
+            need = before + p.burst_accept
+            if local:
+                usual = self.reference_fit if math.isfinite(self.reference_fit) else 0.0
+                need = max(need, p.clear_above, usual)
+            if not fit >= need:
                 pf.undo_burst()
                 estimate = pf.estimate()
                 fit = self.fit_at(pf, estimate, scan)
@@ -224,6 +242,12 @@ class LostDetector:
             if not searching:
                 self._since_burst = math.inf  # the next loss bursts at once
             pf.request_recovery(p.inject_share if searching else 0.0, burst)
+        # the estimate explains almost none of the scan: look for the car around it
+        deep = math.isfinite(s) and s < p.local_below and not (self.jumped or searching)
+        if deep and self._since_local >= p.burst_every_s and p.local_particles > 0:
+            pf.request_local_burst(p.local_particles, p.local_sd, p.local_heading_sd)
+            self._since_local = 0.0
+            self._local_burst = True
         return self.lost
 
     def _search(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> bool:

@@ -76,6 +76,14 @@ class LostParams:
         search_adopt_s: seconds; the filter takes the search's cloud when the search's scan fit
             beats its own by ``burst_accept`` on average over this long (exponential time
             constant), converged at least this long.
+        local_below: while the averaged fit is under this fraction (the estimate explains almost
+            none of the scan), every ``burst_every_s`` a burst of poses around the estimate is
+            weighed with the cloud and kept only when the scan fits its outcome better by
+            ``burst_accept``, at least ``clear_above`` and at least the car's usual fit (the
+            reference) (0: never).
+        local_particles: poses of one such local burst.
+        local_sd: metres; their position standard deviation around the estimate (each axis).
+        local_heading_sd: radians; their heading standard deviation.
     """
 
     enabled: bool = True
@@ -105,6 +113,10 @@ class LostParams:
     search_on_lost: bool = False
     search_converged_sd: float = 0.5
     search_adopt_s: float = 1.0
+    local_below: float = 0.25
+    local_particles: int = 2000
+    local_sd: float = 1.5
+    local_heading_sd: float = 0.3
 
     def __post_init__(self) -> None:
         for name in (
@@ -119,7 +131,7 @@ class LostParams:
                 raise ValueError(
                     f"LostParams.{name} = {short(getattr(self, name))} must be true or false"
                 )
-        for name in ("beams", "burst_max"):
+        for name in ("beams", "burst_max", "local_particles"):
             v = getattr(self, name)
             low = 1 if name == "beams" else 0
             if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
@@ -148,6 +160,8 @@ class LostParams:
             "burst_density": (0.0, 10_000.0, "particles per m²"),
             "search_converged_sd": (0.0, 100.0, "metres"),
             "search_adopt_s": (0.0, 600.0, "seconds"),
+            "local_sd": (0.0, 100.0, "metres"),
+            "local_heading_sd": (0.0, 10.0, "radians"),
         }
         for name, (low, high, unit) in checks.items():
             v = number(name)
@@ -161,6 +175,7 @@ class LostParams:
             "burst_accept",
             "jump_below",
             "jump_found_within",
+            "local_below",
         ):
             if not 0.0 <= number(name) <= 1.0:
                 raise ValueError(

@@ -116,6 +116,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         self.n_injected = 0
         self.last_injected = 0
         self.pending_random = 0
+        self.pending_local = np.empty((0, 3))  # poses of a local burst that join at the next correction
         self.n_skipped = 0
         self.recovery_share = 0.0
         self._shrink_to: int | None = None  # the count to resample back to after a burst
@@ -193,6 +194,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         `initialize_global()` do after placing the particles; subclasses extend it."""
         self.averages.reset()
         self.pending_random = 0
+        self.pending_local = np.empty((0, 3))
         self.recovery_share, self._shrink_to, self._before_burst = 0.0, None, None
         self._moved = [math.inf, math.inf]
         self.odometry_scale.restart()

@@ -46,6 +46,7 @@ class GlobalRecovery:
     rng: np.random.Generator
     sensor_model: Any
     pending_random: int
+    pending_local: np.ndarray
     last_injected: int
     n_injected: int
     recovery_share: float
@@ -101,17 +102,20 @@ class GlobalRecovery:
         )
 
     def _join_pending_random(self) -> None:
-        """Add the random particles kept aside by `resample()`, each with the mean weight."""
-        k = self.pending_random
+        """Add the random particles kept aside by `resample()` and the poses of a local burst
+        (`request_local_burst()`), each with the mean weight."""
+        local = self.pending_local
+        k = self.pending_random + local.shape[0]
         if k <= 0:
             return
         particles, weights = self._require()
         n = particles.shape[0]
         total = n + k
-        new = self.random_free_poses(k)
+        new = np.concatenate([self.random_free_poses(self.pending_random), local])
         w = np.concatenate([weights * (n / total), np.full(k, 1.0 / total)])
         self.set_particles(np.concatenate([particles, new]), w)
         self.pending_random = 0
+        self.pending_local = np.empty((0, 3))
         self.last_injected = k
         self.n_injected += k
 
@@ -142,6 +146,22 @@ class GlobalRecovery:
             if self._shrink_to is None:  # the count the next correction would have had
                 self._shrink_to = self.n_particles + self.pending_random
             self.pending_random += int(burst)
+
+    def request_local_burst(self, n: int, position_sd: float, heading_sd: float) -> None:
+        """A burst of ``n`` poses around the current estimate (Gaussian: ``position_sd`` metres
+        on each axis, ``heading_sd`` radians, from the filter's generator) that join the cloud
+        at the next correction and are weighed with it, after which the cloud is resampled back
+        to its present count, as a burst of `request_recovery()`; `undo_burst()` takes it back."""
+        if n <= 0:
+            return
+        centre = self.estimate()
+        poses = centre + self.rng.standard_normal((int(n), 3)) * np.array(
+            [position_sd, position_sd, heading_sd]
+        )
+        poses[:, 2] = (poses[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
+        if self._shrink_to is None:
+            self._shrink_to = self.n_particles + self.pending_random
+        self.pending_local = np.concatenate([self.pending_local, poses])
 
     @property
     def burst_prior(self) -> tuple[np.ndarray, np.ndarray] | None:

@@ -156,7 +156,10 @@ def test_with_the_search_filter_a_kidnapped_car_stays_found_where_a_burst_alone_
     found = t[(t > at + 1e-9) & (err < 0.5)]
     assert found.size and found[0] - at <= 2.0
     assert (err[t >= found[0] + 1.0] < 0.5).all()
-    t, err, _, _ = _drive(at + 15.0, at, seed=4, config={"lost": {"search_filter": False}})
+    # the control: the global bursts alone (no search filter, no local bursts, which also find
+    # the car here, 0.45 m at the end)
+    alone = {"lost": {"search_filter": False, "local_below": 0.0}}
+    t, err, _, _ = _drive(at + 15.0, at, seed=4, config=alone)
     assert err[-1] > 5.0
 
 
@@ -238,3 +241,78 @@ def test_a_log_written_before_the_lost_column_reads_as_never_lost(tmp_path) -> N
     path.write_text(",".join(HEADER[:-1]) + "\n1,0.025,0,0,0,0,0,0,0,0,1500,0.001\n")
     log = read_error_log(path)
     assert len(log) == 1 and log.lost.tolist() == [False]
+
+
+# ---------------------------------------------------------------------- local bursts
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("local_below", 1.5), ("local_below", -0.1), ("local_particles", -1), ("local_particles", 0.5),
+     ("local_sd", 0.0), ("local_heading_sd", math.inf)],
+)  # fmt: skip
+def test_local_burst_settings_refuse_bad_values_naming_the_field(field: str, value: object) -> None:
+    with pytest.raises(ValueError, match=rf"LostParams\.{field}"):
+        LostParams(**{field: value})
+
+
+def _cloud_at(env: RacecarEnv, pose: np.ndarray, n: int = 500):
+    """A filter on ``env``'s map whose cloud sits tightly on ``pose`` [x m, y m, theta rad]."""
+    from mcl.filter.particle_filter import ParticleFilter
+    from mcl.filter.sensor_model import SensorModel
+
+    pf = ParticleFilter(env.map, n, sensor_model=SensorModel(env.map), rng=7)
+    pf.initialize(pose, (0.02, 0.02, 0.01))
+    return pf
+
+
+def test_a_local_burst_joins_the_next_correction_and_shrinks_back_or_is_undone() -> None:
+    env = RacecarEnv("basement_loop", terminate_on_collision=False)
+    obs, info = env.reset(seed=1)
+    truth = np.asarray(info["pose"], dtype=np.float64)
+    scan = np.asarray(obs["scan"], dtype=np.float64)
+    wrong = truth + np.array([1.0, -0.6, 0.3])  # the cloud's place: 1.2 m and 17 degrees off
+    control = _cloud_at(env, wrong)
+    control.correct(scan)
+    assert np.hypot(*(control.estimate()[:2] - truth[:2])) > 0.8  # the cloud alone stays there
+    pf = _cloud_at(env, wrong)
+    pf.request_local_burst(3000, 1.5, 0.3)
+    assert pf.n_particles == 500  # nothing joins before the scan
+    pf.correct(scan)
+    assert pf.n_particles == 500  # weighed with the cloud, then resampled back to its count
+    prior = pf.burst_prior
+    assert prior is not None and prior[0].shape[0] == 500
+    assert np.hypot(*(pf.estimate()[:2] - truth[:2])) < 0.3  # the burst held the car's pose
+    pf.undo_burst()
+    assert pf.n_particles == 500 and np.hypot(*(pf.estimate()[:2] - wrong[:2])) < 0.1
+
+
+def test_local_bursts_find_a_car_the_cloud_lost_nearby_without_any_jump() -> None:
+    """The cloud is moved 1.7 m and 0.5 rad off (no jump of the scans: the car itself does not
+    move): the fit falls under local_below and bursts around the estimate find the car; with
+    them off the filter settles on a wrong place (smaller moves, 1-1.4 m, the scan alone puts
+    right, or the cloud settles on a look-alike the scan fits as well as the car's place)."""
+
+    def run(lost: dict) -> tuple[np.ndarray, np.ndarray]:
+        env = RacecarEnv("basement_loop", terminate_on_collision=False)
+        driver = WallFollower.for_env(env)
+        wrapper = LocalizationWrapper(env, {"lost": lost})
+        obs, info = wrapper.reset(seed=5)
+        errors, flags = [], []
+        for k in range(1, round(10.0 / DT) + 1):
+            if k == round(4.0 / DT):
+                pf = wrapper.filter
+                assert pf is not None
+                off = pf.estimate() + np.array([-1.5, 0.8, 0.5])
+                pf.set_particles(np.tile(off, (pf.n_particles, 1)))
+            obs, _, _, _, info = wrapper.step(driver(obs))
+            errors.append(info["localization"]["position_error"])
+            flags.append(info["localization"]["lost"])
+        wrapper.close()
+        return np.array(errors), np.array(flags)
+
+    moved = round(4.0 / DT) - 1  # index of the first step after the move
+    err, lost = run({})
+    assert err[moved] > 1.0
+    assert (err[moved + round(3.0 / DT):] < 0.3).all()  # found within 3 s and kept
+    assert not lost[-1]
+    err, lost = run({"local_below": 0.0})
+    assert (err[moved + round(3.0 / DT):] > 1.0).all()
