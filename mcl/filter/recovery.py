@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from mcl.filter.angles import wrap_angle
 from mcl.filter.kld import kld_count
 from mcl.filter.params import ParticleFilterParams
 from racecar_sim.maps import OccupancyMap
@@ -158,7 +159,7 @@ class GlobalRecovery:
         poses = centre + self.rng.standard_normal((int(n), 3)) * np.array(
             [position_sd, position_sd, heading_sd]
         )
-        poses[:, 2] = (poses[:, 2] + math.pi) % (2.0 * math.pi) - math.pi
+        poses[:, 2] = wrap_angle(poses[:, 2])
         if self._shrink_to is None:
             self._shrink_to = self.n_particles + self.pending_random
         self.pending_local = np.concatenate([self.pending_local, poses])
