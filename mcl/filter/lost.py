@@ -126,6 +126,7 @@ class LostDetector:
         self._local_burst = False  # the burst asked for is a local one
         self._scans: ScanContinuity | None = None  # built at the first scan (needs the lidar)
         self._scan_fit = ScanFit(self.params.beams, self.params.fit_tolerance, self.params.skip_short)
+        self._lidar_range: float | None = None  # metres the lidar sees (observe's argument)
         self._odometry_fed = False
         p = self.params
         self.search = GlobalSearch(p.search_converged_sd, adopt_margin=p.burst_accept,
@@ -150,12 +151,16 @@ class LostDetector:
             self._odometry_fed = True
             self.search.predict(twist, dt)
 
-    def observe(self, pf: ParticleFilter, scan: np.ndarray) -> bool:
+    def observe(
+        self, pf: ParticleFilter, scan: np.ndarray, lidar_range: float | None = None
+    ) -> bool:
         """Measure the fit of ``scan`` (metres, the filter's beams) at ``pf``'s estimate, update
-        the flag, ask ``pf`` for recovery while lost; returns the flag."""
+        the flag, ask ``pf`` for recovery while lost; returns the flag. ``lidar_range``: metres
+        the lidar sees (its no-returns say no wall within it; None: the sensor model's range)."""
         p = self.params
         if not p.enabled:
             return False
+        self._lidar_range = lidar_range
         estimate = pf.estimate()
         fit = self.fit_at(pf, estimate, scan)
         prior = pf.burst_prior
@@ -316,4 +321,4 @@ class LostDetector:
         """The scan fit (fraction of beams, module docstring) of ``scan`` (metres, the filter's
         beams) at the world pose ``estimate`` [x m, y m, theta rad], cast in ``pf``'s map with its
         sensor model; NaN when no beam counts."""
-        return self._scan_fit.at(pf.sensor_model, pf.map, estimate, scan)
+        return self._scan_fit.at(pf.sensor_model, pf.map, estimate, scan, self._lidar_range)

@@ -2,8 +2,8 @@
 
 A count of beams, not a likelihood, so it does not depend on the sensor model's tempering or its
 ``sigma_hit``: a beam agrees when its measured range lies within a tolerance of the range cast in
-the *filter's* map from the pose's lidar (beams at or beyond the filter's range agree with a cast
-that finds no wall within it). One cast of a few evenly spaced beams from one pose: tens of
+the *filter's* map from the pose's lidar (beams at or beyond the filter's range, or the lidar's
+when it sees less, agree with a cast that finds no wall within it). One cast of a few evenly spaced beams from one pose: tens of
 microseconds per scan. Beams that return short of the cast (something the map lacks stands in
 front) may be left out: they neither confirm nor refute the pose. Used by the ``lost`` flag
 ([`mcl.filter.lost`][mcl.filter.lost]) and by the learned odometry scale
@@ -76,12 +76,19 @@ class ScanFit:
         self._angles = np.zeros(0)
 
     def at(
-        self, sensor_model: Any, grid: OccupancyMap, pose: np.ndarray, scan: np.ndarray
+        self,
+        sensor_model: Any,
+        grid: OccupancyMap,
+        pose: np.ndarray,
+        scan: np.ndarray,
+        lidar_range: float | None = None,
     ) -> float:
         """The fit of ``scan`` (metres, the sensor model's beams) at the world pose ``pose``
         [x m, y m, theta rad], cast in ``grid`` (the filter's map) with ``sensor_model``'s caster
         (the distance to the nearest wall at the beam end points for the likelihood field, which
-        has no caster); NaN when no beam counts."""
+        has no caster); NaN when no beam counts. ``lidar_range``: metres the lidar sees, when
+        shorter than the sensor model's range: ranges and casts are clipped to it, so a no-return
+        agrees with a cast that finds no wall within the lidar's reach (None: the model's range)."""
         z = np.asarray(scan, dtype=np.float64).reshape(-1)
         n = z.size
         if self._key != (n, id(sensor_model)):
@@ -93,6 +100,8 @@ class ScanFit:
         z, angles = z[self._index], self._angles
         lidar = sensor_model.lidar_poses(np.asarray(pose, dtype=np.float64)[None, :])[0]
         max_range = float(sensor_model.max_range)
+        if lidar_range is not None:
+            max_range = min(max_range, float(lidar_range))
         tol = self.tolerance
         if sensor_model.caster is not None:
             expected = sensor_model.caster.cast(lidar, angles)[0]

@@ -214,7 +214,7 @@ def correct_with_scan(
     skipped = pf.n_skipped
     pf.correct(z)  # inject (augmented MCL), weigh, resample (KLD count) when needed
     if detector is not None:
-        detector.observe(pf, z)
+        detector.observe(pf, z, lidar_max_range)
     if pf.n_skipped != skipped:  # the filter waits for more motion (update_min_distance)
         return pf.effective_sample_size
     return pf.last_effective_sample_size

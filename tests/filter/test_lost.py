@@ -316,3 +316,24 @@ def test_local_bursts_find_a_car_the_cloud_lost_nearby_without_any_jump() -> Non
     assert not lost[-1]
     err, lost = run({"local_below": 0.0})
     assert (err[moved + round(3.0 / DT):] > 1.0).all()
+
+
+def test_a_lidar_shorter_than_the_sensor_model_keeps_the_fit_and_the_flag() -> None:
+    """A 3 m lidar (the sensor model's range is 10 m): its no-returns say "no wall within 3 m",
+    so they agree with casts that find the wall farther; counted against 10 m they disagreed
+    (here the fit fell to 0.58 with the car held; in the wrapper tests' small room it was 0.08 at
+    the true pose, the flag went up and local bursts came every second)."""
+    env = RacecarEnv("basement_loop", terminate_on_collision=False, max_range=3.0)
+    driver = WallFollower.for_env(env)
+    wrapper = LocalizationWrapper(env)
+    assert wrapper.sensor_model.max_range > 3.0 + 1.0
+    obs, info = wrapper.reset(seed=2)
+    fits, flags, injected = [], [], 0
+    for _ in range(round(5.0 / DT)):
+        obs, _, _, _, info = wrapper.step(driver(obs))
+        fits.append(wrapper.lost_detector.fit)
+        flags.append(info["localization"]["lost"])
+        injected = max(injected, wrapper.filter.n_injected)
+    wrapper.close()
+    assert np.nanmin(fits) > 0.9 and not any(flags) and injected == 0
+    assert info["localization"]["position_error"] < 0.3
