@@ -184,8 +184,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         if centre.shape != (3,) or not np.isfinite(centre).all():
             raise ValueError(f"pose must be three finite numbers [x, y, theta], got {pose!r}")
         sd = np.asarray(spread_sd(self.params.init_spread if spread is None else spread, "spread"))
-        n = self.params.n_particles
-        self.set_particles(centre + self.rng.standard_normal((n, 3)) * sd)
+        self.set_particles(self.poses_around(centre, sd, self.params.n_particles))
         self.start_new_belief()
 
     def start_new_belief(self) -> None:

@@ -30,7 +30,6 @@ from typing import Any
 
 import numpy as np
 
-from mcl.filter.angles import wrap_angle
 from mcl.filter.kld import kld_count
 from mcl.filter.params import ParticleFilterParams
 from racecar_sim.maps import OccupancyMap
@@ -144,25 +143,31 @@ class GlobalRecovery:
         """
         self.recovery_share = float(share)
         if burst > 0:
-            if self._shrink_to is None:  # the count the next correction would have had
-                self._shrink_to = self.n_particles + self.pending_random
+            self._mark_burst()
             self.pending_random += int(burst)
 
     def request_local_burst(self, n: int, position_sd: float, heading_sd: float) -> None:
-        """A burst of ``n`` poses around the current estimate (Gaussian: ``position_sd`` metres
-        on each axis, ``heading_sd`` radians, from the filter's generator) that join the cloud
-        at the next correction and are weighed with it, after which the cloud is resampled back
-        to its present count, as a burst of `request_recovery()`; `undo_burst()` takes it back."""
+        """A burst of ``n`` poses around the current estimate (`poses_around()`: ``position_sd``
+        metres on each axis, ``heading_sd`` radians) that join the cloud at the next correction
+        and are weighed with it, after which the cloud is resampled back to its present count,
+        as a burst of `request_recovery()`; `undo_burst()` takes it back."""
         if n <= 0:
             return
-        centre = self.estimate()
-        poses = centre + self.rng.standard_normal((int(n), 3)) * np.array(
-            [position_sd, position_sd, heading_sd]
-        )
-        poses[:, 2] = wrap_angle(poses[:, 2])
+        poses = self.poses_around(self.estimate(), (position_sd, position_sd, heading_sd), n)
+        self._mark_burst()
+        self.pending_local = np.concatenate([self.pending_local, poses])
+
+    def poses_around(self, centre: np.ndarray, sd: Any, n: int) -> np.ndarray:
+        """(n, 3) world poses drawn from a Gaussian around ``centre`` [x m, y m, theta rad] with
+        standard deviations ``sd`` (x m, y m, theta rad), from the filter's generator; headings
+        not wrapped (`set_particles()` wraps them)."""
+        return np.asarray(centre, dtype=np.float64) + self.rng.standard_normal((int(n), 3)) * sd
+
+    def _mark_burst(self) -> None:
+        """A burst joins at the next correction: remember the count that correction would
+        have had, to resample back to."""
         if self._shrink_to is None:
             self._shrink_to = self.n_particles + self.pending_random
-        self.pending_local = np.concatenate([self.pending_local, poses])
 
     @property
     def burst_prior(self) -> tuple[np.ndarray, np.ndarray] | None:

@@ -3,8 +3,8 @@
 A count of beams, not a likelihood, so it does not depend on the sensor model's tempering or its
 ``sigma_hit``: a beam agrees when its measured range lies within a tolerance of the range cast in
 the *filter's* map from the pose's lidar (beams at or beyond the filter's range, or the lidar's
-when it sees less, agree with a cast that finds no wall within it). One cast of a few evenly spaced beams from one pose: tens of
-microseconds per scan. Beams that return short of the cast (something the map lacks stands in
+when it sees less, agree with a cast that finds no wall within it). One cast of a few evenly
+spaced beams from one pose: tens of microseconds per scan. Beams that return short of the cast (something the map lacks stands in
 front) may be left out: they neither confirm nor refute the pose. Used by the ``lost`` flag
 ([`mcl.filter.lost`][mcl.filter.lost]) and by the learned odometry scale
 ([`mcl.filter.odometry_scale`][mcl.filter.odometry_scale]), which learns only between poses the
