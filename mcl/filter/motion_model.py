@@ -32,6 +32,7 @@ __all__ = [
     "SCHEMES",
     "MotionModel",
     "MotionModelParams",
+    "carry",
     "compose",
     "gaussian_to_uniform",
     "twist_to_odometry",
@@ -150,6 +151,21 @@ def compose(particles: np.ndarray, odometry: np.ndarray) -> np.ndarray:
         odo = np.ascontiguousarray(np.broadcast_to(odo, particles.shape))
     out = np.empty(particles.shape, dtype=np.float64)
     compose_into(particles, odo, out)
+    return out
+
+
+def carry(particles: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """Poses (N, 3) world frame moved rigidly with the world-frame motion that takes the pose
+    ``start`` to the pose ``end`` (each [x m, y m, theta rad]): every pose keeps where it lies
+    relative to ``start``, now relative to ``end``; new array, theta wrapped to [-pi, pi)."""
+    p = np.asarray(particles, dtype=np.float64)
+    turn = float(end[2]) - float(start[2])
+    c, s = math.cos(turn), math.sin(turn)
+    dx, dy = p[:, 0] - float(start[0]), p[:, 1] - float(start[1])
+    out = np.empty_like(p)
+    out[:, 0] = float(end[0]) + c * dx - s * dy
+    out[:, 1] = float(end[1]) + s * dx + c * dy
+    out[:, 2] = np.mod(p[:, 2] + turn + math.pi, 2.0 * math.pi) - math.pi
     return out
 
 

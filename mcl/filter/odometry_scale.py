@@ -200,11 +200,17 @@ class OdometryScale:
         """Forget the bridge in progress and the recent fits (a new episode, a global start, a
         jump); the scale and what it learned are kept, and the next ``settle_bridges`` bridges
         are not used."""
+        self.drop_bridge()
+        self._settling = self.params.settle_bridges
+
+    def drop_bridge(self) -> None:
+        """Forget the bridge in progress and the recent fits (the estimate was moved by other
+        than the odometry, e.g. the motion the standstill check took back); what was learned is
+        kept and the next bridge counts."""
         self._anchor = None
         self._fits.clear()
         self._odometry[:] = 0.0
         self._path = 0.0
-        self._settling = self.params.settle_bridges
 
     @property
     def evidence(self) -> tuple[float, float]:

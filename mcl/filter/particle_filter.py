@@ -38,7 +38,7 @@ import numpy as np
 from mcl.filter.angles import wrap_angle
 from mcl.filter.augmented import LikelihoodAverages
 from mcl.filter.belief import Belief
-from mcl.filter.motion_model import MotionModel, twist_to_odometry
+from mcl.filter.motion_model import MotionModel, carry, twist_to_odometry
 from mcl.filter.odometry_scale import OdometryScale
 from mcl.filter.params import ParticleFilterParams, spread_sd
 from mcl.filter.recovery import GlobalRecovery
@@ -220,6 +220,8 @@ class ParticleFilter(Belief, GlobalRecovery):
         if self.standstill.slipping:
             twist = self.standstill.scaled(twist)
         scale.observe(twist, dt)
+        if self.standstill.standing and self.standstill.params.hold_still:
+            return  # a car that stands: nothing moved, no motion to be unsure of
         self.move(twist_to_odometry(scale.scaled(twist).tolist(), dt))
 
     def move(self, odometry: np.ndarray) -> None:
@@ -375,12 +377,18 @@ class ParticleFilter(Belief, GlobalRecovery):
             self.odometry_scale.confirm(estimate, spread, fit)
 
     def _check_standstill(self, scan: np.ndarray) -> None:
-        """Give the scan to the standstill check (before the filter decides to use it)."""
+        """Give the scan to the standstill check (before the filter decides to use it); when it
+        first finds the car standing or slipping, take back what the filter predicted beyond it."""
         if self.standstill.due():  # only then the scan's bearings and the lidar's mount
             sm = self.sensor_model
             z = np.asarray(scan, dtype=np.float64).reshape(-1)
             mount = sm.lidar_poses(np.zeros((1, 3)))[0]
-            self.standstill.observe(z, scan_bearings(sm, z.size), mount, float(sm.max_range))
+            angles = scan_bearings(sm, z.size)
+            self.standstill.observe(z, angles, mount, float(sm.max_range), self.estimate())
+            back = self.standstill.take_back()
+            if back is not None:  # the wheels drove on while the car stood: move back
+                self._particles = carry(self._require()[0], self.estimate(), back)
+                self.odometry_scale.drop_bridge()  # its path holds the motion taken back
 
     def update(self, twist: np.ndarray, dt: float, scan: np.ndarray | None) -> np.ndarray:
         """``predict``, then ``correct`` when a scan is given, then return ``estimate()``."""

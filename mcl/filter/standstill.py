@@ -27,6 +27,19 @@ shares of it (``shares``: of the odometry's translation and, apart, of its turn)
 share that passes the same test is what the filter then predicts with
 ([motion_shares][mcl.filter.standstill.Standstill.motion_shares]); standing is the share 0, 0.
 
+Three comparisons of 0.2 m find a pinned car after its wheels have said it drove about 0.6 m,
+and the filter followed them; where the scan cannot pull the estimate back (the old map wrong
+round the car), that stayed. So when the check first finds the car standing or slipping, the
+filter moves its cloud back to where its estimate was at the first of those comparisons, moved
+on by the share found ([take_back][mcl.filter.standstill.Standstill.take_back]). And while the car
+stands, the filter does not move its particles at all, not even by its motion noise: a car that
+stands has no motion to be unsure of, and noise with nothing to hold the cloud lets the scan
+slide it to any place nearby that fits the old map better (held-out cluttered seed 24 of the
+honest world pins itself at 17.5 s for 42 s while its wheels report 0.5-1.8 m/s: the estimate
+slid 1.4 m along the corridor). nav2 amcl does not update its filter at all until its odometry
+has moved 0.25 m or turned 0.2 rad (`update_min_d`, `update_min_a`: nav2's defaults); a car
+whose wheels spin would pass that gate, which is why the check looks at the scans.
+
 Frames and units: car frame and lidar frame (as in [mcl.filter.scan_continuity][]); metres,
 radians, seconds.
 """
@@ -62,6 +75,12 @@ class StandstillParams:
         margin: ... and exceed the continuity with the odometry's motion by this much.
         in_a_row: comparisons in a row that must find the car standing before the filter stops
             following the odometry (the first that finds it moving ends the standstill).
+        take_back: when the check first finds the car standing or slipping, the particles move
+            back by what the filter predicted over the ``in_a_row`` comparisons that found it
+            (the odometry in full) beyond the share found
+            ([take_back][mcl.filter.standstill.Standstill.take_back]).
+        hold_still: while the car stands (shares 0 and 0) the particles are not moved at all,
+            not even by the motion model's noise (False: its noise still spreads them).
         beams: points of each scan compared.
         tolerance: metres within which a point counts as seen again.
         tolerance_per_m: extra metres of tolerance per metre of range.
@@ -78,6 +97,8 @@ class StandstillParams:
     still_above: float = 0.6
     margin: float = 0.3
     in_a_row: int = 3
+    take_back: bool = True
+    hold_still: bool = True
     beams: int = 100
     tolerance: float = 0.05
     tolerance_per_m: float = 0.01
@@ -85,8 +106,11 @@ class StandstillParams:
     turn_slack: float = 0.03
 
     def __post_init__(self) -> None:
-        if not isinstance(self.enabled, bool):
-            raise ValueError(f"StandstillParams.enabled = {short(self.enabled)} must be a bool")
+        for name in ("enabled", "take_back", "hold_still"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(
+                    f"StandstillParams.{name} = {short(getattr(self, name))} must be a bool"
+                )
         for name in ("beams", "in_a_row"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -125,6 +149,20 @@ class StandstillParams:
             raise ValueError("StandstillParams: still_above and margin are fractions in [0, 1]")
 
 
+def _made(run: list[tuple[np.ndarray | None, np.ndarray]], shares: np.ndarray) -> np.ndarray | None:
+    """The world pose the first window of ``run`` (estimate at its reference, odometry's motion
+    [dx m, dy m, dtheta rad]) ends at when each window's motion is made at ``shares`` (of
+    translation, of turn); None when the first window has no estimate."""
+    start = run[0][0]
+    if start is None:
+        return None
+    a, b = shares
+    pose = start
+    for _, m in run:
+        pose = compose(pose, np.array([a * m[0], a * m[1], b * m[2]]))
+    return pose
+
+
 class Standstill:
     """Whether one car stands while its wheels turn (module docstring); one per filter.
 
@@ -143,6 +181,10 @@ class Standstill:
         self._in_a_row = 0
         self._motion = np.zeros(3)  # the car's motion by the odometry since the reference scan
         self._reference: tuple[np.ndarray, np.ndarray] | None = None
+        self._reference_pose: np.ndarray | None = None  # the filter's estimate at it
+        # (estimate at the reference, odometry's motion) of the comparisons in a row so far
+        self._run: list[tuple[np.ndarray | None, np.ndarray]] = []
+        self._take_back: np.ndarray | None = None
 
     @property
     def motion_shares(self) -> np.ndarray:
@@ -173,6 +215,17 @@ class Standstill:
         self._in_a_row = 0
         self._motion = np.zeros(3)
         self._reference = None
+        self._reference_pose = None
+        self._run = []
+        self._take_back = None
+
+    def take_back(self) -> np.ndarray | None:
+        """Where the estimate belongs (world pose [x m, y m, theta rad]) once the comparisons
+        first found the car standing or slipping: the estimate at the first of their reference
+        scans moved by the odometry's motion since at the share found. Once (then None); None
+        when there is none to take back."""
+        back, self._take_back = self._take_back, None
+        return back
 
     def advance(self, twist: np.ndarray, dt: float) -> None:
         """The odometry says the car drove the car-frame ``twist`` [vx m/s, vy m/s, omega rad/s]
@@ -191,7 +244,12 @@ class Standstill:
         )
 
     def observe(
-        self, scan: np.ndarray, angles: np.ndarray, mount: np.ndarray, max_range: float
+        self,
+        scan: np.ndarray,
+        angles: np.ndarray,
+        mount: np.ndarray,
+        max_range: float,
+        estimate: np.ndarray | None = None,
     ) -> bool:
         """Compare ``scan`` (metres, at bearings ``angles`` in radians, ascending, evenly spaced)
         with the reference once the odometry has moved far enough; returns
@@ -202,6 +260,9 @@ class Standstill:
             angles: their bearings in the lidar frame.
             mount: the lidar's pose in the car frame [x m, y m, theta rad].
             max_range: metres; ranges at or beyond it are no return.
+            estimate: the filter's world pose [x m, y m, theta rad] at this scan, for
+                [take_back][mcl.filter.standstill.Standstill.take_back] (None: nothing to take
+                back from this scan on).
         """
         p = self.params
         if not self.due():
@@ -209,6 +270,7 @@ class Standstill:
         z = np.asarray(scan, dtype=np.float64).reshape(-1)
         if self._reference is None:
             self._reference = (z.copy(), np.asarray(angles, dtype=np.float64).copy())
+            self._reference_pose = None if estimate is None else np.array(estimate, dtype=float)
             return self.slipping
         m = self._motion
         before, before_angles = self._reference
@@ -234,9 +296,16 @@ class Standstill:
                             best, best_shares = share, (a, b)
         looks_slipping = best >= p.still_above and best - as_odometry >= p.margin
         self._in_a_row = self._in_a_row + 1 if looks_slipping else 0  # NaN compares False
+        keep = max(0, len(self._run) + 1 - p.in_a_row)  # the last in_a_row windows, this one too
+        window = (self._reference_pose, m.copy())
+        self._run = [*self._run[keep:], window] if looks_slipping else []
+        was_slipping = self._slipping
         self._shares = np.array(best_shares if self._in_a_row >= p.in_a_row else (1.0, 1.0))
         self._slipping = bool((self._shares < 1).any())
+        if self._slipping and not was_slipping and p.take_back:
+            self._take_back = _made(self._run, self._shares)
         self.n_standing += self.slipping
         self._reference = (z.copy(), np.asarray(angles, dtype=np.float64).copy())
+        self._reference_pose = None if estimate is None else np.array(estimate, dtype=float)
         self._motion = np.zeros(3)
         return self.slipping

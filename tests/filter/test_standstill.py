@@ -12,6 +12,8 @@ from hypothesis import strategies as st
 
 from mcl.experiments.recorded import RecordedDrive, localize_recorded
 from mcl.filter.motion_model import twist_to_odometry
+from mcl.filter.params import ParticleFilterParams
+from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.scan_continuity import compose
 from mcl.filter.standstill import Standstill, StandstillParams
 from racecar_sim.env import RacecarEnv
@@ -88,6 +90,10 @@ def test_standstill_params_are_checked() -> None:
         StandstillParams(still_above=1.5)
     with pytest.raises(ValueError, match="enabled"):
         StandstillParams(enabled="yes")
+    with pytest.raises(ValueError, match="take_back"):
+        StandstillParams(take_back=1)
+    with pytest.raises(ValueError, match="hold_still"):
+        StandstillParams(hold_still="no")
 
 
 def _pinned_drive(seed: int, seconds: float) -> RecordedDrive:
@@ -113,6 +119,72 @@ def test_the_filter_stays_with_a_car_whose_wheels_spin(seed) -> None:
     followed = localize_recorded(drive, {"filter": {"standstill": {"enabled": False}}})
     assert followed.position_error[-1] > 1.0  # following the wheels drives the estimate away
     assert held[-1] < 0.2 and held.max() < 0.5
+
+
+@pytest.mark.parametrize("seed", [2, 4])
+def test_the_motion_predicted_before_the_car_was_found_standing_is_taken_back(seed) -> None:
+    # three comparisons of 0.2 m find the car standing: the filter has followed its wheels for
+    # about 0.6 m by then; the scan would pull it back, but the default holds a standing cloud
+    drive = _pinned_drive(seed, 2.0)
+    taken_back = localize_recorded(drive).position_error
+    kept = localize_recorded(drive, {"filter": {"standstill": {"take_back": False}}})
+    assert kept.position_error[20:].max() > 0.3  # before the check found it, it followed
+    assert kept.position_error[-1] > 0.3  # ... and a cloud held still stays there
+    assert taken_back[-1] < 0.02 and taken_back[40:].max() < 0.02
+
+
+@pytest.mark.parametrize("hold_still", [True, False])
+def test_a_standing_car_s_cloud_is_not_spread_by_the_motion_noise(hold_still) -> None:
+    pose = _free_pose(6)
+    params = ParticleFilterParams(standstill=StandstillParams(hold_still=hold_still))
+    pf = ParticleFilter(ENV.map, 200, params=params, rng=4)
+    pf.initialize(pose, spread=(0.05, 0.05, 0.02))
+    twist = np.array([1.0, 0.0, 0.4])  # the wheels spin; the car stands
+    for _ in range(100):
+        pf.predict(twist, DT)
+        pf.correct(LIDAR.true_ranges(pose))
+        if pf.standstill.standing:
+            break
+    assert pf.standstill.standing
+    before = pf.particles.copy()
+    for _ in range(10):
+        pf.predict(twist, DT)
+    moved = np.abs(pf.particles - before).max()
+    assert (moved == 0.0) if hold_still else (moved > 0.0)  # only the noise moves them
+
+
+def test_take_back_is_given_once_and_only_when_asked_for() -> None:
+    pose = _free_pose(6)
+    twist = np.array([1.0, 0.0, 0.4])
+    for params, wanted in ((StandstillParams(), True), (StandstillParams(take_back=False), False)):
+        check = Standstill(params)
+        check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE, pose)
+        given = []
+        for _ in range(100):
+            check.advance(twist, DT)
+            check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE, pose)
+            given.append(check.take_back() is not None)
+        assert check.standing and sum(given) == int(wanted)
+
+
+def test_take_back_returns_the_estimate_where_the_comparisons_began() -> None:
+    pose = _free_pose(8)
+    twist = np.array([1.0, 0.0, -0.5])
+    check = Standstill()
+    estimate = pose.copy()
+    check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE, estimate)
+    starts = [estimate.copy()]
+    while not check.standing:
+        check.advance(twist, DT)
+        estimate = compose(estimate, twist_to_odometry(twist, DT))  # a filter that follows
+        was = check.due()
+        check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE, estimate)
+        if was:
+            starts.append(estimate.copy())
+    # the estimate at the reference scan of the first of the three comparisons that found it
+    np.testing.assert_allclose(check.take_back(), starts[-4], atol=1e-12)
+    assert np.allclose(starts[-4], pose)  # here the car stood from the start
+    assert np.hypot(*(estimate[:2] - pose[:2])) > 0.5
 
 
 def _pivoting_drive(seed: int, seconds: float, rate: float = 0.12) -> RecordedDrive:
