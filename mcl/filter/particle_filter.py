@@ -158,6 +158,7 @@ class ParticleFilter(Belief, GlobalRecovery):
                 lw = np.log(w / w.sum())
         self._particles = p
         self._set_log_weights(lw)
+        self.standstill.cloud_replaced()  # no estimate before this is one to take back to
 
     def _set_log_weights(self, log_weights: np.ndarray) -> None:
         """Store log-weights normalised so that the weights sum to 1 (max must be finite)."""

@@ -75,10 +75,11 @@ class StandstillParams:
         margin: ... and exceed the continuity with the odometry's motion by this much.
         in_a_row: comparisons in a row that must find the car standing before the filter stops
             following the odometry (the first that finds it moving ends the standstill).
-        take_back: when the check first finds the car standing or slipping, the particles move
-            back by what the filter predicted over the ``in_a_row`` comparisons that found it
-            (the odometry in full) beyond the share found
-            ([take_back][mcl.filter.standstill.Standstill.take_back]).
+        take_back: when the check first finds the car standing or slipping, the cloud is moved
+            rigidly so that its estimate is where it was at the first of the ``in_a_row``
+            comparisons that found it, moved on by the share found of the odometry since
+            ([take_back][mcl.filter.standstill.Standstill.take_back]); not when the cloud was
+            replaced since (a burst, the search's cloud).
         hold_still: while the car stands (shares 0 and 0) the particles are not moved at all,
             not even by the motion model's noise (False: its noise still spreads them).
         beams: points of each scan compared.
@@ -218,6 +219,12 @@ class Standstill:
         self._reference_pose = None
         self._run = []
         self._take_back = None
+
+    def cloud_replaced(self) -> None:
+        """The filter's cloud was replaced other than by its odometry and scans (a start, a burst,
+        the search's cloud): the estimates recorded so far are not ones to take back to."""
+        self._reference_pose = None
+        self._run = []
 
     def take_back(self) -> np.ndarray | None:
         """Where the estimate belongs (world pose [x m, y m, theta rad]) once the comparisons

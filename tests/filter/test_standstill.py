@@ -167,6 +167,22 @@ def test_take_back_is_given_once_and_only_when_asked_for() -> None:
         assert check.standing and sum(given) == int(wanted)
 
 
+def test_nothing_is_taken_back_to_an_estimate_from_before_the_cloud_was_replaced() -> None:
+    pose = _free_pose(6)
+    twist = np.array([1.0, 0.0, 0.4])
+    check = Standstill()
+    check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE, pose)
+    given, replaced = [], False
+    while not check.standing:
+        check.advance(twist, DT)
+        if check.due() and not replaced:  # the first comparison: a burst replaced the cloud
+            check.cloud_replaced()
+            replaced = True
+        check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE, pose)
+        given.append(check.take_back() is not None)
+    assert replaced and not any(given)
+
+
 def test_take_back_returns_the_estimate_where_the_comparisons_began() -> None:
     pose = _free_pose(8)
     twist = np.array([1.0, 0.0, -0.5])
