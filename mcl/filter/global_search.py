@@ -173,6 +173,6 @@ class GlobalSearch:
         search = self.filter
         pf.set_particles(search.particles, search.weights)  # copied there
         pf.resample(None if pf.params.kld.enabled else pf.params.n_particles)
-        pf.odometry_scale.restart()  # its window would span the move
+        pf.moved_elsewhere()  # the scale's bridge would span the move
         self.adoptions += 1
         self.stop()

@@ -178,7 +178,7 @@ class LostDetector:
                 estimate = pf.estimate()
                 fit = self.fit_at(pf, estimate, scan)
             else:  # a new estimate: the odometry scale's window spans the move, the average
-                pf.odometry_scale.restart()  # of the old estimate's fit is moot
+                pf.moved_elsewhere()  # of the old estimate's fit is moot
                 if math.isfinite(fit):
                     self.smoothed_fit = fit
         self.fit = fit
@@ -306,7 +306,7 @@ class LostDetector:
                 self._found_fit = usual - p.jump_found_within
             self.jumped = True
             self.jumps += 1
-            pf.odometry_scale.restart()  # its window holds the jump: nothing to learn from
+            pf.moved_elsewhere()  # its window holds the jump: nothing to learn from
             self._since_jump = 0.0
             self._since_burst = math.inf  # search at once
         elif (
