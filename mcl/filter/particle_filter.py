@@ -159,13 +159,6 @@ class ParticleFilter(Belief, GlobalRecovery):
         self._particles = p
         self._set_log_weights(lw)
 
-    def moved_elsewhere(self) -> None:
-        """The cloud was moved to another place other than by the odometry and the scans (a
-        burst's outcome kept, the search's cloud taken, a jump): the odometry scale's bridge and
-        the standstill check's recorded estimates span the move, and are dropped."""
-        self.odometry_scale.restart()
-        self.standstill.cloud_replaced()
-
     def _set_log_weights(self, log_weights: np.ndarray) -> None:
         """Store log-weights normalised so that the weights sum to 1 (max must be finite)."""
         top = log_weights.max()

@@ -54,6 +54,15 @@ class GlobalRecovery:
     _global_count: int | None
     _shrink_to: int | None
     _before_burst: tuple[np.ndarray, np.ndarray, int] | None
+    odometry_scale: Any
+    standstill: Any
+
+    def moved_elsewhere(self) -> None:
+        """The cloud was moved to another place other than by the odometry and the scans (a
+        burst's outcome kept, the search's cloud taken, a jump): the odometry scale's bridge and
+        the standstill check's recorded estimates span the move, and are dropped."""
+        self.odometry_scale.restart()
+        self.standstill.cloud_replaced()
 
     def global_particle_count(self) -> int:
         """Particles of a global start: ``params.global_particles`` when given, else
