@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mcl.filter.alpha_motion import alpha_odometry_into
+from mcl.filter.angles import wrap_angle
 from mcl.filter.bounds import check_filter
 from mcl.filter.step_kernels import compose_into, move_noisy, noise_into
 from racecar_sim.raycast.rand import seed_from
@@ -165,7 +166,7 @@ def carry(particles: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarr
     out = np.empty_like(p)
     out[:, 0] = float(end[0]) + c * dx - s * dy
     out[:, 1] = float(end[1]) + s * dx + c * dy
-    out[:, 2] = np.mod(p[:, 2] + turn + math.pi, 2.0 * math.pi) - math.pi
+    out[:, 2] = wrap_angle(p[:, 2] + turn)
     return out
 
 

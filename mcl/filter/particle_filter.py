@@ -206,7 +206,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         calibrated ``odometry_bias`` undone, its forward speed times the learned
         [odometry_scale][mcl.filter.odometry_scale.OdometryScale]);
         by less, or none, while the [standstill][mcl.filter.standstill.Standstill] check says the car
-        slips or stands."""
+        slips or stands (standing, with ``hold_still``, not even by the motion noise)."""
         self._require()
         twist = np.asarray(twist, dtype=np.float64)
         if twist.shape != (3,) or not all(map(math.isfinite, twist.tolist())):
@@ -220,7 +220,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         if self.standstill.slipping:
             twist = self.standstill.scaled(twist)
         scale.observe(twist, dt)
-        if self.standstill.standing and self.standstill.params.hold_still:
+        if self.standstill.params.hold_still and self.standstill.standing:
             return  # a car that stands: nothing moved, no motion to be unsure of
         self.move(twist_to_odometry(scale.scaled(twist).tolist(), dt))
 
@@ -384,7 +384,8 @@ class ParticleFilter(Belief, GlobalRecovery):
             z = np.asarray(scan, dtype=np.float64).reshape(-1)
             mount = sm.lidar_poses(np.zeros((1, 3)))[0]
             angles = scan_bearings(sm, z.size)
-            self.standstill.observe(z, angles, mount, float(sm.max_range), self.estimate())
+            estimate = self.estimate() if self.standstill.params.take_back else None
+            self.standstill.observe(z, angles, mount, float(sm.max_range), estimate)
             back = self.standstill.take_back()
             if back is not None:  # the wheels drove on while the car stood: move back
                 self._particles = carry(self._require()[0], self.estimate(), back)

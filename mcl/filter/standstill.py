@@ -277,8 +277,7 @@ class Standstill:
             return self.slipping
         z = np.asarray(scan, dtype=np.float64).reshape(-1)
         if self._reference is None:
-            self._reference = (z.copy(), np.asarray(angles, dtype=np.float64).copy())
-            self._reference_pose = None if estimate is None else np.array(estimate, dtype=float)
+            self._new_reference(z, angles, estimate)
             return self.slipping
         m = self._motion
         before, before_angles = self._reference
@@ -313,7 +312,14 @@ class Standstill:
         if self._slipping and not was_slipping and p.take_back:
             self._take_back = _made(self._run, self._shares)
         self.n_standing += self.slipping
-        self._reference = (z.copy(), np.asarray(angles, dtype=np.float64).copy())
-        self._reference_pose = None if estimate is None else np.array(estimate, dtype=float)
+        self._new_reference(z, angles, estimate)
         self._motion = np.zeros(3)
         return self.slipping
+
+    def _new_reference(
+        self, scan: np.ndarray, angles: np.ndarray, estimate: np.ndarray | None
+    ) -> None:
+        """``scan`` becomes the reference the next comparison starts from, with the filter's
+        ``estimate`` there."""
+        self._reference = (scan.copy(), np.asarray(angles, dtype=np.float64).copy())
+        self._reference_pose = None if estimate is None else np.array(estimate, dtype=float)
