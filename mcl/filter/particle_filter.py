@@ -387,8 +387,8 @@ class ParticleFilter(Belief, GlobalRecovery):
             estimate = self.estimate() if self.standstill.params.take_back else None
             self.standstill.observe(z, angles, mount, float(sm.max_range), estimate)
             back = self.standstill.take_back()
-            if back is not None:  # the wheels drove on while the car stood: move back
-                self._particles = carry(self._require()[0], self.estimate(), back)
+            if back is not None and estimate is not None:  # the wheels drove on: move back
+                self._particles = carry(self._require()[0], estimate, back)
                 self.odometry_scale.drop_bridge()  # its path holds the motion taken back
 
     def update(self, twist: np.ndarray, dt: float, scan: np.ndarray | None) -> np.ndarray:
