@@ -31,7 +31,9 @@ from typing import Any
 import numpy as np
 
 from mcl.filter.kld import kld_count
+from mcl.filter.odometry_scale import OdometryScale
 from mcl.filter.params import ParticleFilterParams
+from mcl.filter.standstill import Standstill
 from racecar_sim.maps import OccupancyMap
 
 __all__ = ["GlobalRecovery"]
@@ -54,8 +56,8 @@ class GlobalRecovery:
     _global_count: int | None
     _shrink_to: int | None
     _before_burst: tuple[np.ndarray, np.ndarray, int] | None
-    odometry_scale: Any
-    standstill: Any
+    odometry_scale: OdometryScale
+    standstill: Standstill
 
     def moved_elsewhere(self) -> None:
         """The cloud was moved to another place other than by the odometry and the scans (a

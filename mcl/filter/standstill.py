@@ -79,7 +79,7 @@ class StandstillParams:
             rigidly so that its estimate is where it was at the first of the ``in_a_row``
             comparisons that found it, moved on by the share found of the odometry since
             ([take_back][mcl.filter.standstill.Standstill.take_back]); not when the cloud was
-            moved elsewhere since (a burst's outcome kept, the search's cloud taken).
+            moved elsewhere since (a burst's outcome kept, the search's cloud taken, a jump).
         hold_still: while the car stands (shares 0 and 0) the particles are not moved at all,
             not even by the motion model's noise (False: its noise still spreads them).
         beams: points of each scan compared.
@@ -222,8 +222,8 @@ class Standstill:
 
     def cloud_replaced(self) -> None:
         """The filter's cloud was moved to another place other than by its odometry and scans
-        (a burst's outcome kept, the search's cloud taken): the estimates recorded so far are
-        not ones to take back to."""
+        (a burst's outcome kept, the search's cloud taken, a jump of the scans): the estimates
+        recorded so far are not ones to take back to."""
         self._reference_pose = None
         self._run = []
 
