@@ -25,17 +25,15 @@ __all__ = ["map_changes", "with_cells"]
 
 
 def map_changes(old: OccupancyMap, new: OccupancyMap) -> tuple[np.ndarray, np.ndarray]:
-    """The cells of ``old`` that ``new`` has opened and closed.
+    """The cells of ``old`` that ``new`` has opened and closed, as ``(opened, closed)``: bool
+    arrays of ``old``'s shape (grid frame, row 0 = the image's top row). ``opened`` where ``old``
+    is blocked and the cell of ``new`` under the cell's centre is free; ``closed`` where ``old``
+    is free and that cell of ``new`` is blocked. Cells whose centre lies outside ``new``'s image
+    are in neither.
 
     Args:
         old: the map whose grid the masks are in (e.g. the filter's map).
         new: the map of the same place as it is now (e.g. the world's), in the same world frame.
-
-    Returns:
-        ``(opened, closed)``, bool arrays of ``old``'s shape (grid frame, row 0 = the image's top
-        row): ``opened`` where ``old`` is blocked and the cell of ``new`` under the cell's centre
-        is free; ``closed`` where ``old`` is free and that cell of ``new`` is blocked. Cells whose
-        centre lies outside ``new``'s image are in neither.
     """
     rows, cols = np.indices(old.shape)
     centres = old.grid_to_world(np.stack([rows, cols], axis=-1))
