@@ -15,8 +15,6 @@ the car).
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from racecar_sim.maps.grid import OccupancyMap
@@ -66,4 +64,4 @@ def with_cells(
     occupied = old.occupied.copy()
     occupied[cells] = not free
     label = name if name is not None else f"{old.name}+{'opened' if free else 'closed'}"
-    return replace(old, occupied=occupied, name=label, path=None, _distance=None)
+    return OccupancyMap(occupied, old.resolution, old.origin, name=label)
