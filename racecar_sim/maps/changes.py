@@ -32,16 +32,19 @@ def map_changes(old: OccupancyMap, new: OccupancyMap) -> tuple[np.ndarray, np.nd
     Args:
         old: the map whose grid the masks are in (e.g. the filter's map).
         new: the map of the same place as it is now (e.g. the world's), in the same world frame.
+
+    Raises:
+        ValueError: ``old`` or ``new`` is not an OccupancyMap.
     """
+    for name, grid in (("old", old), ("new", new)):
+        if not isinstance(grid, OccupancyMap):
+            raise ValueError(f"map_changes: {name} must be an OccupancyMap, got {type(grid).__name__}")
     rows, cols = np.indices(old.shape)
     centres = old.grid_to_world(np.stack([rows, cols], axis=-1))
-    cells = new.world_to_grid(centres)
-    inside = new.in_bounds(cells)
-    new_blocked = np.zeros(old.shape, dtype=bool)
-    r, c = cells[..., 0][inside], cells[..., 1][inside]
-    new_blocked[inside] = new.occupied[r, c]
-    opened = inside & old.occupied & ~new_blocked
-    closed = inside & ~old.occupied & new_blocked
+    inside = new.in_bounds(new.world_to_grid(centres))
+    new_free = new.is_free(centres)  # False outside new's image
+    opened = old.occupied & new_free
+    closed = ~old.occupied & inside & ~new_free
     return opened, closed
 
 

@@ -71,6 +71,14 @@ def test_with_cells_sets_exactly_the_cells_and_keeps_the_geometry():
     assert old.occupied[10, 10] == np.False_  # the original is untouched
 
 
+def test_map_changes_refuses_what_is_not_a_map_by_name():
+    room = OccupancyMap(_room(), 0.1)
+    with pytest.raises(ValueError, match="new must be an OccupancyMap, got str"):
+        map_changes(room, "basement.yaml")
+    with pytest.raises(ValueError, match="old must be an OccupancyMap, got ndarray"):
+        map_changes(_room(), room)
+
+
 @pytest.mark.parametrize(
     "cells", [np.zeros((3, 3), dtype=bool), np.zeros((20, 30), dtype=np.uint8)]
 )
