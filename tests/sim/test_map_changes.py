@@ -129,3 +129,26 @@ def test_stata_against_the_rebuilt_basement_matches_the_readmes_column_offset():
     assert np.array_equal(opened, old.occupied & new_free)
     assert np.array_equal(closed, ~old.occupied & beside & ~new_free)
     assert opened.sum() > 1000 and closed.sum() > 1000  # the rebuilt basement differs
+
+
+def test_save_map_round_trips_and_never_overwrites(tmp_path) -> None:
+    from racecar_sim.maps.writer import save_map
+
+    occ = _room(20, 30)
+    occ[4:9, 11] = True
+    grid = OccupancyMap(occ, 0.05, (-3.25, 1.5, math.pi), name="edited")
+    path = save_map(grid, tmp_path / "edited.yaml")
+    back = load_map(path)
+    assert np.array_equal(back.occupied, occ)
+    assert back.resolution == 0.05 and back.origin == (-3.25, 1.5, math.pi)
+    assert (tmp_path / "edited.pgm").is_file()
+    # a user's files are never replaced: a PGM there blocks the YAML too, and stays as it was
+    (tmp_path / "mine.pgm").write_bytes(b"not ours")
+    with pytest.raises(FileExistsError, match=r"mine\.pgm"):
+        save_map(grid, tmp_path / "mine.yaml")
+    assert not (tmp_path / "mine.yaml").exists()
+    assert (tmp_path / "mine.pgm").read_bytes() == b"not ours"
+    with pytest.raises(FileExistsError, match=r"edited\.yaml"):
+        save_map(grid, path)
+    with pytest.raises(ValueError, match=r"\.yaml"):
+        save_map(grid, tmp_path / "edited.png")
