@@ -3,7 +3,7 @@
 Subcommands: ``drive`` (a headless localized drive), ``experiment`` (noise sweep, global
 localization, kidnapping), ``ablation`` (the recovery ablation), ``opponents`` (MCL among opponents), ``lost-flag`` (the lost flag judged against the truth), ``bench`` (benchmarks),
 ``race`` (N cars on a track, each with its driver), ``replay`` (a ROS bag through the filter), ``make-maps`` (draw the bundled maps), ``train-agent`` (PPO on the localized pose),
-``calibrate-noise`` (a noise profile from real bags).
+``calibrate-noise`` (a noise profile from real bags), ``update-map`` (a map updated from drives).
 """
 
 from __future__ import annotations
@@ -36,6 +36,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "fast-laps": (
         "mcl.cli.fast_laps",
         "localization on fast laps: lab motion noise vs the alpha model",
+    ),
+    "update-map": (
+        "mcl.cli.update_map",
+        "an out-of-date map updated from simulated drives in the world as it is (map YAML)",
     ),
     "calibrate-noise": (
         "mcl.cli.calibrate_noise",

@@ -9,6 +9,8 @@ that a command never writes into, replaces or removes what racecar-sim did not m
   ([check_out][mcl.cli.out_paths.check_out]); the command then claims it
   ([output_folder][mcl.cli.out_paths.output_folder]) and undoes the claim if it fails before writing
   anything.
+- A ``--out`` that names files (``update-map``'s map YAML and its PGM) is new files only
+  ([check_new_files][mcl.cli.out_paths.check_new_files]).
 - ``--bag`` is a new folder or exactly a recording of ours, and neither holds the other's folder
   nor lies in it ([check_bag][mcl.cli.out_paths.check_bag]); its name leaves room for
   ``<name>.mcap``.
@@ -35,7 +37,14 @@ from racecar_sim.file_guard import (
     shown,
 )
 
-__all__ = ["check_bag", "check_file_out", "check_out", "output_folder", "path_arg"]
+__all__ = [
+    "check_bag",
+    "check_file_out",
+    "check_new_files",
+    "check_out",
+    "output_folder",
+    "path_arg",
+]
 
 
 class Parser(Protocol):
@@ -109,6 +118,18 @@ def check_file_out(
     except OSError as exc:
         parser.fail(flag, f"{shown(path)}: {exc.strerror or exc}")
     return path
+
+
+def check_new_files(parser: Parser, paths: tuple[Path, ...], flag: str) -> None:
+    """Check that none of ``paths`` (a file and the files written beside it) exists and that the
+    nearest existing folder above them is one we may write into; nothing is created here."""
+    try:
+        for path in paths:
+            if os.path.lexists(path):
+                parser.fail(flag, f"{shown(path)} is already there; the command writes new files only")
+        _check_parent(parser, paths[0].parent, flag)
+    except OSError as exc:
+        parser.fail(flag, f"{shown(paths[0])}: {exc.strerror or exc}")
 
 
 def check_bag(parser: Parser, bag: Path, out: Path, flag: str = "--bag") -> Path:

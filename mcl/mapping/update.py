@@ -16,7 +16,7 @@ Frames: masks in the old map's grid frame (row 0 = the image's top row).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -86,7 +86,7 @@ def opened_cells(
 
 
 def update_from_drives(
-    drives: Sequence[RecordedDrive],
+    drives: Iterable[RecordedDrive],
     old_map: OccupancyMap,
     config: LocalizationConfig | None = None,
     params: MapUpdateParams | None = None,
@@ -99,7 +99,9 @@ def update_from_drives(
     true pose is used.
 
     Args:
-        drives: the drives (any world; their scans, odometry and lidar geometry).
+        drives: the drives (any world; their scans, odometry and lidar geometry); any iterable,
+            read once, one drive at a time (a generator that records each drive when asked
+            keeps one drive in memory).
         old_map: the map the filter holds.
         config: the filter's settings.
         params: the update's settings.
@@ -107,8 +109,6 @@ def update_from_drives(
     Raises:
         ValueError: no drives.
     """
-    if not drives:
-        raise ValueError("update_from_drives: no drives given")
     params = params or MapUpdateParams()
     evidence = []
     for drive in drives:
@@ -119,6 +119,8 @@ def update_from_drives(
             drive.mount_offset, drive.max_range, ~run.lost[steps], params,
         )  # fmt: skip
         evidence.append(counts)
+    if not evidence:
+        raise ValueError("update_from_drives: no drives given")
     opened, votes = opened_cells(old_map, evidence, params)
     updated = with_cells(old_map, opened, free=True, name=f"{old_map.name}+updated")
-    return MapUpdate(updated, opened, votes, len(drives), sum(e.scans for e in evidence))
+    return MapUpdate(updated, opened, votes, len(evidence), sum(e.scans for e in evidence))

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 import mcl.cli.drive
-from mcl.cli import drive, experiment, fast_laps, recovery_ablation
+from mcl.cli import drive, experiment, fast_laps, recovery_ablation, update_map
 from mcl.cli.bench import BENCHMARKS
 from mcl.cli.common import Parser, check_env, output_folder
 from mcl.cli.main import SUBCOMMANDS, main
@@ -26,6 +26,7 @@ PARSERS = {
     "experiment": experiment.build_parser,
     "ablation": recovery_ablation.build_parser,
     "fast-laps": fast_laps.build_parser,
+    "update-map": update_map.build_parser,
 }
 
 

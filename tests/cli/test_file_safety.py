@@ -248,6 +248,7 @@ _OUT_COMMANDS = {
     "train-agent": [],
     "make-maps": [],
     "calibrate-noise": ["{bag}", "--map", "{map}"],
+    "update-map": ["--filter-map", "corridor"],
 }
 _LONG_NAME = "n" * 256
 _PATHS = {
@@ -285,7 +286,7 @@ def test_a_path_the_system_cannot_take_is_one_line(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bag", "map.yaml"]  # nothing made
 
 
-@pytest.mark.parametrize("sub", [s for s in _OUT_COMMANDS if s != "calibrate-noise"])
+@pytest.mark.parametrize("sub", [s for s in _OUT_COMMANDS if s not in ("calibrate-noise", "update-map")])
 def test_a_folder_path_leaves_room_for_the_files_in_it(sub, tmp_path, capsys, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
     args = [a.replace("{bag}", "a.bag").replace("{map}", "map.yaml") for a in _OUT_COMMANDS[sub]]
