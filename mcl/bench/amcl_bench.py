@@ -78,6 +78,9 @@ WORLDS: dict[str, World] = {
 }
 """The worlds by name; the filters all hold ``stata_basement.yaml``."""
 FILTER_MAP = "stata_basement.yaml"
+"""The map the filters hold unless told another (a ``../shared/maps`` file)."""
+MAP_NOTE = "filter_map.txt"
+"""The file in ``--out`` naming the map its rows were made on."""
 
 
 def lost(errors: np.ndarray) -> bool:
@@ -137,6 +140,7 @@ def run_benchmark(
     config: LocalizationConfig | None = None,
     echo: Callable[[str], None] = print,
     rerun: Sequence[str] = (),
+    filter_map: Path | None = None,
 ) -> list[dict[str, Any]]:
     """Record the drives, run the three filters, write ``out/amcl_results.{csv,md}`` as rows come
     in; returns the rows (one per world, seed and filter).
@@ -146,7 +150,13 @@ def run_benchmark(
     filters' rows of ``worlds`` and seeds 0..``seeds``-1, so they run again on the recorded drives
     while the other filters' rows stay. amcl's subprocesses start only when an amcl row is missing.
     A calibration in ``config`` (``filter.odometry_bias``) is given to amcl too
-    ([calibrated][mcl.bench.amcl_bench.calibrated]).
+    ([calibrated][mcl.bench.amcl_bench.calibrated]). ``filter_map`` (a map YAML; None:
+    ``../shared/maps/stata_basement.yaml``) is the map all three filters hold, e.g. one updated
+    from earlier drives ([update_from_drives][mcl.mapping.update.update_from_drives]); ``out``
+    remembers it in ``filter_map.txt`` and its rows are never mixed with another map's.
+
+    Raises:
+        ValueError: an unknown filter in ``rerun``, or ``out`` holds rows made on another map.
     """
     from mcl.bench.amcl_inputs import amcl_grid
     from mcl.bench.peer_amcl import NAV2_DEFAULTS, WITH_RECOVERY, AmclParams, AmclPeer
@@ -157,8 +167,12 @@ def run_benchmark(
         raise ValueError(f"rerun: unknown filters {unknown}; the filters are {list(FILTERS)}")
     maps = shared_dir() / "maps"
     config = config or LocalizationConfig()
-    filter_map = load_map(maps / FILTER_MAP)
+    map_path = (Path(filter_map) if filter_map is not None else maps / FILTER_MAP).resolve()
+    _check_same_map(out, map_path, maps / FILTER_MAP)
+    map_name = map_path.name
+    filter_map = load_map(map_path)
     out.mkdir(parents=True, exist_ok=True)
+    (out / MAP_NOTE).write_text(f"{map_path}\n")
     params: dict[str, AmclParams] = {"amcl": NAV2_DEFAULTS, "amcl_recovery": WITH_RECOVERY}
     peers: dict[str, AmclPeer] = {}
 
@@ -175,7 +189,7 @@ def run_benchmark(
         for name in names:
             run, cpu = peers[name].collect()
             rows.append(_row(world, seed, name, run, cpu))
-        _write(out, rows, seeds, duration, worlds)
+        _write(out, rows, seeds, duration, worlds, map_name)
         mine = {r["filter"]: r for r in rows if (r["world"], r["seed"]) == (world, seed)}
         echo(f"{world} seed {seed}: " + ", ".join(
             f"{n} {mine[n]['mean_error_m']:.3f} m ({mine[n]['pct_over_1m']:.1f} % > 1 m)"
@@ -207,10 +221,24 @@ def run_benchmark(
                     collect()
         while waiting:
             collect()
+        if rows:  # the report of the rows kept, when nothing was left to run
+            _write(out, rows, seeds, duration, worlds, map_name)
     finally:
         for p in peers.values():
             p.close()
     return rows
+
+
+def _check_same_map(out: Path, map_path: Path, default: Path) -> None:
+    """Stop when ``out`` holds rows of filters on a map other than ``map_path`` (a folder with
+    rows and no ``filter_map.txt`` was made on ``default``)."""
+    if not read_rows(out / "amcl_results.csv"):
+        return
+    note = out / MAP_NOTE
+    held = Path(note.read_text().strip()) if note.is_file() else default.resolve()
+    if held != map_path:
+        raise ValueError(f"{out} holds rows of filters on {held}; give another folder for the "
+                         f"filters on {map_path}")  # fmt: skip
 
 
 def read_rows(path: Path) -> list[dict[str, Any]]:
@@ -228,12 +256,12 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
 
 
 def _write(out: Path, rows: list[dict[str, Any]], seeds: int, duration: float,
-           worlds: Sequence[str]) -> None:  # fmt: skip
+           worlds: Sequence[str], map_name: str = FILTER_MAP) -> None:  # fmt: skip
     with open(out / "amcl_results.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    (out / "amcl_results.md").write_text(results_md(rows, seeds, duration, worlds))
+    (out / "amcl_results.md").write_text(results_md(rows, seeds, duration, worlds, map_name))
 
 
 def per_seed_md(rows: list[dict[str, Any]], world: str) -> str:
@@ -272,16 +300,16 @@ def summary_md(rows: list[dict[str, Any]]) -> str:
 
 
 def results_md(rows: list[dict[str, Any]], seeds: int, duration: float,
-               worlds: Sequence[str] | None = None) -> str:  # fmt: skip
-    """The whole report of seeds 0..``seeds``-1 in ``worlds`` (None: all): workload, summary,
-    per-seed tables."""
+               worlds: Sequence[str] | None = None, map_name: str = FILTER_MAP) -> str:  # fmt: skip
+    """The whole report of seeds 0..``seeds``-1 in ``worlds`` (None: all), the filters holding
+    the map file ``map_name``: workload, summary, per-seed tables."""
     rows = [r for r in rows if r["seed"] < seeds and (worlds is None or r["world"] in worlds)]
     rows.sort(key=lambda r: (list(WORLDS).index(r["world"]), r["seed"], FILTERS.index(r["filter"])))
     parts = [
         "# Our filter vs nav2 amcl on the same drives",
         "",
         f"Wall follower, {duration:g} s per drive, seeds 0..{seeds - 1}, world "
-        "basement_fixed_aligned.yaml, filters on stata_basement.yaml, all started around the true "
+        f"basement_fixed_aligned.yaml, filters on {map_name}, all started around the true "
         "start pose (sd 0.25 m, 0.25 m, 0.1 rad). ours: default LocalizationConfig; amcl: nav2 "
         "defaults, beam model (the bindings' only one); amcl_recovery: the same with "
         "recovery_alpha_slow 0.001, recovery_alpha_fast 0.1. cluttered / clean: mit_racecar "

@@ -122,6 +122,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="a setting of our filter in the amcl part (LocalizationConfig, dotted, YAML values: "
         "filter.odometry_scale.initial=1.056); with --amcl-rerun ours on a copy of --out",
     )  # fmt: skip
+    parser.add_argument(
+        "--amcl-filter-map", type=Path, default=None, metavar="YAML",
+        help="the map every filter holds in the amcl part, e.g. one from racecar-sim update-map "
+        "(default: ../shared/maps/stata_basement.yaml); give it its own --out",
+    )  # fmt: skip
     parser.add_argument("--out", type=Path, default=Path("out/peers/amcl"),
                         help="folder of the amcl part's tables and drives")  # fmt: skip
 
@@ -273,6 +278,14 @@ def amcl_part(args: argparse.Namespace) -> int:
     if absent:
         print(f"skipped: {absent[0]} not found (../shared beside the checkout holds the maps)")
         return 0
+    if args.amcl_filter_map is not None:
+        from racecar_sim.maps import MapError, load_map
+
+        try:
+            load_map(args.amcl_filter_map)
+        except (MapError, OSError, ValueError) as exc:
+            print(f"racecar-sim bench peers: --amcl-filter-map: {exc}", file=sys.stderr)
+            return 2
     python, why = peer_amcl.amcl_python(args.amcl_python)
     if python is None:
         print(f"skipped: {why}")
@@ -280,11 +293,16 @@ def amcl_part(args: argparse.Namespace) -> int:
     print(f"{args.seeds} seeds x {args.amcl_duration:g} s x worlds {', '.join(args.amcl_worlds)}; "
           f"amcl from {python}; results into {args.out}")  # fmt: skip
     claim_folder(args.out)
-    rows = amcl_bench.run_benchmark(
-        python, args.amcl_worlds, args.seeds, args.amcl_duration, args.out, config,
-        rerun=args.amcl_rerun,
-    )  # fmt: skip
-    print(amcl_bench.results_md(rows, args.seeds, args.amcl_duration, args.amcl_worlds))
+    try:
+        rows = amcl_bench.run_benchmark(
+            python, args.amcl_worlds, args.seeds, args.amcl_duration, args.out, config,
+            rerun=args.amcl_rerun, filter_map=args.amcl_filter_map,
+        )  # fmt: skip
+    except ValueError as exc:
+        print(f"racecar-sim bench peers: --out: {exc}", file=sys.stderr)
+        return 2
+    name = (args.amcl_filter_map or maps / amcl_bench.FILTER_MAP).name
+    print(amcl_bench.results_md(rows, args.seeds, args.amcl_duration, args.amcl_worlds, name))
     return 0
 
 

@@ -299,6 +299,33 @@ def test_rerun_of_ours_keeps_amcls_rows_and_the_recorded_drive(tmp_path):
     assert peers_args(["--amcl-rerun", *amcl_bench.FILTERS]).amcl_rerun == list(amcl_bench.FILTERS)
 
 
+def test_rows_made_on_one_map_are_never_mixed_with_another_maps(tmp_path):
+    """The filters' map is remembered in ``--out``: a folder of rows on the default map refuses a
+    run on another map (nothing changes), and a folder of that map's rows reports it by name."""
+    need_shared("maps/stata_basement.yaml", "maps/basement_fixed_aligned.yaml")
+    other = SHARED_MAPS / "basement_fixed_aligned.yaml"
+    no_amcl = "/nonexistent/amcl-python"
+    planted = [
+        {"world": "clean", "seed": 0, "filter": f, "mean_error_m": 7.0, "p95_error_m": 7.0,
+         "max_error_m": 7.0, "pct_over_1m": 100.0, "lost": True, "cpu_s": 1.0}
+        for f in amcl_bench.FILTERS
+    ]  # fmt: skip
+    default_rows, other_rows = tmp_path / "default", tmp_path / "other"
+    for out in (default_rows, other_rows):
+        out.mkdir()
+        amcl_bench._write(out, planted, 1, 2.0, ["clean"])
+    before = (default_rows / "amcl_results.csv").read_bytes()
+    with pytest.raises(ValueError, match=r"holds rows of filters on .*stata_basement\.yaml"):
+        amcl_bench.run_benchmark(no_amcl, ["clean"], 1, 2.0, default_rows, filter_map=other)
+    assert (default_rows / "amcl_results.csv").read_bytes() == before
+    (other_rows / amcl_bench.MAP_NOTE).write_text(f"{other.resolve()}\n")
+    assert amcl_bench.run_benchmark(no_amcl, ["clean"], 1, 2.0, other_rows,
+                                    filter_map=other) == planted  # fmt: skip
+    assert "filters on basement_fixed_aligned.yaml" in (other_rows / "amcl_results.md").read_text()
+    with pytest.raises(ValueError, match=r"holds rows of filters on .*basement_fixed_aligned"):
+        amcl_bench.run_benchmark(no_amcl, ["clean"], 1, 2.0, other_rows)
+
+
 def test_a_drive_gives_amcl_the_same_errors_whatever_ran_before():
     """The same drive and seed through amcl alone and after another drive in the same peer: the
     same errors, bit for bit (the bindings reseed drand48 by a per-process count of initial poses;
@@ -328,7 +355,8 @@ def test_our_filter_settings_reach_the_benchmark_and_bad_ones_are_one_line(
     need_shared("maps/stata_basement.yaml", "maps/basement_fixed_aligned.yaml")
     seen = {}
 
-    def fake_run(python, worlds, seeds, duration, out, config=None, echo=print, rerun=()):
+    def fake_run(python, worlds, seeds, duration, out, config=None, echo=print, rerun=(),
+                 filter_map=None):
         seen["config"] = config
         return []
 
@@ -392,3 +420,13 @@ def test_the_peer_removes_only_the_files_it_made(tmp_path):
         peer.close()
     assert planted.read_text() == "the user's\n" and mine.read_text() == "keep\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["mine.txt", planted.name])
+
+
+def test_a_filter_map_that_does_not_load_is_one_line_before_any_folder(tmp_path, capsys):
+    need_shared("maps/stata_basement.yaml", "maps/basement_fixed_aligned.yaml")
+    out = tmp_path / "amcl"
+    args = ["--only", "amcl", "--out", str(out), "--amcl-filter-map", str(tmp_path / "no.yaml")]
+    assert peers.amcl_part(peers_args(args)) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "--amcl-filter-map" in err[0] and "no.yaml" in err[0]
+    assert not out.exists()
