@@ -47,6 +47,7 @@ __all__ = [
     "FILTERS",
     "LOST_SHARE",
     "WORLDS",
+    "MixedMaps",
     "World",
     "calibrated",
     "lost",
@@ -81,6 +82,10 @@ FILTER_MAP = "stata_basement.yaml"
 """The map the filters hold unless told another (a ``../shared/maps`` file)."""
 MAP_NOTE = "filter_map.txt"
 """The file in ``--out`` naming the map its rows were made on."""
+
+
+class MixedMaps(ValueError):
+    """``--out`` holds rows of filters on another map than the one asked for."""
 
 
 def lost(errors: np.ndarray) -> bool:
@@ -156,7 +161,8 @@ def run_benchmark(
     remembers it in ``filter_map.txt`` and its rows are never mixed with another map's.
 
     Raises:
-        ValueError: an unknown filter in ``rerun``, or ``out`` holds rows made on another map.
+        ValueError: an unknown filter in ``rerun``.
+        MixedMaps: ``out`` holds rows made on another map.
     """
     from mcl.bench.amcl_inputs import amcl_grid
     from mcl.bench.peer_amcl import NAV2_DEFAULTS, WITH_RECOVERY, AmclParams, AmclPeer
@@ -237,7 +243,7 @@ def _check_same_map(out: Path, map_path: Path, default: Path) -> None:
     note = out / MAP_NOTE
     held = Path(note.read_text().strip()) if note.is_file() else default.resolve()
     if held != map_path:
-        raise ValueError(f"{out} holds rows of filters on {held}; give another folder for the "
+        raise MixedMaps(f"{out} holds rows of filters on {held}; give another folder for the "
                          f"filters on {map_path}")  # fmt: skip
 
 

@@ -298,7 +298,7 @@ def amcl_part(args: argparse.Namespace) -> int:
             python, args.amcl_worlds, args.seeds, args.amcl_duration, args.out, config,
             rerun=args.amcl_rerun, filter_map=args.amcl_filter_map,
         )  # fmt: skip
-    except ValueError as exc:
+    except amcl_bench.MixedMaps as exc:
         print(f"racecar-sim bench peers: --out: {exc}", file=sys.stderr)
         return 2
     name = (args.amcl_filter_map or maps / amcl_bench.FILTER_MAP).name

@@ -115,7 +115,8 @@ def main(argv: list[str] | None = None) -> int:
     settings: dict[str, Any] = dict(env)
     env_scene = settings.pop("scene", None)  # one scene given as --env scene=NAME
     scenes = args.scene or ([env_scene] if env_scene is not None else ["cluttered", "clean"])
-    check_env_builds(parser, args.map, env, args.seed)
+    for scene in dict.fromkeys(scenes):  # each scene's obstacles find room on the world map
+        check_env_builds(parser, args.map, (*settings.items(), ("scene", scene)), args.seed)
     jobs = [(scene, args.seed + i) for scene in scenes for i in range(args.drives)]
 
     def drives() -> Iterator[RecordedDrive]:
