@@ -42,8 +42,11 @@ def test_reading_a_long_error_log_costs_about_its_columns(tmp_path) -> None:
 
 
 def test_the_drive_loop_keeps_nothing_per_step(tmp_path) -> None:
-    """Python memory still held after steps 250..750 of a drive, per step (the car keeps the wall
-    segments near it as it explores: bounded by the map, a few bytes per step here)."""
+    """Python memory still held per step over two windows of 500 steps (250..750, 750..1250) of a
+    drive (the car keeps the wall segments near it as it explores: bounded by the map, a few bytes
+    per step here). Memory kept per step shows in both windows; something made once (a kernel
+    loaded from numba's cache in a fresh process, a lazy import) in one only, so the smaller of
+    the two is held to the bound."""
     held: dict[int, int] = {}
     count = [0]
 
@@ -52,15 +55,17 @@ def test_the_drive_loop_keeps_nothing_per_step(tmp_path) -> None:
         if count[0] == 250:
             gc.collect()
             tracemalloc.start()
-        elif count[0] == 750:
+        elif count[0] in (750, 1250):
             gc.collect()
-            held["bytes"] = tracemalloc.get_traced_memory()[0]
-            tracemalloc.stop()
+            held[count[0]] = tracemalloc.get_traced_memory()[0]
+            if count[0] == 1250:
+                tracemalloc.stop()
 
-    spec = RunSpec(duration=751 * 0.025, n_particles=200, env=(("n_beams", 181),), series="m")
+    spec = RunSpec(duration=1251 * 0.025, n_particles=200, env=(("n_beams", 181),), series="m")
     try:
         run_one(spec, tmp_path / "log.csv", step_hooks=lambda wrapped: [on_step])
     finally:
         tracemalloc.stop()
-    per_step = held["bytes"] / 500
-    assert per_step < 100, f"{per_step:.0f} bytes per step still held"
+    windows = (held[750] / 500, (held[1250] - held[750]) / 500)
+    per_step = min(windows)
+    assert per_step < 100, f"{windows[0]:.0f} and {windows[1]:.0f} bytes per step still held"
