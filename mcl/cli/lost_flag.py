@@ -7,6 +7,9 @@ bundled basement_loop). The flag is judged against the truth (position error > 1
 recall, false alarms on the steps under 0.3 m; after a kidnap, the time to flag and to recover
 (error under 0.5 m for 2 s). The markdown table goes to --out/results.md and to stdout.
 
+The filter of the honest world holds another map with --filter-map YAML (e.g. one that
+``racecar-sim update-map`` brought up to date, in the same world frame).
+
 Filter settings other than the defaults: --filter KEY=VALUE (repeatable, YAML values), e.g.
 --filter sensor.sigma_hit=2.0 --filter lost.raise_below=0.35.
 """
@@ -19,6 +22,7 @@ from typing import Any
 
 from mcl.cli.common import (
     Parser,
+    check_map,
     check_out,
     check_resume,
     duration_seconds,
@@ -28,6 +32,7 @@ from mcl.cli.common import (
     positive_int,
 )
 from mcl.cli.compile_notice import compile_notice
+from mcl.cli.filter_map_option import check_filter_map
 from mcl.experiments.lost_flag import LostFlagConfig, default_worlds, run_lost_flag
 from mcl.wrappers.localization import as_localization_config, dotted_settings
 
@@ -36,6 +41,7 @@ examples:
   racecar-sim lost-flag --out runs/lost_flag
   racecar-sim lost-flag --seeds 3 --kidnap-seeds 3 --worlds basement_loop --out runs/lost_quick
   racecar-sim lost-flag --filter sensor.sigma_hit=2.0 --out runs/lost_flag_sigma2
+  racecar-sim lost-flag --filter-map out/stata_updated.yaml --worlds cluttered clean --out runs/lost_updated
 """
 
 
@@ -45,6 +51,8 @@ def build_parser() -> Parser:
     add = parser.add_argument
     add("--shared", type=path_arg, default=Path("../shared"), metavar="DIR",
         help="the real-data folder holding maps/basement_fixed_aligned.yaml and stata_basement.yaml")  # fmt: skip
+    add("--filter-map", type=path_arg, default=None, metavar="YAML",
+        help="the map the honest world's filter holds (default: stata_basement.yaml in --shared)")  # fmt: skip
     add("--worlds", nargs="+", default=None, metavar="NAME",
         help="worlds to run (default: cluttered clean basement_loop)")  # fmt: skip
     add("--seeds", type=non_negative_int, default=10, metavar="N", help="tracking drives per world")
@@ -80,7 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``racecar-sim lost-flag``; returns the exit code (1: a run failed; 2: a user mistake)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    worlds = default_worlds(args.shared)
+    filter_map = None if args.filter_map is None else str(args.filter_map)
+    worlds = default_worlds(args.shared, filter_map)
     names = [w.name for w in worlds]
     chosen = args.worlds if args.worlds is not None else names
     unknown = [n for n in chosen if n not in names]
@@ -88,9 +97,16 @@ def main(argv: list[str] | None = None) -> int:
         parser.fail("--worlds", f"unknown world(s) {unknown}; choose from {names}")
     worlds = tuple(w for w in worlds if w.name in chosen)
     for w in worlds:
-        for path in (w.map, w.filter_map):
-            if path is not None and path.endswith(".yaml") and not Path(path).is_file():
-                parser.fail("--shared", f"{path} not found (the real-data folder, README)")
+        if Path(w.map).suffix == ".yaml" and not Path(w.map).is_file():
+            parser.fail("--shared", f"{w.map} not found (the real-data folder, README)")
+        if w.filter_map is not None and filter_map is None and not Path(w.filter_map).is_file():
+            parser.fail("--shared", f"{w.filter_map} not found (the real-data folder, README)")
+    if filter_map is not None:
+        honest = [w for w in worlds if w.filter_map is not None]
+        if not honest:
+            parser.fail("--filter-map", "only the honest worlds (cluttered, clean) hold a filter map")
+        check_map(parser, filter_map, "--filter-map")
+        check_filter_map(parser, honest[0].map, filter_map)
     try:
         localization = as_localization_config(filter_settings(parser, args.filter))
     except (TypeError, ValueError) as exc:

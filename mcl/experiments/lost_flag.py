@@ -77,11 +77,16 @@ class World:
     tracking: bool = True
 
 
-def default_worlds(shared: str | os.PathLike[str] = "../shared") -> tuple[World, ...]:
+def default_worlds(
+    shared: str | os.PathLike[str] = "../shared", filter_map: str | os.PathLike[str] | None = None
+) -> tuple[World, ...]:
     """The honest world (cluttered and clean scenes, ``mit_racecar`` noise, the Stata map out of
-    date in the filter) from ``shared``, and the bundled ``basement_loop`` (ideal; kidnaps only)."""
+    date in the filter) from ``shared``, and the bundled ``basement_loop`` (ideal; kidnaps only).
+    ``filter_map``: the map the honest world's filter holds instead of ``stata_basement.yaml``
+    (one brought up to date by ``racecar-sim update-map``, in the same world frame)."""
     maps = Path(shared) / "maps"
-    world, held = str(maps / "basement_fixed_aligned.yaml"), str(maps / "stata_basement.yaml")
+    world = str(maps / "basement_fixed_aligned.yaml")
+    held = str(maps / "stata_basement.yaml") if filter_map is None else str(filter_map)
     honest = (("noise_profile", "mit_racecar"),)
     return (
         World("cluttered", world, held, (*honest, ("scene", "cluttered"))),
