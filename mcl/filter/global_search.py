@@ -8,7 +8,11 @@ it for as long as the scan fits there fairly (a corridor like the car's, a room 
 poses over the filter map's free space (the filter's ``global_density`` per square metre, at most
 ``global_max_particles``), moved by the same odometry and weighed by the same scans with the
 sensor model's wide search hit, so that the car's place wins over several scans as it does at a
-global start. Its cloud has *settled* once its position standard deviation has stayed under
+global start. While it runs it keeps replacing ``inject_share`` of each resampling by uniform
+poses (augmented MCL's injection): the first scans of a global start can gather the weight on a
+look-alike place (a corridor fits from anywhere along it) before a pose near the car was drawn,
+and injected poses that land near the car take over when its scans favour them. Its cloud has
+*settled* once its position standard deviation has stayed under
 ``converged_sd`` for ``adopt_after_s`` seconds (a global start's first scans can gather the weight
 on a few poses that later scans refute); it is then resampled down to the filter's particle
 count, and its estimate is compared with the filter's on every scan by the scan fit (the lost
@@ -17,7 +21,11 @@ flag's share of beams that agree with the map, averaged over ``adopt_after_s``):
 - where the two agree (within ``agree_m`` and ``agree_rad``) the search has confirmed the filter's
   place;
 - where it fits better by ``adopt_margin`` of the beams, the filter takes the search's cloud
-  ([adopt][mcl.filter.global_search.GlobalSearch.adopt]);
+  ([adopt][mcl.filter.global_search.GlobalSearch.adopt]); also where the scan's log-likelihood
+  given to [compare][mcl.filter.global_search.GlobalSearch.compare] (the lost flag gives it
+  after a jump) beats the filter's by ``adopt_loglik`` nats per scan on average and the fit is not
+  worse by ``adopt_margin``: two corridors alike fit the same share of beams within 0.2 m, but
+  the car's own place puts each return closer to its cast;
 - where it fits worse by as much, it settled on a wrong place;
 - otherwise it tracks its own place on, a second hypothesis.
 
@@ -52,11 +60,18 @@ class GlobalSearch:
             average) for the filter to take the search's cloud.
         adopt_after_s: seconds of driving over which the fit difference is averaged
             (exponential time constant), and the least time converged before an adoption.
+        inject_share: fraction of each of the search's resamplings replaced by uniform
+            free-space poses while it runs, in [0, 0.5] (0: none).
+        adopt_loglik: nats per scan; the filter also takes the search's cloud when the
+            log-likelihood difference given to `compare()` averages at least this and the fit
+            is not worse by ``adopt_margin`` (``math.inf``: never).
 
     Attributes:
         filter: the search's particle filter (None while no search runs).
         fit_gap: the averaged difference of the scan fits, search minus filter (NaN before the
             search converged).
+        loglik_gap: the averaged difference of the scans' log-likelihoods (nats), search minus
+            filter (NaN before the search converged or while none is given).
         converged_for: seconds the search's cloud has stayed converged (0 while it is not).
         adoptions: how many times the filter took the search's cloud since the restart.
     """
@@ -68,11 +83,17 @@ class GlobalSearch:
         agree_rad: float = 0.5,
         adopt_margin: float = 0.1,
         adopt_after_s: float = 1.0,
+        inject_share: float = 0.0,
+        adopt_loglik: float = math.inf,
     ) -> None:
         for name, value in (("converged_sd", converged_sd), ("agree_m", agree_m),
                             ("agree_rad", agree_rad), ("adopt_after_s", adopt_after_s)):  # fmt: skip
             if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value < math.inf:
                 raise ValueError(f"GlobalSearch {name} = {value!r} must be a positive number")
+        if isinstance(inject_share, bool) or not 0 <= inject_share <= 0.5:
+            raise ValueError(f"GlobalSearch inject_share = {inject_share!r} must lie in [0, 0.5]")
+        if isinstance(adopt_loglik, bool) or not adopt_loglik > 0:
+            raise ValueError(f"GlobalSearch adopt_loglik = {adopt_loglik!r} must be positive (inf: never)")
         if isinstance(adopt_margin, bool) or not 0 <= adopt_margin <= 1:
             raise ValueError(f"GlobalSearch adopt_margin = {adopt_margin!r} must be a fraction in [0, 1]")
         self.converged_sd = converged_sd
@@ -80,8 +101,11 @@ class GlobalSearch:
         self.agree_rad = agree_rad
         self.adopt_margin = adopt_margin
         self.adopt_after_s = adopt_after_s
+        self.inject_share = inject_share
+        self.adopt_loglik = adopt_loglik
         self.filter: ParticleFilter | None = None
         self.fit_gap = math.nan
+        self.loglik_gap = math.nan
         self.converged_for = 0.0
         self.adoptions = 0
 
@@ -102,14 +126,18 @@ class GlobalSearch:
         )
         search.initialize_global()
         search.odometry_scale.take(pf.odometry_scale)
+        if self.inject_share > 0.0:
+            search.request_recovery(self.inject_share)
         self.filter = search
         self.fit_gap = math.nan
+        self.loglik_gap = math.nan
         self.converged_for = 0.0
 
     def stop(self) -> None:
         """End the search (its particles are dropped)."""
         self.filter = None
         self.fit_gap = math.nan
+        self.loglik_gap = math.nan
         self.converged_for = 0.0
 
     def predict(self, twist: np.ndarray, dt: float) -> None:
@@ -128,7 +156,7 @@ class GlobalSearch:
             return
         search.correct(scan)
         if not largest_position_sd(search.covariance()) < self.converged_sd:
-            self.converged_for, self.fit_gap = 0.0, math.nan
+            self.converged_for, self.fit_gap, self.loglik_gap = 0.0, math.nan, math.nan
             return
         self.converged_for += dt
         count = search.params.n_particles
@@ -148,20 +176,33 @@ class GlobalSearch:
         turn = abs(float(wrap_angle(mine[2] - float(estimate[2]))))
         return math.dist(mine[:2], estimate[:2]) <= self.agree_m and turn <= self.agree_rad
 
-    def compare(self, search_fit: float, filter_fit: float, dt: float) -> int:
+    def compare(
+        self, search_fit: float, filter_fit: float, dt: float, loglik_gap: float = math.nan
+    ) -> int:
         """Fold one scan's fits (fractions of beams at the search's and the filter's estimate)
-        taken ``dt`` seconds after the last into `fit_gap`; returns 1 when the filter should
-        take the search's cloud (settled, the averaged gap at least ``adopt_margin``), -1 when
-        the search settled on a place that fits worse by as much (search again), else 0."""
+        taken ``dt`` seconds after the last into `fit_gap`, and ``loglik_gap`` (nats, the
+        scan's log-likelihood at the search's estimate minus at the filter's; NaN: none) into
+        `loglik_gap`; returns 1 when the filter should take the search's cloud (settled, and
+        the averaged fit gap at least ``adopt_margin``, or the averaged log-likelihood gap at
+        least ``adopt_loglik`` with the fit gap above ``-adopt_margin``), -1 when the search
+        settled on a place that fits worse by ``adopt_margin`` (search again), else 0."""
+        a = 1.0 - math.exp(-dt / self.adopt_after_s)
         gap = search_fit - filter_fit
         if math.isfinite(gap):
             if math.isnan(self.fit_gap):
                 self.fit_gap = gap
             else:
-                self.fit_gap += (1.0 - math.exp(-dt / self.adopt_after_s)) * (gap - self.fit_gap)
+                self.fit_gap += a * (gap - self.fit_gap)
+        if math.isfinite(loglik_gap):
+            if math.isnan(self.loglik_gap):
+                self.loglik_gap = loglik_gap
+            else:
+                self.loglik_gap += a * (loglik_gap - self.loglik_gap)
         if not self.settled() or math.isnan(self.fit_gap):
             return 0
         if self.fit_gap >= self.adopt_margin:
+            return 1
+        if self.loglik_gap >= self.adopt_loglik and self.fit_gap > -self.adopt_margin:
             return 1
         return -1 if self.fit_gap <= -self.adopt_margin else 0
 

@@ -53,10 +53,14 @@ the outcome is kept only when the scan fits it better by ``burst_accept``, at le
 
 The search filter (``search_filter``; [`mcl.filter.global_search`][mcl.filter.global_search]): a
 jump, or a dip of the continuity the fit did not confirm (the old estimate has a look-alike), starts
-a global start of its own beside the filter for up to ``jump_search_s``; once settled, the filter
-takes its cloud when it fits better by ``burst_accept`` on average over ``search_adopt_s``, and it
-starts again after that, when it settled on a worse place, or on the filter's place while the flag
-is up; on the filter's place with the flag down it stops.
+a global start of its own beside the filter for up to ``jump_search_s``, which keeps replacing
+``search_inject_share`` of each resampling by uniform poses; once settled, the filter takes its
+cloud when it fits better by ``burst_accept`` on average over ``search_adopt_s`` or, within
+``jump_search_s`` of a jump, when the scan's log-likelihood at its estimate beats that at the
+filter's by ``search_adopt_loglik`` nats per scan on average (two corridors alike fit the same
+share of beams; the car's own place explains them more closely), and it starts again after that,
+when it settled on a worse place, or on the filter's place while the flag is up; on the filter's
+place with the flag down it stops.
 
 Frames and units: world frame; metres, radians, seconds.
 """
@@ -130,7 +134,9 @@ class LostDetector:
         self._odometry_fed = False
         p = self.params
         self.search = GlobalSearch(p.search_converged_sd, adopt_margin=p.burst_accept,
-                                   adopt_after_s=p.search_adopt_s)  # fmt: skip
+                                   adopt_after_s=p.search_adopt_s,
+                                   inject_share=p.search_inject_share,
+                                   adopt_loglik=p.search_adopt_loglik)  # fmt: skip
 
     def restart(self) -> None:
         """Forget the history (a new belief: a reset or a new start)."""
@@ -256,11 +262,11 @@ class LostDetector:
         return self.lost
 
     def _search(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> bool:
-        """One scan of the search filter; returns whether ``pf`` took its cloud (its fit beat
-        the filter's, module docstring). The search ends ``jump_search_s`` after it started, or
-        once it settles on the filter's place while the flag is down; it starts again after
-        an adoption, when it settles on the filter's place while the flag is up, and when it
-        settles on a place that fits worse than the filter's."""
+        """One scan of the search filter; returns whether ``pf`` took its cloud (its fit, or
+        after a jump its log-likelihood, beat the filter's: module docstring). The search ends
+        ``jump_search_s`` after it started, or once it settles on the filter's place while the
+        flag is down; it starts again after an adoption, when it settles on the filter's place
+        while the flag is up, and when it settles on a place that fits worse than the filter's."""
         search = self.search
         if self._since_search > self.params.jump_search_s:
             search.stop()
@@ -274,8 +280,15 @@ class LostDetector:
             else:
                 search.stop()
             return False
-        search_fit = self.fit_at(search.filter, search.filter.estimate(), scan)
-        verdict = search.compare(search_fit, self.fit, self._since_scan)
+        found = search.filter.estimate()
+        search_fit = self.fit_at(search.filter, found, scan)
+        loglik_gap = math.nan  # the scan's log-likelihood, search minus filter, after a jump
+        p = self.params
+        if math.isfinite(p.search_adopt_loglik) and self._since_jump < p.jump_search_s:
+            poses = np.stack([found, np.asarray(estimate, dtype=np.float64)])
+            ll = pf.sensor_model.log_evaluate(poses, scan)
+            loglik_gap = float(ll[0] - ll[1])
+        verdict = search.compare(search_fit, self.fit, self._since_scan, loglik_gap)
         if verdict > 0:
             search.adopt(pf)
         if verdict != 0:

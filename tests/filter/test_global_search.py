@@ -52,6 +52,43 @@ def test_the_verdict_waits_until_settled_and_needs_the_margin_either_way() -> No
     assert search.compare(0.55, 0.5, 0.5) == 0  # within the margin: track on
 
 
+def test_a_better_log_likelihood_adopts_where_the_fits_tie_but_not_a_worse_fit() -> None:
+    search = GlobalSearch(adopt_margin=0.1, adopt_after_s=1.0, adopt_loglik=10.0)
+    search.converged_for, search.filter = 1.0, object()  # settled
+    assert search.compare(0.9, 0.9, 0.5, loglik_gap=15.0) == 1  # fits tie, the scan favours it
+    assert search.loglik_gap == pytest.approx(15.0)
+    search.fit_gap, search.loglik_gap = math.nan, math.nan
+    assert search.compare(0.9, 0.9, 0.5, loglik_gap=5.0) == 0  # not by enough: track on
+    # a drop of the gap is averaged: 5 + (1 - e^-0.5) (40 - 5) = 18.8 >= 10
+    assert search.compare(0.9, 0.9, 0.5, loglik_gap=40.0) == 1
+    search.fit_gap, search.loglik_gap = math.nan, math.nan
+    assert search.compare(0.7, 0.9, 0.5, loglik_gap=100.0) == -1  # fits worse by 0.2: refused
+    # without a threshold the log-likelihood is ignored
+    plain = GlobalSearch(adopt_margin=0.1)
+    plain.converged_for, plain.filter = 1.0, object()
+    assert plain.compare(0.9, 0.9, 0.5, loglik_gap=1e6) == 0
+
+
+def test_a_search_that_settled_on_a_wrong_place_finds_the_car_through_its_injected_poses(
+    room, sensor
+) -> None:
+    lidar = Lidar(room)
+    ends = {}
+    for share in (0.0, 0.05):
+        pf = _pf(room, sensor, ELSEWHERE)
+        search = GlobalSearch(inject_share=share)
+        search.start(pf)
+        wrong = search.filter.poses_around(ELSEWHERE, (0.05, 0.05, 0.02), 300)
+        search.filter.set_particles(wrong)  # settled on the wrong place
+        rng = np.random.default_rng(3)
+        for _ in range(120):
+            search.correct(lidar.measure(TRUTH, rng), DT)
+        ends[share] = search.filter.estimate()
+        assert search.filter.recovery_share == share
+    assert math.dist(ends[0.0][:2], ELSEWHERE[:2]) < 0.3  # nothing new: it stays
+    assert math.dist(ends[0.05][:2], TRUTH[:2]) < 0.5  # poses that landed near the car took over
+
+
 def test_a_search_agrees_within_a_metre_and_half_a_radian(room, sensor) -> None:
     search = GlobalSearch(agree_m=1.0, agree_rad=0.5)
     assert not search.agrees_with(TRUTH)  # no search runs
@@ -109,7 +146,8 @@ def test_adopt_without_a_search_is_refused(room, sensor) -> None:
 @pytest.mark.parametrize(
     ("name", "value"),
     [("converged_sd", 0.0), ("agree_m", -1.0), ("agree_rad", math.inf), ("adopt_after_s", "1"),
-     ("adopt_margin", 1.5), ("converged_sd", True)],
+     ("adopt_margin", 1.5), ("converged_sd", True), ("inject_share", 0.6),
+     ("adopt_loglik", 0.0), ("inject_share", True)],
 )  # fmt: skip
 def test_bad_settings_are_refused_naming_them(name: str, value: object) -> None:
     with pytest.raises(ValueError, match=rf"GlobalSearch {name} = "):

@@ -53,6 +53,11 @@ DT = 0.025  # the env's default step
         ("search_on_lost", "no"),
         ("search_converged_sd", 0.0),
         ("search_adopt_s", -1.0),
+        ("search_inject_share", 0.51),
+        ("search_inject_share", -0.01),
+        ("search_adopt_loglik", 0.0),
+        ("search_adopt_loglik", math.nan),
+        ("search_adopt_loglik", "10"),
     ],
 )
 def test_lost_params_refuse_bad_values_naming_the_field(field: str, value: object) -> None:

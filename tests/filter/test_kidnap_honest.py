@@ -1,0 +1,44 @@
+"""A kidnap in the honest world (the car in ``basement_fixed_aligned.yaml``, the filter holding the
+out-of-date ``stata_basement.yaml``, the ``mit_racecar`` noise, the clean scene): kidnap seed 4 of
+`racecar-sim lost-flag` carries the car into the corridor at y = -2 m, whose other end, 25 m
+west, fits the same share of beams; only the scans' log-likelihood tells them apart."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+from mcl.experiments.lost_flag import LostFlagConfig, default_worlds, kidnap_times
+from mcl.experiments.runs import run_one
+from mcl.wrappers.error_log import read_error_log
+from mcl.wrappers.localization import as_localization_config
+from tests.skips import need_shared
+
+
+def _recovered_after(tmp_path, settings: dict | None) -> float:
+    """Seconds from the kidnap until the error stays under 0.5 m for 2 s (NaN: never)."""
+    need_shared("maps/basement_fixed_aligned.yaml", "maps/stata_basement.yaml")
+    from tests.skips import SHARED
+
+    clean = [w for w in default_worlds(SHARED) if w.name == "clean"]
+    config = LostFlagConfig(worlds=tuple(clean), seeds=0, kidnap_seeds=5, after_kidnap=15.0)
+    spec = config.runs()[4]
+    assert spec.scenario == "kidnap" and spec.seed == 4
+    if settings is not None:
+        spec = replace(spec, config=as_localization_config(settings))
+    log = tmp_path / "kidnap.csv"
+    run_one(spec, log)
+    return kidnap_times(read_error_log(log), config.kidnap_time, config.hold_s)[1]
+
+
+def test_the_default_filter_finds_the_car_in_a_corridor_like_another(tmp_path) -> None:
+    assert _recovered_after(tmp_path, None) <= 10.0  # 2.2 s on the machine that measured it
+
+
+def test_without_the_log_likelihood_and_the_injection_the_search_keeps_the_other_end(
+    tmp_path,
+) -> None:
+    old = {"lost": {"search_inject_share": 0.0, "search_adopt_loglik": math.inf}}
+    assert math.isnan(_recovered_after(tmp_path, old))  # 11 m off to the end
+
+
