@@ -8,8 +8,8 @@ it for as long as the scan fits there fairly (a corridor like the car's, a room 
 poses over the filter map's free space (the filter's ``global_density`` per square metre, at most
 ``global_max_particles``), moved by the same odometry and weighed by the same scans with the
 sensor model's wide search hit, so that the car's place wins over several scans as it does at a
-global start. While it runs it keeps replacing ``inject_share`` of each resampling by uniform
-poses (augmented MCL's injection): the first scans of a global start can gather the weight on a
+global start. While it runs it can keep replacing ``inject_share`` of each resampling by uniform
+poses (augmented MCL's injection; none by default): the first scans of a global start can gather the weight on a
 look-alike place (a corridor fits from anywhere along it) before a pose near the car was drawn,
 and injected poses that land near the car take over when its scans favour them. Its cloud has
 *settled* once its position standard deviation has stayed under
@@ -90,9 +90,10 @@ class GlobalSearch:
                             ("agree_rad", agree_rad), ("adopt_after_s", adopt_after_s)):  # fmt: skip
             if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value < math.inf:
                 raise ValueError(f"GlobalSearch {name} = {value!r} must be a positive number")
-        if isinstance(inject_share, bool) or not 0 <= inject_share <= 0.5:
+        number = (int, float)
+        if isinstance(inject_share, bool) or not isinstance(inject_share, number) or not 0 <= inject_share <= 0.5:
             raise ValueError(f"GlobalSearch inject_share = {inject_share!r} must lie in [0, 0.5]")
-        if isinstance(adopt_loglik, bool) or not adopt_loglik > 0:
+        if isinstance(adopt_loglik, bool) or not isinstance(adopt_loglik, number) or not adopt_loglik > 0:
             raise ValueError(f"GlobalSearch adopt_loglik = {adopt_loglik!r} must be positive (inf: never)")
         if isinstance(adopt_margin, bool) or not 0 <= adopt_margin <= 1:
             raise ValueError(f"GlobalSearch adopt_margin = {adopt_margin!r} must be a fraction in [0, 1]")

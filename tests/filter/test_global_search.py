@@ -147,7 +147,7 @@ def test_adopt_without_a_search_is_refused(room, sensor) -> None:
     ("name", "value"),
     [("converged_sd", 0.0), ("agree_m", -1.0), ("agree_rad", math.inf), ("adopt_after_s", "1"),
      ("adopt_margin", 1.5), ("converged_sd", True), ("inject_share", 0.6),
-     ("adopt_loglik", 0.0), ("inject_share", True)],
+     ("adopt_loglik", 0.0), ("inject_share", True), ("inject_share", "0.1"), ("adopt_loglik", "10")],
 )  # fmt: skip
 def test_bad_settings_are_refused_naming_them(name: str, value: object) -> None:
     with pytest.raises(ValueError, match=rf"GlobalSearch {name} = "):
