@@ -29,7 +29,8 @@ flag's share of beams that agree with the map, averaged over ``adopt_after_s``):
 - where it fits worse by as much, it settled on a wrong place;
 - otherwise it tracks its own place on, a second hypothesis.
 
-What follows each verdict (stop, search again) is the lost flag's decision
+What follows each verdict (stop, search again; also a search that stays undecided on a place
+fitting well under the car's usual fit) is the lost flag's decision
 ([`LostDetector`][mcl.filter.lost.LostDetector]).
 
 Frames and units: world poses [x m, y m, theta rad]; seconds; fits are fractions of beams.
@@ -70,6 +71,8 @@ class GlobalSearch:
         filter: the search's particle filter (None while no search runs).
         fit_gap: the averaged difference of the scan fits, search minus filter (NaN before the
             search converged).
+        fit: the search's own scan fit at its estimate, averaged as ``fit_gap`` (NaN before the
+            search converged).
         loglik_gap: the averaged difference of the scans' log-likelihoods (nats), search minus
             filter (NaN before the search converged or while none is given).
         converged_for: seconds the search's cloud has stayed converged (0 while it is not).
@@ -106,6 +109,7 @@ class GlobalSearch:
         self.adopt_loglik = adopt_loglik
         self.filter: ParticleFilter | None = None
         self.fit_gap = math.nan
+        self.fit = math.nan
         self.loglik_gap = math.nan
         self.converged_for = 0.0
         self.adoptions = 0
@@ -130,14 +134,14 @@ class GlobalSearch:
         if self.inject_share > 0.0:
             search.request_recovery(self.inject_share)
         self.filter = search
-        self.fit_gap = math.nan
+        self.fit_gap = self.fit = math.nan
         self.loglik_gap = math.nan
         self.converged_for = 0.0
 
     def stop(self) -> None:
         """End the search (its particles are dropped)."""
         self.filter = None
-        self.fit_gap = math.nan
+        self.fit_gap = self.fit = math.nan
         self.loglik_gap = math.nan
         self.converged_for = 0.0
 
@@ -158,6 +162,7 @@ class GlobalSearch:
         search.correct(scan)
         if not largest_position_sd(search.covariance()) < self.converged_sd:
             self.converged_for, self.fit_gap, self.loglik_gap = 0.0, math.nan, math.nan
+            self.fit = math.nan
             return
         self.converged_for += dt
         count = search.params.n_particles
@@ -188,6 +193,8 @@ class GlobalSearch:
         least ``adopt_loglik`` with the fit gap above ``-adopt_margin``), -1 when the search
         settled on a place that fits worse by ``adopt_margin`` (search again), else 0."""
         a = 1.0 - math.exp(-dt / self.adopt_after_s)
+        if math.isfinite(search_fit):
+            self.fit = search_fit if math.isnan(self.fit) else self.fit + a * (search_fit - self.fit)
         gap = search_fit - filter_fit
         if math.isfinite(gap):
             if math.isnan(self.fit_gap):

@@ -291,9 +291,20 @@ class LostDetector:
         verdict = search.compare(search_fit, self.fit, self._since_scan, loglik_gap)
         if verdict > 0:
             search.adopt(pf)
-        if verdict != 0:
+        if verdict != 0 or self._look_alike():
             search.start(pf)
         return verdict > 0
+
+    def _look_alike(self) -> bool:
+        """Whether, the flag up, the undecided search has stayed converged ``search_restart_s``
+        seconds on a place whose averaged fit lies ``search_restart_misfit`` under the car's
+        usual fit."""
+        p, search = self.params, self.search
+        return (
+            self.lost
+            and search.converged_for >= p.search_restart_s
+            and search.fit < self.reference_fit - p.search_restart_misfit
+        )
 
     def _check_jump(self, pf: ParticleFilter, scan: np.ndarray) -> None:
         """Compare ``scan`` with the previous one (odometry fed since): a jump raises

@@ -220,7 +220,8 @@ class ParticleFilter(Belief, GlobalRecovery):
         if self.standstill.slipping:
             twist = self.standstill.scaled(twist)
         scale.observe(twist, dt)
-        if self.standstill.params.hold_still and self.standstill.standing:
+        still = self.standstill.params
+        if still.hold_still and self.standstill.standing and (still.hold_searching or not self.searching):
             return  # a car that stands: nothing moved, no motion to be unsure of
         self.move(twist_to_odometry(scale.scaled(twist).tolist(), dt))
 

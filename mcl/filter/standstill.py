@@ -36,9 +36,13 @@ stands, the filter does not move its particles at all, not even by its motion no
 stands has no motion to be unsure of, and noise with nothing to hold the cloud lets the scan
 slide it to any place nearby that fits the old map better (held-out cluttered seed 24 of the
 honest world pins itself at 17.5 s for 42 s while its wheels report 0.5-1.8 m/s: the estimate
-slid 1.4 m along the corridor). nav2 amcl does not update its filter at all until its odometry
-has moved 0.25 m or turned 0.2 rad (`update_min_d`, `update_min_a`: nav2's defaults); a car
-whose wheels spin would pass that gate, which is why the check looks at the scans.
+slid 1.4 m along the corridor). A cloud that *searches* (its last correction scored with the wide
+search hit: spread wider than the sensor model's ``search_start_spread``, as after a kidnap, until
+it shrinks under ``search_spread``) is not held (``hold_searching``): it has no estimate to
+protect, and its poses, not moving, could never come closer to a standing car. nav2 amcl does
+not update its filter at all until its odometry has moved 0.25 m or turned 0.2 rad
+(`update_min_d`, `update_min_a`: nav2's defaults); a car whose wheels spin would pass that gate,
+which is why the check looks at the scans.
 
 Frames and units: car frame and lidar frame (as in [mcl.filter.scan_continuity][]); metres,
 radians, seconds.
@@ -82,6 +86,11 @@ class StandstillParams:
             moved elsewhere since (a burst's outcome kept, the search's cloud taken, a jump).
         hold_still: while the car stands (shares 0 and 0) the particles are not moved at all,
             not even by the motion model's noise (False: its noise still spreads them).
+        hold_searching: ``hold_still`` also for a cloud that searches
+            ([ParticleFilter.searching][mcl.filter.particle_filter.ParticleFilter]: spread wider
+            than the sensor model's ``search_start_spread``, as after a kidnap, until it shrinks
+            under ``search_spread``); False: a searching cloud keeps its motion noise while the
+            car stands, so that its poses still refine.
         beams: points of each scan compared.
         tolerance: metres within which a point counts as seen again.
         tolerance_per_m: extra metres of tolerance per metre of range.
@@ -100,6 +109,7 @@ class StandstillParams:
     in_a_row: int = 3
     take_back: bool = True
     hold_still: bool = True
+    hold_searching: bool = False
     beams: int = 100
     tolerance: float = 0.05
     tolerance_per_m: float = 0.01
@@ -107,7 +117,7 @@ class StandstillParams:
     turn_slack: float = 0.03
 
     def __post_init__(self) -> None:
-        for name in ("enabled", "take_back", "hold_still"):
+        for name in ("enabled", "take_back", "hold_still", "hold_searching"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(
                     f"StandstillParams.{name} = {short(getattr(self, name))} must be a bool"

@@ -40,11 +40,13 @@ def test_the_verdict_waits_until_settled_and_needs_the_margin_either_way() -> No
     # not settled (no cloud converged yet): no verdict however large the gap
     assert search.compare(0.9, 0.5, 0.5) == 0
     assert search.fit_gap == pytest.approx(0.4)  # the first gap is taken whole
+    assert search.fit == pytest.approx(0.9)  # and the search's own fit, for a restart
     search.converged_for = 1.0
     search.filter = object()  # settled() needs a running search
     # the average moves 1 - exp(-dt / 1 s) of the way: 0.4 + (1 - e^-0.5) (0.0 - 0.4) = 0.243
     assert search.compare(0.5, 0.5, 0.5) == 1
     assert search.fit_gap == pytest.approx(0.4 * math.exp(-0.5))
+    assert search.fit == pytest.approx(0.5 + 0.4 * math.exp(-0.5))
     # a long stretch of the search fitting worse by 0.3: the average passes -0.1
     verdicts = [search.compare(0.5, 0.8, 0.5) for _ in range(6)]
     assert verdicts[0] == 0 and verdicts[-1] == -1

@@ -58,6 +58,11 @@ DT = 0.025  # the env's default step
         ("search_adopt_loglik", 0.0),
         ("search_adopt_loglik", math.nan),
         ("search_adopt_loglik", "10"),
+        ("search_restart_misfit", 0.0),
+        ("search_restart_misfit", math.nan),
+        ("search_restart_misfit", "0.1"),
+        ("search_restart_s", 0.0),
+        ("search_restart_s", math.inf),
     ],
 )
 def test_lost_params_refuse_bad_values_naming_the_field(field: str, value: object) -> None:

@@ -94,6 +94,8 @@ def test_standstill_params_are_checked() -> None:
         StandstillParams(take_back=1)
     with pytest.raises(ValueError, match="hold_still"):
         StandstillParams(hold_still="no")
+    with pytest.raises(ValueError, match="hold_searching"):
+        StandstillParams(hold_searching=0)
 
 
 def _pinned_drive(seed: int, seconds: float) -> RecordedDrive:
@@ -151,6 +153,35 @@ def test_a_standing_car_s_cloud_is_not_spread_by_the_motion_noise(hold_still) ->
         pf.predict(twist, DT)
     moved = np.abs(pf.particles - before).max()
     assert (moved == 0.0) if hold_still else (moved > 0.0)  # only the noise moves them
+
+
+@pytest.mark.parametrize("hold_searching", [True, False])
+def test_a_searching_cloud_keeps_its_motion_noise_while_the_car_stands(hold_searching) -> None:
+    # after a kidnap the cloud is spread over look-alike places: a car that stands gives its
+    # poses no motion to refine them by, so (hold_searching False) the noise still moves them
+    pose = _free_pose(6)
+    still = StandstillParams(hold_searching=hold_searching)
+    pf = ParticleFilter(ENV.map, 200, params=ParticleFilterParams(standstill=still), rng=4)
+    pf.initialize(pose, spread=(0.05, 0.05, 0.02))
+    twist = np.array([1.0, 0.0, 0.4])  # the wheels spin; the car stands
+    for _ in range(100):
+        pf.predict(twist, DT)
+        pf.correct(LIDAR.true_ranges(pose))
+        if pf.standstill.standing:
+            break
+    assert pf.standstill.standing and not pf.searching
+    before = pf.particles.copy()
+    pf.predict(twist, DT)
+    assert np.abs(pf.particles - before).max() == 0.0  # a tracking cloud is held either way
+    pf.searching = True  # as a correction sets it once the cloud spreads (a search)
+    pf.predict(twist, DT)
+    moved = np.abs(pf.particles - before)
+    assert (moved.max() == 0.0) if hold_searching else (moved[:, :2].max() < 0.2)
+    if not hold_searching:  # the search's noise, not the wheels: nowhere near 1 m/s x DT ahead
+        assert moved.max() > 0.0
+        step = pf.particles[:, :2] - before[:, :2]
+        ahead = step[:, 0] * np.cos(before[:, 2]) + step[:, 1] * np.sin(before[:, 2])
+        assert abs(float(ahead.mean())) < 0.01  # the wheels would say 0.025 m
 
 
 def test_take_back_is_given_once_and_only_when_asked_for() -> None:
