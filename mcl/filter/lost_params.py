@@ -95,9 +95,9 @@ class LostParams:
             stayed converged ``search_restart_s`` seconds without a verdict while its own
             averaged scan fit lies this far under the car's usual fit (the reference, held since
             the jump) settled on a look-alike place: it starts again from a new uniform draw
-            (``.inf``: never). On
-            40 honest kidnaps 0.15 found 34 within 15 s against 32 without (0.10: 33, 0.20: 32;
-            held-out kidnaps 17 of 20 against 16, docs/recovery.md).
+            (``.inf``: never). On 40 honest kidnaps 0.15 found 33 within 15 s and 36 within
+            20 s against 32 and 34 without (a searching cloud's noise kept while the car stands
+            in both); 16 of 20 held-out kidnaps as without, three sooner (docs/recovery.md).
         search_restart_s: seconds converged before such a restart.
         local_below: while the averaged fit is under this fraction (the estimate explains almost
             none of the scan), every ``burst_every_s`` a burst of poses around the estimate is

@@ -52,7 +52,7 @@ def test_without_the_log_likelihood_and_the_injection_the_search_keeps_the_other
 
 
 def test_a_search_settled_on_a_look_alike_starts_again_and_finds_the_car(tmp_path) -> None:
-    assert _recovered_after(tmp_path, None, "cluttered", 5) <= 15.0  # 8.35 s where measured
+    assert _recovered_after(tmp_path, None, "cluttered", 5) <= 15.0  # 12.45 s where measured
 
 
 def test_without_the_restart_the_search_tracks_the_look_alike_on(tmp_path) -> None:
