@@ -49,6 +49,14 @@ from mcl.filter.uncertainty import largest_position_sd
 __all__ = ["GlobalSearch"]
 
 
+def _fold(average: float, value: float, a: float) -> float:
+    """``average`` moved the share ``a`` of the way to ``value``; the first finite value is
+    taken whole (``average`` NaN), a non-finite one leaves it as it was."""
+    if not math.isfinite(value):
+        return average
+    return value if math.isnan(average) else average + a * (value - average)
+
+
 class GlobalSearch:
     """The search filter of one [LostDetector][mcl.filter.lost.LostDetector] (module docstring).
 
@@ -108,9 +116,7 @@ class GlobalSearch:
         self.inject_share = inject_share
         self.adopt_loglik = adopt_loglik
         self.filter: ParticleFilter | None = None
-        self.fit_gap = math.nan
-        self.fit = math.nan
-        self.loglik_gap = math.nan
+        self.fit = self.fit_gap = self.loglik_gap = math.nan
         self.converged_for = 0.0
         self.adoptions = 0
 
@@ -134,15 +140,13 @@ class GlobalSearch:
         if self.inject_share > 0.0:
             search.request_recovery(self.inject_share)
         self.filter = search
-        self.fit_gap = self.fit = math.nan
-        self.loglik_gap = math.nan
+        self.fit = self.fit_gap = self.loglik_gap = math.nan
         self.converged_for = 0.0
 
     def stop(self) -> None:
         """End the search (its particles are dropped)."""
         self.filter = None
-        self.fit_gap = self.fit = math.nan
-        self.loglik_gap = math.nan
+        self.fit = self.fit_gap = self.loglik_gap = math.nan
         self.converged_for = 0.0
 
     def predict(self, twist: np.ndarray, dt: float) -> None:
@@ -161,8 +165,8 @@ class GlobalSearch:
             return
         search.correct(scan)
         if not largest_position_sd(search.covariance()) < self.converged_sd:
-            self.converged_for, self.fit_gap, self.loglik_gap = 0.0, math.nan, math.nan
-            self.fit = math.nan
+            self.converged_for = 0.0
+            self.fit = self.fit_gap = self.loglik_gap = math.nan
             return
         self.converged_for += dt
         count = search.params.n_particles
@@ -193,19 +197,9 @@ class GlobalSearch:
         least ``adopt_loglik`` with the fit gap above ``-adopt_margin``), -1 when the search
         settled on a place that fits worse by ``adopt_margin`` (search again), else 0."""
         a = 1.0 - math.exp(-dt / self.adopt_after_s)
-        if math.isfinite(search_fit):
-            self.fit = search_fit if math.isnan(self.fit) else self.fit + a * (search_fit - self.fit)
-        gap = search_fit - filter_fit
-        if math.isfinite(gap):
-            if math.isnan(self.fit_gap):
-                self.fit_gap = gap
-            else:
-                self.fit_gap += a * (gap - self.fit_gap)
-        if math.isfinite(loglik_gap):
-            if math.isnan(self.loglik_gap):
-                self.loglik_gap = loglik_gap
-            else:
-                self.loglik_gap += a * (loglik_gap - self.loglik_gap)
+        self.fit = _fold(self.fit, search_fit, a)
+        self.fit_gap = _fold(self.fit_gap, search_fit - filter_fit, a)
+        self.loglik_gap = _fold(self.loglik_gap, loglik_gap, a)
         if not self.settled() or math.isnan(self.fit_gap):
             return 0
         if self.fit_gap >= self.adopt_margin:

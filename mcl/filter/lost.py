@@ -59,8 +59,10 @@ cloud when it fits better by ``burst_accept`` on average over ``search_adopt_s``
 ``jump_search_s`` of a jump, when the scan's log-likelihood at its estimate beats that at the
 filter's by ``search_adopt_loglik`` nats per scan on average (two corridors alike fit the same
 share of beams; the car's own place explains them more closely), and it starts again after that,
-when it settled on a worse place, or on the filter's place while the flag is up; on the filter's
-place with the flag down it stops.
+when it settled on a worse place, or on the filter's place while the flag is up, and, while the
+flag is up, when it stayed ``search_restart_s`` undecided on a place fitting
+``search_restart_misfit`` under the car's usual fit (a look-alike); on the filter's place with
+the flag down it stops.
 
 Frames and units: world frame; metres, radians, seconds.
 """
@@ -266,7 +268,8 @@ class LostDetector:
         after a jump its log-likelihood, beat the filter's: module docstring). The search ends
         ``jump_search_s`` after it started, or once it settles on the filter's place while the
         flag is down; it starts again after an adoption, when it settles on the filter's place
-        while the flag is up, and when it settles on a place that fits worse than the filter's."""
+        while the flag is up, when it settles on a place that fits worse than the filter's, and
+        when it stays undecided on a look-alike (``search_restart_misfit``)."""
         search = self.search
         if self._since_search > self.params.jump_search_s:
             search.stop()

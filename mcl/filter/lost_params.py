@@ -224,10 +224,11 @@ class LostParams:
                 f"LostParams.search_adopt_loglik = {short(self.search_adopt_loglik)} must be a "
                 "positive number of nats per scan (.inf: never)"
             )
-        if not number("search_restart_misfit") > 0.0:
+        misfit = number("search_restart_misfit")
+        if not (0.0 < misfit <= 1.0 or misfit == math.inf):
             raise ValueError(
                 f"LostParams.search_restart_misfit = {short(self.search_restart_misfit)} must be a "
-                "positive fraction of beams (.inf: never)"
+                "fraction of beams in (0, 1] (.inf: never)"
             )
         if not number("misfit_ratio") >= 1.0:
             raise ValueError(

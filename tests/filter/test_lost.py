@@ -61,6 +61,7 @@ DT = 0.025  # the env's default step
         ("search_restart_misfit", 0.0),
         ("search_restart_misfit", math.nan),
         ("search_restart_misfit", "0.1"),
+        ("search_restart_misfit", 1.5),
         ("search_restart_s", 0.0),
         ("search_restart_s", math.inf),
     ],

@@ -135,22 +135,29 @@ def test_the_motion_predicted_before_the_car_was_found_standing_is_taken_back(se
     assert taken_back[-1] < 0.02 and taken_back[40:].max() < 0.02
 
 
-@pytest.mark.parametrize("hold_still", [True, False])
-def test_a_standing_car_s_cloud_is_not_spread_by_the_motion_noise(hold_still) -> None:
+SPINNING = np.array([1.0, 0.0, 0.4])  # the wheels' twist while the car stands
+
+
+def _standing_filter(still: StandstillParams) -> ParticleFilter:
+    """A filter on a car that stands while its wheels spin, once the check has found it."""
     pose = _free_pose(6)
-    params = ParticleFilterParams(standstill=StandstillParams(hold_still=hold_still))
-    pf = ParticleFilter(ENV.map, 200, params=params, rng=4)
+    pf = ParticleFilter(ENV.map, 200, params=ParticleFilterParams(standstill=still), rng=4)
     pf.initialize(pose, spread=(0.05, 0.05, 0.02))
-    twist = np.array([1.0, 0.0, 0.4])  # the wheels spin; the car stands
     for _ in range(100):
-        pf.predict(twist, DT)
+        pf.predict(SPINNING, DT)
         pf.correct(LIDAR.true_ranges(pose))
         if pf.standstill.standing:
             break
     assert pf.standstill.standing
+    return pf
+
+
+@pytest.mark.parametrize("hold_still", [True, False])
+def test_a_standing_car_s_cloud_is_not_spread_by_the_motion_noise(hold_still) -> None:
+    pf = _standing_filter(StandstillParams(hold_still=hold_still))
     before = pf.particles.copy()
     for _ in range(10):
-        pf.predict(twist, DT)
+        pf.predict(SPINNING, DT)
     moved = np.abs(pf.particles - before).max()
     assert (moved == 0.0) if hold_still else (moved > 0.0)  # only the noise moves them
 
@@ -159,22 +166,13 @@ def test_a_standing_car_s_cloud_is_not_spread_by_the_motion_noise(hold_still) ->
 def test_a_searching_cloud_keeps_its_motion_noise_while_the_car_stands(hold_searching) -> None:
     # after a kidnap the cloud is spread over look-alike places: a car that stands gives its
     # poses no motion to refine them by, so (hold_searching False) the noise still moves them
-    pose = _free_pose(6)
-    still = StandstillParams(hold_searching=hold_searching)
-    pf = ParticleFilter(ENV.map, 200, params=ParticleFilterParams(standstill=still), rng=4)
-    pf.initialize(pose, spread=(0.05, 0.05, 0.02))
-    twist = np.array([1.0, 0.0, 0.4])  # the wheels spin; the car stands
-    for _ in range(100):
-        pf.predict(twist, DT)
-        pf.correct(LIDAR.true_ranges(pose))
-        if pf.standstill.standing:
-            break
-    assert pf.standstill.standing and not pf.searching
+    pf = _standing_filter(StandstillParams(hold_searching=hold_searching))
+    assert not pf.searching
     before = pf.particles.copy()
-    pf.predict(twist, DT)
+    pf.predict(SPINNING, DT)
     assert np.abs(pf.particles - before).max() == 0.0  # a tracking cloud is held either way
     pf.searching = True  # as a correction sets it once the cloud spreads (a search)
-    pf.predict(twist, DT)
+    pf.predict(SPINNING, DT)
     moved = np.abs(pf.particles - before)
     assert (moved.max() == 0.0) if hold_searching else (moved[:, :2].max() < 0.2)
     if not hold_searching:  # the search's noise, not the wheels: nowhere near 1 m/s x DT ahead
