@@ -12,6 +12,10 @@ The filter of the honest world holds another map with --filter-map YAML (e.g. on
 
 Filter settings other than the defaults: --filter KEY=VALUE (repeatable, YAML values), e.g.
 --filter sensor.sigma_hit=2.0 --filter lost.raise_below=0.35.
+
+Each drive's filter draws its motion noise and resampling from a generator seeded by the drive's
+seed; --filter-seed-offset N seeds it by the seed + N instead, so the same drives (the same
+kidnaps) are localized with another draw, to tell a change from the luck of one draw.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ examples:
   racecar-sim lost-flag --seeds 3 --kidnap-seeds 3 --worlds basement_loop --out runs/lost_quick
   racecar-sim lost-flag --filter sensor.sigma_hit=2.0 --out runs/lost_flag_sigma2
   racecar-sim lost-flag --filter-map out/stata_updated.yaml --worlds cluttered clean --out runs/lost_updated
+  racecar-sim lost-flag --seeds 0 --kidnap-seeds 20 --worlds cluttered clean --filter-seed-offset 1000 --out runs/kidnaps_draw2
 """
 
 
@@ -64,6 +69,9 @@ def build_parser() -> Parser:
         help="seconds after reset at which the car is kidnapped")  # fmt: skip
     add("--after-kidnap", type=duration_seconds, default=20.0, metavar="S",
         help="seconds driven after the kidnap")  # fmt: skip
+    add("--filter-seed-offset", type=non_negative_int, default=0, metavar="N",
+        help="seed each drive's filter by its seed + N: the same drives, another draw of the "
+             "filter's random numbers (default: 0, the drive's seed)")  # fmt: skip
     add("--filter", action="append", default=[], metavar="KEY=VALUE",
         help="a filter setting (LocalizationConfig, dotted: sensor.sigma_hit=2.0, lost.window_s=1)")  # fmt: skip
     add("--workers", type=positive_int, default=None, metavar="N",
@@ -114,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     config = LostFlagConfig(
         worlds=worlds, seeds=args.seeds, kidnap_seeds=args.kidnap_seeds, duration=args.duration,
         kidnap_time=args.kidnap_time, after_kidnap=args.after_kidnap, localization=localization,
+        filter_seed_offset=args.filter_seed_offset,
     )  # fmt: skip
     if not config.runs():
         parser.fail("--seeds", "no drives to run (--seeds and --kidnap-seeds are both 0)")

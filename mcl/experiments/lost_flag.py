@@ -107,6 +107,10 @@ class LostFlagConfig:
         after_kidnap: seconds driven after the kidnap.
         hold_s: seconds the error must stay under 0.5 m for the car to count as found again.
         localization: the filter's settings (defaults: the library's).
+        filter_seed_offset: the filter of the drive with seed ``s`` is seeded by ``s +
+            filter_seed_offset`` (0: by ``s``, as the env): the same drives with another draw of
+            the filter's random numbers ([RunSpec][mcl.experiments.runs.RunSpec]'s
+            ``filter_seed``).
     """
 
     worlds: tuple[World, ...] = field(default_factory=default_worlds)
@@ -117,10 +121,16 @@ class LostFlagConfig:
     after_kidnap: float = 20.0
     hold_s: float = 2.0
     localization: LocalizationConfig = field(default_factory=LocalizationConfig)
+    filter_seed_offset: int = 0
 
     def runs(self) -> list[RunSpec]:
         """Every drive: per world its tracking seeds, then its kidnap seeds."""
         loc = self.localization
+        off = self.filter_seed_offset
+
+        def draw(seed: int) -> dict[str, int | None]:
+            return {"seed": seed, "filter_seed": seed + off if off else None}
+
         out = []
         for w in self.worlds:
             common = dict(
@@ -128,10 +138,10 @@ class LostFlagConfig:
                 n_particles=loc.filter.n_particles,
             )  # fmt: skip
             if w.tracking:
-                out += [RunSpec(scenario="tracking", seed=s, duration=self.duration,
+                out += [RunSpec(scenario="tracking", **draw(s), duration=self.duration,
                                 series=f"{w.name}_tracking", **common) for s in range(self.seeds)]  # fmt: skip
             out += [
-                RunSpec(scenario="kidnap", seed=s, duration=self.kidnap_time + self.after_kidnap,
+                RunSpec(scenario="kidnap", **draw(s), duration=self.kidnap_time + self.after_kidnap,
                         series=f"{w.name}_kidnap",
                         scenario_settings=(("kidnap_time", self.kidnap_time),), **common)
                 for s in range(self.kidnap_seeds)

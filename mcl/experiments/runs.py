@@ -82,6 +82,9 @@ class RunSpec:
             the world ``map`` (same world frame; size and resolution may differ); None = ``map``.
         driver_settings: keyword arguments of the driver as (name, value) pairs (``"racing"``:
             ``speed`` m/s, ``lookahead`` m).
+        filter_seed: seeds the filter's random generator instead of ``seed`` (the wrapper's
+            reset option ``filter_seed``): the same drive, another draw of the filter's motion
+            noise and resampling; None: from ``seed``.
     """
 
     map: str = DEFAULT_MAP
@@ -99,6 +102,7 @@ class RunSpec:
     scenario_settings: tuple[tuple[str, Any], ...] = ()
     filter_map: str | None = None
     driver_settings: tuple[tuple[str, Any], ...] = ()
+    filter_seed: int | None = None
 
     def __post_init__(self) -> None:
         if self.driver not in DRIVERS:
@@ -111,6 +115,11 @@ class RunSpec:
             raise ValueError(f"RunSpec.n_particles = {n!r} must be a positive integer")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"RunSpec.seed = {self.seed!r} must be a non-negative integer")
+        fs = self.filter_seed
+        if fs is not None and (isinstance(fs, bool) or not isinstance(fs, int) or fs < 0):
+            raise ValueError(
+                f"RunSpec.filter_seed = {fs!r} must be None or a non-negative integer"
+            )
         object.__setattr__(self, "env", tuple((str(k), v) for k, v in dict(self.env).items()))
         settings = tuple((str(k), v) for k, v in dict(self.scenario_settings).items())
         object.__setattr__(self, "scenario_settings", settings)
@@ -138,9 +147,10 @@ class RunSpec:
 
     @property
     def run_id(self) -> str:
-        """A file-name-safe name: series, coefficient and seed."""
+        """A file-name-safe name: series, coefficient, seed (and the filter's seed when given)."""
         coeff = "" if math.isnan(self.nominal) else f"_c{self.nominal:g}"
-        return f"{self.series}{coeff}_seed{self.seed}".replace("/", "-")
+        draw = "" if self.filter_seed is None else f"_filter{self.filter_seed}"
+        return f"{self.series}{coeff}_seed{self.seed}{draw}".replace("/", "-")
 
 
 @dataclass(frozen=True)
@@ -320,7 +330,10 @@ def run_one(
     try:
         for hook in step_hooks(wrapped) if step_hooks is not None else ():
             wrapped.add_step_hook(hook)
-        obs, info = wrapped.reset(seed=spec.seed, options=scenario.reset_options())
+        options = scenario.reset_options()
+        if spec.filter_seed is not None:
+            options = {**options, "filter_seed": spec.filter_seed}
+        obs, info = wrapped.reset(seed=spec.seed, options=options)
         if on_frame is not None:
             on_frame(wrapped.render(), info)
         steps: Any = range(1, spec.n_steps + 1)

@@ -79,11 +79,14 @@ class FilterStart:
         spread: standard deviations (x m, y m, theta rad) or one number for all three, as given
             (checked), or None for the config's.
         centres: the ``init_pose`` given, (3,) or (N, 3) world poses, or None (the true starts).
+        filter_seed: the ``filter_seed`` given (a non-negative integer), or None: the filters'
+            random generators are seeded from it instead of the reset's seed.
     """
 
     init: str
     spread: Any
     centres: np.ndarray | None
+    filter_seed: int | None = None
 
 
 def filter_start(
@@ -107,7 +110,8 @@ def filter_start(
     Raises:
         ValueError: options not a dict; ``init`` not a mode; ``init_spread`` not one or three
             non-negative numbers within the config's bounds; ``init_pose`` not finite poses of the shape, or off the filter
-            map's free space (off the map, in a wall or unknown cell).
+            map's free space (off the map, in a wall or unknown cell); ``filter_seed`` not a
+            non-negative integer.
     """
     options = check_options(f"{owner}.reset", options)
     mine = {k: options.pop(k) for k in RESET_OPTIONS if k in options}
@@ -125,7 +129,17 @@ def filter_start(
         single = rows is None or (one_for_all and np.ndim(centres) == 1)
         centres = check_poses(what, centres, None if single else rows)
         check_on_free_space(what, centres.reshape(-1, 3), filter_map)
-    return FilterStart(init, spread, centres), options
+    filter_seed = mine.get("filter_seed")
+    if filter_seed is not None and (
+        isinstance(filter_seed, bool)
+        or not isinstance(filter_seed, int | np.integer)
+        or filter_seed < 0
+    ):
+        raise ValueError(
+            f"{owner}.reset option filter_seed = {short(filter_seed)} must be a non-negative integer"
+        )
+    seed = None if filter_seed is None else int(filter_seed)
+    return FilterStart(init, spread, centres, seed), options
 
 
 def map_bounds(occupancy_map: OccupancyMap) -> tuple[float, float, float, float]:

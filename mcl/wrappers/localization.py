@@ -53,7 +53,7 @@ INIT_MODES: tuple[str, ...] = ("pose", "global")
 """How the filter starts: around the true start pose, or uniform over the map's free space."""
 
 _FILTER_STREAM = 1  # spawn index of the filter's stream in the reset seed's SeedSequence
-RESET_OPTIONS = ("init", "init_spread", "init_pose")
+RESET_OPTIONS = ("init", "init_spread", "init_pose", "filter_seed")
 """The reset options the wrappers read."""
 
 FilterFactory = Callable[..., ParticleFilter]

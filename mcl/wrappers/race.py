@@ -19,7 +19,9 @@ the car's true ``pose``, n_eff, update_s, corrected, uncertainty, ``lost``: the 
 
 Reset options (the others go to the race): ``init`` (``"pose"`` or ``"global"``), ``init_spread``
 (standard deviations x m, y m, theta rad, or one number), ``init_pose`` (an (N, 3) array of
-centres, one per car, instead of the true start poses, each in a free cell of the map). They
+centres, one per car, instead of the true start poses, each in a free cell of the map),
+``filter_seed`` (a non-negative integer: the cars' filters are seeded from it as from the reset's
+``seed``, so the same race is localized with another draw of their random numbers). They
 are checked before the race is reset ([filter_start][mcl.wrappers.checks.filter_start]).
 
 The filters run one after another on the calling thread (each vectorised over its particles).
@@ -134,7 +136,7 @@ class LocalizedRaceEnv(BaseParallelWrapper):
         )
         self._started = False  # until this reset goes through
         obs, infos = self.env.reset(seed=seed, options=options or None)
-        seeds = car_seeds(seed, len(agents))
+        seeds = car_seeds(seed if start.filter_seed is None else start.filter_seed, len(agents))
         out_obs, out_infos = dict(obs), dict(infos)
         for i, agent in enumerate(agents):
             if agent not in obs or agent not in self.localized:

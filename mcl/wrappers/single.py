@@ -122,7 +122,9 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
     Reset options (the others go to the env): ``init`` (``"pose"`` or ``"global"``, this episode),
     ``init_spread`` (standard deviations x m, y m, theta rad around the start, or one number),
     ``init_pose`` (centre of the initial guess instead of the true start pose; it must lie in a
-    free cell of the filter's map). They are checked before the env is reset
+    free cell of the filter's map), ``filter_seed`` (a non-negative integer: the filter's random
+    generator is seeded from it instead of from ``seed``, so the same drive is localized with
+    another draw of the filter's motion noise and resampling). They are checked before the env is reset
     ([filter_start][mcl.wrappers.checks.filter_start]).
     """
 
@@ -203,7 +205,9 @@ class LocalizationWrapper(gym.Wrapper, gym.utils.RecordConstructorArgs):
         start, options = filter_start("LocalizationWrapper", options, self.config.init, self.map)
         self.filter = None  # until this reset goes through
         obs, info = self.env.reset(seed=seed, options=options or None)
-        if seed is not None or self._rng is None:
+        if start.filter_seed is not None:
+            self._rng = filter_rng(start.filter_seed)
+        elif seed is not None or self._rng is None:
             self._rng = filter_rng(seed)
         pf = self._filter_factory(
             self.map,

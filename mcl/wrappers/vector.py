@@ -70,7 +70,8 @@ class LocalizedVectorEnv(VectorWrapper):
         clock: seconds, the timer of ``update_s``.
 
     Reset options: as the single wrapper's (``init``, ``init_spread``, ``init_pose`` as one
-    (3,) pose for every car or an (N, 3) array), plus the vector env's ``reset_mask``.
+    (3,) pose for every car or an (N, 3) array; ``filter_seed`` seeds car ``i``'s filter as
+    ``seed`` would), plus the vector env's ``reset_mask``.
     """
 
     def __init__(
@@ -127,7 +128,7 @@ class LocalizedVectorEnv(VectorWrapper):
             "LocalizedVectorEnv", options, self.config.init, self.map, rows=n, one_for_all=True
         )
         centres = None if start.centres is None else np.broadcast_to(start.centres, (n, 3))
-        seeds = car_seeds(seed, n)
+        seeds = car_seeds(seed if start.filter_seed is None else start.filter_seed, n)
         obs, infos = self.env.reset(seed=seed, options=options or None)  # it checks reset_mask
         mask = options.get("reset_mask")
         mask = np.ones(n, dtype=np.bool_) if mask is None else np.asarray(mask, dtype=np.bool_)
@@ -135,7 +136,7 @@ class LocalizedVectorEnv(VectorWrapper):
         report = self._empty_report()
         estimates = self._estimates()
         for i in np.flatnonzero(mask):
-            if seeds[i] is not None or self._rngs[i] is None:
+            if seeds[i] is not None or self._rngs[i] is None:  # filter_seed or the reset's
                 self._rngs[i] = filter_rng(seeds[i])
             centre = truth[i] if centres is None else centres[i]
             self._start(i, start.init, centre, start.spread)

@@ -51,3 +51,11 @@ def test_the_live_speed_bound_is_what_the_command_checks() -> None:
         with pytest.raises(argparse.ArgumentTypeError, match=refused):
             live_speed(text)
     assert not math.isnan(live_speed("1000"))
+
+
+@pytest.mark.parametrize("filter_seed", [-1, 2.5, True, "3"])
+def test_a_run_spec_takes_only_a_non_negative_whole_filter_seed(filter_seed) -> None:
+    with pytest.raises(ValueError, match=r"RunSpec\.filter_seed = .* non-negative integer"):
+        RunSpec(filter_seed=filter_seed)
+    spec = RunSpec(seed=3, filter_seed=1003)
+    assert spec.run_id == "run_seed3_filter1003" and RunSpec(seed=3).run_id == "run_seed3"

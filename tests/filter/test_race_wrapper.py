@@ -19,8 +19,8 @@ def _race(n_cars: int = 3) -> LocalizedRaceEnv:
     return LocalizedRaceEnv(RaceEnv("basement_loop", n_cars=n_cars), CONFIG, clock=lambda: 0.0)
 
 
-def _drive(env: LocalizedRaceEnv, steps: int, seed: int) -> list[dict]:
-    _, infos = env.reset(seed=seed)
+def _drive(env: LocalizedRaceEnv, steps: int, seed: int, options=None) -> list[dict]:
+    _, infos = env.reset(seed=seed, options=options)
     out = [infos]
     for _ in range(steps):
         actions = {a: np.array([0.0, 1.0]) for a in env.agents}
@@ -53,6 +53,22 @@ def test_the_same_seed_gives_the_same_estimates() -> None:
             np.testing.assert_array_equal(
                 ia[agent]["localization"]["estimate"], ib[agent]["localization"]["estimate"]
             )
+
+
+def test_filter_seed_redraws_the_cars_filters_on_the_same_race() -> None:
+    def estimates(run: list[dict]) -> list:
+        return [[i[a]["localization"]["estimate"] for a in sorted(i)] for i in run]
+
+    plain = _drive(_race(2), 12, seed=4)
+    redrawn = _drive(_race(2), 12, seed=4, options={"filter_seed": 9})
+    for ia, ib in zip(plain, redrawn, strict=True):  # the same race
+        for agent in ia:
+            np.testing.assert_array_equal(ia[agent]["pose"], ib[agent]["pose"])
+    assert not np.array_equal(estimates(plain), estimates(redrawn))
+    as_seed = _drive(_race(2), 12, seed=4, options={"filter_seed": 4})
+    np.testing.assert_array_equal(estimates(plain), estimates(as_seed))
+    with pytest.raises(ValueError, match=r"option filter_seed = 1.5 must be a non-negative"):
+        _race(2).reset(seed=4, options={"filter_seed": 1.5})
 
 
 def test_bad_init_pose_is_refused() -> None:

@@ -82,6 +82,37 @@ def test_reset_mask_restarts_only_those_filters_and_global_start() -> None:
     assert np.all(np.isfinite(obs["pose_estimate"]))
 
 
+def _vector_drive(options=None, steps: int = 8) -> tuple[list, list]:
+    """Two cars reset with seed 4 (and ``options``) driven ``steps`` steps: (truths, estimates)."""
+    env = LocalizedVectorEnv(
+        gym.make_vec(
+            "RacecarSim-v0", num_envs=2, vectorization_mode="vector_entry_point", **SETTINGS
+        ),
+        CONFIG,
+    )
+    obs, info = env.reset(seed=4, options=options)
+    truths, estimates = [info["pose"].copy()], [obs["pose_estimate"].copy()]
+    for _ in range(steps):
+        obs, _, _, _, info = env.step(np.array([[0.1, 1.0], [-0.1, 1.0]]))
+        truths.append(info["pose"].copy())
+        estimates.append(obs["pose_estimate"].copy())
+    env.close()
+    return truths, estimates
+
+
+def test_filter_seed_redraws_every_cars_filter_on_the_same_drive() -> None:
+    truths, plain = _vector_drive()
+    truths_b, redrawn = _vector_drive({"filter_seed": 1004})
+    np.testing.assert_array_equal(truths, truths_b)  # the same drives
+    for car in (0, 1):
+        assert not np.array_equal([e[car] for e in plain], [e[car] for e in redrawn]), car
+    np.testing.assert_array_equal(redrawn, _vector_drive({"filter_seed": 1004})[1])
+    # the reset's own seed as filter_seed: each car's filter as without the option
+    np.testing.assert_array_equal(plain, _vector_drive({"filter_seed": 4})[1])
+    with pytest.raises(ValueError, match=r"option filter_seed = -4 must be a non-negative"):
+        _vector_drive({"filter_seed": -4})
+
+
 def test_wrong_env_and_config() -> None:
     with pytest.raises(TypeError, match="vector env"):
         LocalizedVectorEnv(

@@ -214,6 +214,24 @@ def test_filter_is_reproducible_from_the_seed(room) -> None:
     assert not np.array_equal(est, [o["pose_estimate"] for o, _ in other])
 
 
+def test_filter_seed_redraws_the_filter_on_the_same_drive(room) -> None:
+    plain = drive(make(room), 10, seed=3)
+    redrawn = drive(make(room), 10, seed=3, options={"filter_seed": 1003})
+    again = drive(make(room), 10, seed=3, options={"filter_seed": 1003})
+    as_seed = drive(make(room), 10, seed=3, options={"filter_seed": 3})
+    for (obs_a, info_a), (obs_b, info_b) in zip(plain, redrawn, strict=True):
+        np.testing.assert_array_equal(info_a["pose"], info_b["pose"])  # the same drive
+        np.testing.assert_array_equal(obs_a["scan"], obs_b["scan"])
+        np.testing.assert_array_equal(obs_a["odom"], obs_b["odom"])
+    est = [o["pose_estimate"] for o, _ in redrawn]
+    assert not np.array_equal(est, [o["pose_estimate"] for o, _ in plain])
+    np.testing.assert_array_equal(est, [o["pose_estimate"] for o, _ in again])
+    # the reset's own seed as filter_seed is the draw without the option
+    np.testing.assert_array_equal(
+        [o["pose_estimate"] for o, _ in as_seed], [o["pose_estimate"] for o, _ in plain]
+    )
+
+
 def test_filter_stream_is_not_the_env_stream() -> None:
     env_rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence(7)))
     assert not np.array_equal(filter_rng(7).random(8), env_rng.random(8))
@@ -418,6 +436,10 @@ def test_reset_options_of_the_wrong_kind_are_refused_before_the_env_resets(room)
         ({"init_spread": "wide"}, r"option init_spread must be one or three"),
         ({"init_spread": 1e12}, r"option init_spread must be one or three numbers in \[0, 10000\]"),
         ({"init": ["pose"]}, r"option init = \['pose'\]; choose one of"),
+        ({"filter_seed": -1}, r"option filter_seed = -1 must be a non-negative integer"),
+        ({"filter_seed": 2.5}, r"option filter_seed = 2.5 must be a non-negative integer"),
+        ({"filter_seed": True}, r"option filter_seed = True must be a non-negative integer"),
+        ({"filter_seed": "7"}, r"option filter_seed = '7' must be a non-negative integer"),
     ]
     for options, message in refused:
         with pytest.raises(ValueError, match=message):
