@@ -74,6 +74,11 @@ class GlobalSearch:
         adopt_loglik: nats per scan; the filter also takes the search's cloud when the
             log-likelihood difference given to `compare()` averages at least this and the fit
             is not worse by ``adopt_margin`` (``math.inf``: never).
+        draw_density: poses per square metre of the filter map's free floor in each search's
+            first draw (at most ``draw_max``): the first scan weighs them all, after which the
+            cloud is resampled to the filter's global count (its ``global_density``); at or
+            under that density nothing more is drawn.
+        draw_max: the most poses of such a first draw.
 
     Attributes:
         filter: the search's particle filter (None while no search runs).
@@ -96,6 +101,8 @@ class GlobalSearch:
         adopt_after_s: float = 1.0,
         inject_share: float = 0.0,
         adopt_loglik: float = math.inf,
+        draw_density: float = 0.0,
+        draw_max: int = 100_000,
     ) -> None:
         for name, value in (("converged_sd", converged_sd), ("agree_m", agree_m),
                             ("agree_rad", agree_rad), ("adopt_after_s", adopt_after_s)):  # fmt: skip
@@ -106,6 +113,10 @@ class GlobalSearch:
             raise ValueError(f"GlobalSearch inject_share = {inject_share!r} must lie in [0, 0.5]")
         if isinstance(adopt_loglik, bool) or not isinstance(adopt_loglik, number) or not adopt_loglik > 0:
             raise ValueError(f"GlobalSearch adopt_loglik = {adopt_loglik!r} must be positive (inf: never)")
+        if isinstance(draw_density, bool) or not isinstance(draw_density, number) or not 0 <= draw_density < math.inf:
+            raise ValueError(f"GlobalSearch draw_density = {draw_density!r} must be a number >= 0 per m²")
+        if isinstance(draw_max, bool) or not isinstance(draw_max, int) or draw_max < 1:
+            raise ValueError(f"GlobalSearch draw_max = {draw_max!r} must be a positive integer")
         if isinstance(adopt_margin, bool) or not 0 <= adopt_margin <= 1:
             raise ValueError(f"GlobalSearch adopt_margin = {adopt_margin!r} must be a fraction in [0, 1]")
         self.converged_sd = converged_sd
@@ -115,6 +126,8 @@ class GlobalSearch:
         self.adopt_after_s = adopt_after_s
         self.inject_share = inject_share
         self.adopt_loglik = adopt_loglik
+        self.draw_density = draw_density
+        self.draw_max = draw_max
         self.filter: ParticleFilter | None = None
         self.fit = self.fit_gap = self.loglik_gap = math.nan
         self.converged_for = 0.0
@@ -127,7 +140,8 @@ class GlobalSearch:
 
     def start(self, pf: ParticleFilter) -> None:
         """Start a global search beside ``pf``: its map, motion and sensor models and settings,
-        the odometry scale ``pf`` learned, and a generator seeded from ``pf``'s."""
+        the odometry scale ``pf`` learned, and a generator seeded from ``pf``'s; the poses of a
+        denser first draw (``draw_density``) join at the next scan."""
         search = ParticleFilter(
             pf.map,
             motion_model=pf.motion_model,
@@ -137,8 +151,10 @@ class GlobalSearch:
         )
         search.initialize_global()
         search.odometry_scale.take(pf.odometry_scale)
-        if self.inject_share > 0.0:
-            search.request_recovery(self.inject_share)
+        dense = min(self.draw_max, math.ceil(self.draw_density * pf.map.free_area))
+        extra = max(0, dense - search.n_particles)  # weighed by the next scan, then dropped
+        if self.inject_share > 0.0 or extra > 0:
+            search.request_recovery(self.inject_share, burst=extra)
         self.filter = search
         self.fit = self.fit_gap = self.loglik_gap = math.nan
         self.converged_for = 0.0

@@ -138,7 +138,9 @@ class LostDetector:
         self.search = GlobalSearch(p.search_converged_sd, adopt_margin=p.burst_accept,
                                    adopt_after_s=p.search_adopt_s,
                                    inject_share=p.search_inject_share,
-                                   adopt_loglik=p.search_adopt_loglik)  # fmt: skip
+                                   adopt_loglik=p.search_adopt_loglik,
+                                   draw_density=p.search_draw_density,
+                                   draw_max=p.search_draw_max)  # fmt: skip
 
     def restart(self) -> None:
         """Forget the history (a new belief: a reset or a new start)."""

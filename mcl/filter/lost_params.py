@@ -99,6 +99,12 @@ class LostParams:
             20 s against 32 and 34 without (a searching cloud's noise kept while the car stands
             in both); 16 of 20 held-out kidnaps as without, three sooner (docs/recovery.md).
         search_restart_s: seconds converged before such a restart.
+        search_draw_density: poses per m² of the filter map's free floor in the search filter's
+            first draw, at its start and at each restart (at most ``search_draw_max``): the first
+            scan weighs them all, then the cloud is resampled to the filter's global count
+            (``global_density``, 20 per m²). A pose close enough to the car for one scan to
+            favour it is then drawn five times as often (0: no denser draw).
+        search_draw_max: the most poses of such a first draw.
         local_below: while the averaged fit is under this fraction (the estimate explains almost
             none of the scan), every ``burst_every_s`` a burst of poses around the estimate is
             weighed with the cloud and kept only when the scan fits its outcome better by
@@ -140,6 +146,8 @@ class LostParams:
     search_adopt_loglik: float = 30.0
     search_restart_misfit: float = 0.15
     search_restart_s: float = 3.0
+    search_draw_density: float = 0.0
+    search_draw_max: int = 100_000
     local_below: float = 0.25
     local_particles: int = 2000
     local_sd: float = 1.5
@@ -158,9 +166,9 @@ class LostParams:
                 raise ValueError(
                     f"LostParams.{name} = {short(getattr(self, name))} must be true or false"
                 )
-        for name in ("beams", "burst_max", "local_particles"):
+        for name in ("beams", "burst_max", "local_particles", "search_draw_max"):
             v = getattr(self, name)
-            low = 1 if name == "beams" else 0
+            low = 1 if name in ("beams", "search_draw_max") else 0
             if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
                 raise ValueError(
                     f"LostParams.{name} = {short(v)} must be an integer in [{low}, 1000000]"
@@ -197,6 +205,11 @@ class LostParams:
                 raise ValueError(
                     f"LostParams.{name} = {short(v)} must lie in ({low:g}, {high:g}] {unit}"
                 )
+        if not 0.0 <= number("search_draw_density") <= 10_000.0:
+            raise ValueError(
+                f"LostParams.search_draw_density = {short(self.search_draw_density)} must lie in "
+                "[0, 10000] poses per m² (0: no denser draw)"
+            )
         for name in (
             "raise_below",
             "clear_above",

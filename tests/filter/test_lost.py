@@ -64,6 +64,11 @@ DT = 0.025  # the env's default step
         ("search_restart_misfit", 1.5),
         ("search_restart_s", 0.0),
         ("search_restart_s", math.inf),
+        ("search_draw_density", -1.0),
+        ("search_draw_density", 20_000.0),
+        ("search_draw_density", math.nan),
+        ("search_draw_max", 0),
+        ("search_draw_max", 1.5),
     ],
 )
 def test_lost_params_refuse_bad_values_naming_the_field(field: str, value: object) -> None:
