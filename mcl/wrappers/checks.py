@@ -79,8 +79,8 @@ class FilterStart:
         spread: standard deviations (x m, y m, theta rad) or one number for all three, as given
             (checked), or None for the config's.
         centres: the ``init_pose`` given, (3,) or (N, 3) world poses, or None (the true starts).
-        filter_seed: the ``filter_seed`` given (a non-negative integer), or None: the filters'
-            random generators are seeded from it instead of the reset's seed.
+        filter_seed: the ``filter_seed`` given (a non-negative integer: the filters' random
+            generators are seeded from it instead of from the reset's seed), or None.
     """
 
     init: str
