@@ -102,7 +102,7 @@ def test_not_converged_scores_as_the_plain_model(
 
 @settings(max_examples=15)
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(20, 300))
-@example(seed=519584, n=20)  # a beam on a cell boundary: the fused path lands one cell over
+@example(seed=519584, n=20)  # one beam on a half pixel (CI, 2026-12-06)
 def test_nothing_unexplained_scores_as_the_plain_model(room, models, seed: int, n: int) -> None:
     plain, skip = models
     rng = np.random.default_rng(seed)
@@ -113,18 +113,14 @@ def test_nothing_unexplained_scores_as_the_plain_model(room, models, seed: int, 
     angles, z_px = plain.observe(scan)
     expected = plain.expected_ranges(particles, angles)
     np.testing.assert_array_equal(got, plain.score(expected, z_px))
-    # The plain model's fused cast-and-score rounds the lidar's position its own way (its
-    # docstring), so a beam whose expected range lies on a cell boundary may land one cell over:
-    # the two agree but for a cell step of at most two beams, on few particles (a cloud 5 cm off
-    # differs by up to 2.6 nats on most of them).
+    # the plain model's fused cast-and-score gives the same numbers but for a beam whose expected
+    # range falls on a half pixel exactly, which one ulp rounds to the neighbouring table column
+    # (tests/filter/test_fused_scoring.py; seed 519584, n 20: one particle, 0.057 nats)
     fused = plain.log_evaluate(particles, scan)
-    table = np.log(plain.table) * plain.params.squash_exponent
-    d = np.clip(np.rint(expected / plain.m_per_px).astype(int), 1, plain.z_max - 1)
-    z = np.broadcast_to(z_px, d.shape)
-    step = np.maximum(abs(table[z, d + 1] - table[z, d]), abs(table[z, d] - table[z, d - 1]))
-    off = np.abs(got - fused)
-    assert np.all(off <= 2 * step.max(axis=1) + 1e-9), off
-    assert np.mean(off > 1e-9) <= 0.2, off
+    px = expected / plain.m_per_px
+    on_a_tie = (np.abs(px - np.floor(px) - 0.5) < 1e-9).any(axis=1)
+    np.testing.assert_array_equal(got[~on_a_tie], fused[~on_a_tie])
+    np.testing.assert_allclose(got[on_a_tie], fused[on_a_tie], rtol=0, atol=0.1)
 
 
 def test_an_opponent_sector_is_left_out(room, models) -> None:
