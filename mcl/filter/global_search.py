@@ -44,6 +44,7 @@ import numpy as np
 
 from mcl.filter.angles import wrap_angle
 from mcl.filter.particle_filter import ParticleFilter
+from mcl.filter.place_keeping import PlaceKeeping
 from mcl.filter.uncertainty import largest_position_sd
 
 __all__ = ["GlobalSearch"]
@@ -79,6 +80,11 @@ class GlobalSearch:
             cloud is resampled to the filter's global count (its ``global_density``); at or
             under that density nothing more is drawn.
         draw_max: the most poses of such a first draw.
+        places: None (plain resampling), or how the search's resamplings keep particles in
+            every place with weight ([`mcl.filter.place_keeping`][mcl.filter.place_keeping]), so
+            that the first scans cannot drop the car's place for a look-alike.
+        scan_exponent: the power the search raises each scan's likelihood to, in (0, 1] (1:
+            Bayes' rule as it is; smaller: each scan moves the weight between places less).
 
     Attributes:
         filter: the search's particle filter (None while no search runs).
@@ -103,6 +109,8 @@ class GlobalSearch:
         adopt_loglik: float = math.inf,
         draw_density: float = 0.0,
         draw_max: int = 100_000,
+        places: PlaceKeeping | None = None,
+        scan_exponent: float = 1.0,
     ) -> None:
         for name, value in (("converged_sd", converged_sd), ("agree_m", agree_m),
                             ("agree_rad", agree_rad), ("adopt_after_s", adopt_after_s)):  # fmt: skip
@@ -117,6 +125,10 @@ class GlobalSearch:
             raise ValueError(f"GlobalSearch draw_density = {draw_density!r} must be a number >= 0 per m²")
         if isinstance(draw_max, bool) or not isinstance(draw_max, int) or draw_max < 1:
             raise ValueError(f"GlobalSearch draw_max = {draw_max!r} must be a positive integer")
+        if isinstance(scan_exponent, bool) or not isinstance(scan_exponent, number) or not 0 < scan_exponent <= 1:
+            raise ValueError(f"GlobalSearch scan_exponent = {scan_exponent!r} must lie in (0, 1]")
+        if places is not None and not isinstance(places, PlaceKeeping):
+            raise ValueError(f"GlobalSearch places = {places!r} must be a PlaceKeeping or None")
         if isinstance(adopt_margin, bool) or not 0 <= adopt_margin <= 1:
             raise ValueError(f"GlobalSearch adopt_margin = {adopt_margin!r} must be a fraction in [0, 1]")
         self.converged_sd = converged_sd
@@ -128,6 +140,8 @@ class GlobalSearch:
         self.adopt_loglik = adopt_loglik
         self.draw_density = draw_density
         self.draw_max = draw_max
+        self.places = places
+        self.scan_exponent = scan_exponent
         self.filter: ParticleFilter | None = None
         self.fit = self.fit_gap = self.loglik_gap = math.nan
         self.converged_for = 0.0
@@ -150,6 +164,8 @@ class GlobalSearch:
             rng=int(pf.rng.integers(2**63 - 1)),
         )
         search.initialize_global()
+        search.place_keeping = self.places
+        search.scan_exponent = self.scan_exponent
         search.odometry_scale.take(pf.odometry_scale)
         dense = min(self.draw_max, math.ceil(self.draw_density * pf.map.free_area))
         extra = max(0, dense - search.n_particles)  # weighed by the next scan, then dropped

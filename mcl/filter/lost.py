@@ -76,6 +76,7 @@ import numpy as np
 from mcl.filter.global_search import GlobalSearch
 from mcl.filter.lost_params import LostParams
 from mcl.filter.particle_filter import ParticleFilter
+from mcl.filter.place_keeping import PlaceKeeping
 from mcl.filter.scan_continuity import ScanContinuity, scan_bearings
 from mcl.filter.scan_fit import ScanFit, scan_agreement
 from mcl.filter.step_kernels import pose_moments
@@ -140,7 +141,11 @@ class LostDetector:
                                    inject_share=p.search_inject_share,
                                    adopt_loglik=p.search_adopt_loglik,
                                    draw_density=p.search_draw_density,
-                                   draw_max=p.search_draw_max)  # fmt: skip
+                                   draw_max=p.search_draw_max,
+                                   places=None if p.search_place_draws <= 0 else PlaceKeeping(
+                                       cell_m=p.search_place_m, headings=p.search_place_headings,
+                                       draws=p.search_place_draws),
+                                   scan_exponent=p.search_scan_exponent)  # fmt: skip
 
     def restart(self) -> None:
         """Forget the history (a new belief: a reset or a new start)."""

@@ -41,6 +41,7 @@ from mcl.filter.belief import Belief
 from mcl.filter.motion_model import MotionModel, carry, twist_to_odometry
 from mcl.filter.odometry_scale import OdometryScale
 from mcl.filter.params import ParticleFilterParams, spread_sd
+from mcl.filter.place_keeping import PlaceKeeping, resample_keeping_places
 from mcl.filter.recovery import GlobalRecovery
 from mcl.filter.resampling import resample_particles
 from mcl.filter.scan_continuity import scan_bearings
@@ -82,6 +83,12 @@ class ParticleFilter(Belief, GlobalRecovery):
             correction. n_skipped: scans `correct()` skipped (``update_min_distance``).
         recovery_share: the least share of each resampling's draws that are uniform poses, as
             the lost flag's recovery asked (`request_recovery()`; 0 when not lost).
+        place_keeping: None (plain resampling), or how each resampling keeps particles in every
+            place that has weight, carrying the weights by importance
+            ([`mcl.filter.place_keeping`][mcl.filter.place_keeping]; the lost flag's search
+            filter sets it).
+        scan_exponent: the power each scan's likelihood is raised to before it multiplies the
+            weights (1: Bayes' rule as it is; under 1 a tempered scan, as the search filter's).
     """
 
     def __init__(
@@ -129,6 +136,8 @@ class ParticleFilter(Belief, GlobalRecovery):
         self.standstill = Standstill(params.standstill)
         self.searching = False  # whether the last correction scored with the wide search hit
         self._search_motion: MotionModel | None = None
+        self.place_keeping: PlaceKeeping | None = None
+        self.scan_exponent = 1.0
 
     # ------------------------------------------------------------------ state
     def set_particles(self, particles: np.ndarray, weights: np.ndarray | None = None) -> None:
@@ -246,7 +255,8 @@ class ParticleFilter(Belief, GlobalRecovery):
         return self._search_motion
 
     def update_weights(self, log_likelihood: np.ndarray) -> None:
-        """Multiply the weights by ``exp(log_likelihood)`` (N,) and normalise (Bayes rule).
+        """Multiply the weights by ``exp(scan_exponent x log_likelihood)`` (N,) and normalise (Bayes
+        rule; `scan_exponent` is 1 unless a search tempers its scans).
 
         NaN and +inf log-likelihoods count as impossible (-inf). When no particle keeps a positive
         weight the filter recovers as ``params.on_degenerate`` says and counts the event.
@@ -259,6 +269,8 @@ class ParticleFilter(Belief, GlobalRecovery):
             )
         self.n_updates += 1
         assert self._log_weights is not None
+        if self.scan_exponent != 1.0:
+            ll = ll * self.scan_exponent
         lw, w, top, total, sum_w2 = bayes_step(self._log_weights, ll)  # one numba call
         if not math.isfinite(top):
             self.n_degenerate += 1
@@ -283,7 +295,9 @@ class ParticleFilter(Belief, GlobalRecovery):
         return self.effective_sample_size <= self.params.resample_threshold * self.n_particles
 
     def resample(self, n: int | None = None) -> np.ndarray:
-        """Draw ``n`` particles by ``params.resampling``; the weights become uniform.
+        """Draw ``n`` particles by ``params.resampling``; the weights become uniform (with
+        `place_keeping` set: drawn so that every place keeps particles, each weighted by its
+        weight over the draw's, [`mcl.filter.place_keeping`][mcl.filter.place_keeping]).
 
         The default count is the current one, or with ``params.kld.enabled`` the count
         KLD-sampling asks for (`kld_count()`). With augmented MCL on, each of the ``n`` draws
@@ -302,6 +316,16 @@ class ParticleFilter(Belief, GlobalRecovery):
             n_random = int(self.rng.binomial(n, p_random)) if p_random > 0.0 else 0
         n_random = min(n_random, n - 1)  # keep at least one particle of the belief
         n, how = n - n_random, self.params.resampling  # drawn: valid and wrapped, set directly
+        if self.place_keeping is not None:
+            assert self._log_weights is not None
+            idx, log_weights = resample_keeping_places(
+                particles, self._log_weights, self.rng, n, self.place_keeping
+            )
+            self._particles = np.ascontiguousarray(particles[idx])
+            self._set_log_weights(log_weights)
+            self.pending_random = n_random
+            self.n_resamples += 1
+            return idx
         idx, self._particles = resample_particles(how, particles, weights, self.rng, n)
         if self._uniform[0].shape[0] != n:  # never written in place, so shared across draws
             self._uniform = (np.full(n, 1.0 / n), np.full(n, -math.log(n)))

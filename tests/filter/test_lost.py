@@ -69,6 +69,14 @@ DT = 0.025  # the env's default step
         ("search_draw_density", math.nan),
         ("search_draw_max", 0),
         ("search_draw_max", 1.5),
+        ("search_place_draws", -1.0),
+        ("search_place_draws", math.nan),
+        ("search_place_m", 0.0),
+        ("search_place_headings", 0),
+        ("search_place_headings", 4.0),
+        ("search_scan_exponent", 0.0),
+        ("search_scan_exponent", 1.5),
+        ("search_scan_exponent", "0.5"),
     ],
 )
 def test_lost_params_refuse_bad_values_naming_the_field(field: str, value: object) -> None:
@@ -169,9 +177,11 @@ def test_the_search_filter_alone_finds_a_kidnapped_car_that_no_burst_looks_for(s
 def test_with_the_search_filter_a_kidnapped_car_stays_found_where_a_burst_alone_loses_it() -> None:
     at = 6.0  # seed 4: a burst finds the car 2.2 s after the kidnap, then a look-alike wins
     t, err, _, _ = _drive(at + 15.0, at, seed=4)
-    found = t[(t > at + 1e-9) & (err < 0.5)]
-    assert found.size and found[0] - at <= 2.0
-    assert (err[t >= found[0] + 1.0] < 0.5).all()
+    after = t > at + 1e-9
+    held = after & (np.cumsum((err >= 0.5)[::-1])[::-1] == 0)  # under 0.5 m from here to the end
+    # the search takes over 4.0 s after the kidnap (2.0 s with plain resampling and the scans
+    # untempered: its weight now moves between the places it keeps over several scans)
+    assert held.any() and t[held][0] - at <= 5.0
     # the control: the global bursts alone (no search filter, no local bursts, which also find
     # the car here, 0.45 m at the end)
     alone = {"lost": {"search_filter": False, "local_below": 0.0}}
