@@ -119,8 +119,10 @@ class LostParams:
         search_place_headings: heading sectors of a place's cell.
         search_scan_exponent: the power, in (0, 1], the search filter raises each scan's
             likelihood to, so that the weight moves between the kept places over several scans
-            rather than on one (1: Bayes' rule as it is). With 4 draws per place, on 40 honest
-            kidnaps in three draws of the filter: RESULT (docs/recovery.md).
+            rather than on one (1: Bayes' rule as it is). With 4 draws per place and 0.25, 40
+            honest kidnaps in three draws of the filter were found within 15 s 32, 33 and 30
+            times, against 33, 25 and 30 with plain resampling and the power 1
+            (docs/recovery.md).
         local_below: while the averaged fit is under this fraction (the estimate explains almost
             none of the scan), every ``burst_every_s`` a burst of poses around the estimate is
             weighed with the cloud and kept only when the scan fits its outcome better by
