@@ -199,6 +199,18 @@ class MotionModel:
         self._coefficients_of: tuple[MotionModelParams | None, np.ndarray, np.ndarray] = (
             None, np.zeros(3), np.zeros(4)
         )  # fmt: skip
+        self._searching: MotionModel | None = None
+
+    def while_searching(self) -> MotionModel:
+        """The model a searching filter moves its particles with: this one with
+        ``params.search_coefficients`` (made once per coefficients), or this one itself when
+        there are none or the scheme adds no noise."""
+        p = self.params
+        if p.search_coefficients is None or p.scheme == "none":
+            return self
+        if self._searching is None or self._searching.params.coefficients != p.search_coefficients:
+            self._searching = MotionModel(replace(p, coefficients=p.search_coefficients))
+        return self._searching
 
     def _arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """``params.coefficients`` (3,) and ``params.alphas`` (4,) as arrays, made once per

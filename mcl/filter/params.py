@@ -54,7 +54,10 @@ class ParticleFilterParams:
         global_max_particles: cap on the count sized from the free area.
         update_min_distance: metres the odometry must have moved (or ``update_min_angle``
             radians turned) since the last used scan before `correct()` uses another one;
-            0 for both uses every scan.
+            0 for both uses every scan. As ROS amcl's ``update_min_d`` / ``update_min_a``:
+            scans taken at 40 Hz from almost the same pose are far from independent, and
+            weighing them all makes the filter overconfident before the car has seen what
+            tells similar places apart.
         update_min_angle: radians, see ``update_min_distance``.
         augmented: [`AugmentedParams`][mcl.filter.augmented.AugmentedParams] (alphas 0: off).
         kld: [`KLDParams`][mcl.filter.kld.KLDParams] (``enabled=False``: fixed count).

@@ -21,11 +21,6 @@ Degenerate weights: when every particle's weight is zero or not finite after a c
 scan matches nothing, or the filter is lost), the filter does not produce NaN. It counts the event in
 ``n_degenerate`` and, by ``ParticleFilterParams.on_degenerate``, keeps the particles with uniform
 weights (``"keep"``) or re-spreads as many uniformly over free space (``"global"``).
-
-``update_min_distance`` / ``update_min_angle`` skip scans until the car has moved so far (as
-ROS amcl's ``update_min_d`` / ``update_min_a``): scans taken at 40 Hz from almost the same pose
-are far from independent, and weighing them all makes the filter overconfident before the car
-has seen what tells similar places apart.
 """
 
 from __future__ import annotations
@@ -84,11 +79,9 @@ class ParticleFilter(Belief, GlobalRecovery):
         recovery_share: the least share of each resampling's draws that are uniform poses, as
             the lost flag's recovery asked (`request_recovery()`; 0 when not lost).
         place_keeping: None (plain resampling), or how each resampling keeps particles in every
-            place that has weight, carrying the weights by importance
-            ([`mcl.filter.place_keeping`][mcl.filter.place_keeping]; the lost flag's search
-            filter sets it).
-        scan_exponent: the power each scan's likelihood is raised to before it multiplies the
-            weights (1: Bayes' rule as it is; under 1 a tempered scan, as the search filter's).
+            place with weight ([`mcl.filter.place_keeping`][mcl.filter.place_keeping]).
+        scan_exponent: the power each scan's likelihood is raised to (1: Bayes' rule; the
+            lost flag's search filter sets both).
     """
 
     def __init__(
@@ -135,7 +128,6 @@ class ParticleFilter(Belief, GlobalRecovery):
         self._scale_fit = ScanFit(scale.fit_beams, scale.fit_tolerance, skip_short=True)
         self.standstill = Standstill(params.standstill)
         self.searching = False  # whether the last correction scored with the wide search hit
-        self._search_motion: MotionModel | None = None
         self.place_keeping: PlaceKeeping | None = None
         self.scan_exponent = 1.0
 
@@ -237,22 +229,11 @@ class ParticleFilter(Belief, GlobalRecovery):
     def move(self, odometry: np.ndarray) -> None:
         """Move the particles by a car-frame displacement [dx, dy, dtheta] (metres, radians)."""
         particles, _ = self._require()
-        self._particles = self._motion().evaluate(particles, odometry, self.rng)
+        model = self.motion_model.while_searching() if self.searching else self.motion_model
+        self._particles = model.evaluate(particles, odometry, self.rng)
         dx, dy, dtheta = np.asarray(odometry, dtype=np.float64).tolist()
         self._moved[0] += math.hypot(dx, dy)
         self._moved[1] += abs(dtheta)
-
-    def _motion(self) -> MotionModel:
-        """The motion model, with its search coefficients while the filter searches."""
-        mp = self.motion_model.params
-        if not self.searching or mp.search_coefficients is None or mp.scheme == "none":
-            return self.motion_model
-        if (
-            self._search_motion is None
-            or self._search_motion.params.coefficients != mp.search_coefficients
-        ):
-            self._search_motion = MotionModel(replace(mp, coefficients=mp.search_coefficients))
-        return self._search_motion
 
     def update_weights(self, log_likelihood: np.ndarray) -> None:
         """Multiply the weights by ``exp(scan_exponent x log_likelihood)`` (N,) and normalise (Bayes
@@ -296,8 +277,7 @@ class ParticleFilter(Belief, GlobalRecovery):
 
     def resample(self, n: int | None = None) -> np.ndarray:
         """Draw ``n`` particles by ``params.resampling``; the weights become uniform (with
-        `place_keeping` set: drawn so that every place keeps particles, each weighted by its
-        weight over the draw's, [`mcl.filter.place_keeping`][mcl.filter.place_keeping]).
+        `place_keeping`: every place keeps particles, weighted by importance).
 
         The default count is the current one, or with ``params.kld.enabled`` the count
         KLD-sampling asks for (`kld_count()`). With augmented MCL on, each of the ``n`` draws
@@ -316,20 +296,16 @@ class ParticleFilter(Belief, GlobalRecovery):
             n_random = int(self.rng.binomial(n, p_random)) if p_random > 0.0 else 0
         n_random = min(n_random, n - 1)  # keep at least one particle of the belief
         n, how = n - n_random, self.params.resampling  # drawn: valid and wrapped, set directly
-        if self.place_keeping is not None:
-            assert self._log_weights is not None
-            idx, log_weights = resample_keeping_places(
-                particles, self._log_weights, self.rng, n, self.place_keeping
-            )
+        if self.place_keeping is not None:  # log-weights: a place's tiny weight must not be 0
+            lw = self._log_weights if self._log_weights is not None else np.log(weights)
+            idx, lw = resample_keeping_places(particles, lw, self.rng, n, self.place_keeping)
             self._particles = np.ascontiguousarray(particles[idx])
-            self._set_log_weights(log_weights)
-            self.pending_random = n_random
-            self.n_resamples += 1
-            return idx
-        idx, self._particles = resample_particles(how, particles, weights, self.rng, n)
-        if self._uniform[0].shape[0] != n:  # never written in place, so shared across draws
-            self._uniform = (np.full(n, 1.0 / n), np.full(n, -math.log(n)))
-        self._weights, self._log_weights = self._uniform
+            self._set_log_weights(lw)
+        else:
+            idx, self._particles = resample_particles(how, particles, weights, self.rng, n)
+            if self._uniform[0].shape[0] != n:  # never written in place: shared across draws
+                self._uniform = (np.full(n, 1.0 / n), np.full(n, -math.log(n)))
+            self._weights, self._log_weights = self._uniform
         self.pending_random = n_random
         self.n_resamples += 1
         return idx
