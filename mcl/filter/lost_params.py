@@ -95,19 +95,21 @@ class LostParams:
             stayed converged ``search_restart_s`` seconds without a verdict while its own
             averaged scan fit lies this far under the car's usual fit (the reference, held since
             the jump) settled on a look-alike place: it starts again from a new uniform draw
-            (``.inf``: never). On 40 honest kidnaps 0.15 found 33 within 15 s and 36 within
-            20 s against 32 and 34 without (a searching cloud's noise kept while the car stands
-            in both); 16 of 20 held-out kidnaps as without, three sooner. That is one draw of
-            the filter's random numbers: over three draws, with the noise kept, 88 of 120
-            against 86 for neither, within what a draw moves (docs/recovery.md).
+            (``.inf``: never). Measured with plain resampling in the search: on 40 honest
+            kidnaps 0.15 found 33 within 15 s and 36 within 20 s against 32 and 34 without (a
+            searching cloud's noise kept while the car stands in both); 16 of 20 held-out
+            kidnaps as without, three sooner. That is one draw of the filter's random numbers:
+            over three draws, with the noise kept, 88 of 120 against 86 for neither, within what
+            a draw moves (docs/recovery.md). A search that keeps its places
+            (``search_place_draws``) found cluttered kidnap 5 without the restart.
         search_restart_s: seconds converged before such a restart.
         search_draw_density: poses per m² of the filter map's free floor in the search filter's
             first draw, at its start and at each restart (at most ``search_draw_max``): the first
             scan weighs them all, then the cloud is resampled to the filter's global count
             (``global_density``, 20 per m²), so that a pose close enough to the car for one
             scan to favour it is drawn more often (0: no denser draw; off by default: on 40
-            honest kidnaps in three draws of the filter, 100 per m² found 29, 30 and 31 within
-            15 s against the defaults' 33, 25 and 30, docs/recovery.md).
+            honest kidnaps in three draws of the filter, with plain resampling, 100 per m²
+            found 29, 30 and 31 within 15 s against 33, 25 and 30 without, docs/recovery.md).
         search_draw_max: the most poses of such a first draw.
         search_place_draws: draws each place (a cell of ``search_place_m`` metres a side and one
             of ``search_place_headings`` heading sectors) that holds weight is given at each of
