@@ -193,10 +193,9 @@ class LostParams:
         for name in ("beams", "burst_max", "local_particles", "search_draw_max", "search_place_headings"):
             v = getattr(self, name)
             low = 1 if name in ("beams", "search_draw_max", "search_place_headings") else 0
-            if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= 1_000_000:
-                raise ValueError(
-                    f"LostParams.{name} = {short(v)} must be an integer in [{low}, 1000000]"
-                )
+            high = 360 if name == "search_place_headings" else 1_000_000  # PlaceKeeping's bound
+            if isinstance(v, bool) or not isinstance(v, int) or not low <= v <= high:
+                raise ValueError(f"LostParams.{name} = {short(v)} must be an integer in [{low}, {high}]")
 
         def number(name: str) -> float:
             v = getattr(self, name)

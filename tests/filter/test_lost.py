@@ -74,6 +74,7 @@ DT = 0.025  # the env's default step
         ("search_place_m", 0.0),
         ("search_place_headings", 0),
         ("search_place_headings", 4.0),
+        ("search_place_headings", 361),
         ("search_scan_exponent", 0.0),
         ("search_scan_exponent", 1.5),
         ("search_scan_exponent", "0.5"),
