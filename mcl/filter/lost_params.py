@@ -75,7 +75,11 @@ class LostParams:
             with the filter's) when its position standard deviation is under this.
         search_adopt_s: seconds; the filter takes the search's cloud when the search's scan fit
             beats its own by ``burst_accept`` on average over this long (exponential time
-            constant), converged at least this long.
+            constant), converged at least this long. Half a second: a search whose weight hops
+            between rival places (a car standing after a kidnap) is compared before it hops; on
+            40 honest kidnaps in three draws of the filter, 36, 33 and 29 found within 15 s and
+            a mean time of 5.4-7.2 s, against 32, 33 and 30 and 6.8-7.8 s with 1 s
+            (docs/recovery.md).
         search_inject_share: fraction of each of the search filter's resamplings replaced by
             uniform free-space poses for as long as it runs, in [0, 0.5] (augmented MCL's
             injection): a search that settled on a look-alike place keeps sampling the map, and
@@ -161,7 +165,7 @@ class LostParams:
     search_filter: bool = True
     search_on_lost: bool = False
     search_converged_sd: float = 0.5
-    search_adopt_s: float = 1.0
+    search_adopt_s: float = 0.5
     search_inject_share: float = 0.0
     search_adopt_loglik: float = 30.0
     search_restart_misfit: float = 0.15

@@ -167,7 +167,9 @@ def test_the_search_filter_alone_finds_a_kidnapped_car_that_no_burst_looks_for(s
     after = t > at + 1e-9
     assert err[after][0] > 1.0
     found = t[after & (err < 0.5)]
-    assert found.size and found[0] - at <= 2.0  # settled for 1 s, then 1 s of better fit
+    # settled for half a second and compared at once (0.55 and 0.63 s where measured; a search
+    # compared after 1 s settled cannot take over within the first second)
+    assert found.size and found[0] - at <= 1.0
     assert (err[t >= t[-1] - 5.0] < 0.5).all()
     if seed == 6:  # there the cloud alone stays on the wrong place (in seed 3 it finds the car)
         off = {"lost": {**no_bursts, "search_filter": False}}
@@ -180,8 +182,9 @@ def test_with_the_search_filter_a_kidnapped_car_stays_found_where_a_burst_alone_
     t, err, _, _ = _drive(at + 15.0, at, seed=4)
     after = t > at + 1e-9
     held = after & (np.cumsum((err >= 0.5)[::-1])[::-1] == 0)  # under 0.5 m from here to the end
-    # the search takes over 4.0 s after the kidnap (2.0 s with plain resampling and the scans
-    # untempered: its weight now moves between the places it keeps over several scans)
+    # the search takes over 3.75 s after the kidnap (2.0 s with plain resampling, the scans
+    # untempered and 1 s settled: its weight now moves between the places it keeps over
+    # several scans)
     assert held.any() and t[held][0] - at <= 5.0
     # the control: the global bursts alone (no search filter, no local bursts, which also find
     # the car here, 0.45 m at the end)
