@@ -94,7 +94,8 @@ class GlobalSearch:
             search converged).
         loglik_gap: the averaged difference of the scans' log-likelihoods (nats), search minus
             filter (NaN before the search converged or while none is given).
-        converged_for: seconds the search's cloud has stayed converged (0 while it is not).
+        converged_for: seconds the search's cloud has stayed converged on one place (0 while
+            it is not, and again after its estimate hopped farther than ``agree_m``).
         adoptions: how many times the filter took the search's cloud since the restart.
     """
 
@@ -191,11 +192,19 @@ class GlobalSearch:
         """Weigh the search's particles by ``scan`` (metres, the filter's beams), taken ``dt``
         seconds after the last. A cloud converged for ``adopt_after_s`` seconds of more
         particles than the filter's count is resampled down to it (a global start's first scans
-        can gather its weight on a few poses that a later scan refutes)."""
+        can gather its weight on a few poses that a later scan refutes). A converged cloud whose
+        estimate this scan moved farther than ``agree_m`` or ``agree_rad`` (its weight hopped to
+        a rival place it kept) counts as converged anew: `converged_for` and the averages
+        start again, so that they speak of one place."""
         search = self.filter
         if search is None:
             return
+        before = search.estimate() if self.converged_for > 0.0 else None
         search.correct(scan)
+        if before is not None and not self.agrees_with(before):  # its weight hopped elsewhere
+            self.converged_for = 0.0
+            self.fit = self.fit_gap = self.loglik_gap = math.nan
+            return
         if not largest_position_sd(search.covariance()) < self.converged_sd:
             self.converged_for = 0.0
             self.fit = self.fit_gap = self.loglik_gap = math.nan

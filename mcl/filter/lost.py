@@ -62,7 +62,10 @@ share of beams; the car's own place explains them more closely), and it starts a
 when it settled on a worse place, or on the filter's place while the flag is up, and, while the
 flag is up, when it stayed ``search_restart_s`` undecided on a place fitting
 ``search_restart_misfit`` under the car's usual fit (a look-alike); on the filter's place with
-the flag down it stops.
+the flag down it stops. After a jump, ``search_confirmations`` searches in a row that settle on
+the filter's own place (each from a new uniform draw, none settling elsewhere in between) find
+the car, the fit above ``clear_above``: where the car was carried to a place the old map explains
+less well than the one it left, the fit alone would keep the flag up over a car already found.
 
 Frames and units: world frame; metres, radians, seconds.
 """
@@ -130,6 +133,7 @@ class LostDetector:
         self._since_dip = math.inf  # seconds since the continuity last dipped under jump_below
         self._since_search = math.inf  # seconds since the search filter started
         self._since_local = math.inf  # seconds since the last local burst
+        self._agreements = 0  # searches in a row settled on the filter's place since the jump
         self._local_burst = False  # the burst asked for is a local one
         self._scans: ScanContinuity | None = None  # built at the first scan (needs the lidar)
         self._scan_fit = ScanFit(self.params.beams, self.params.fit_tolerance, self.params.skip_short)
@@ -273,8 +277,9 @@ class LostDetector:
     def _search(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> bool:
         """One scan of the search filter; returns whether ``pf`` took its cloud (its fit, or
         after a jump its log-likelihood, beat the filter's: module docstring). The search ends
-        ``jump_search_s`` after it started, or once it settles on the filter's place while the
-        flag is down; it starts again after an adoption, when it settles on the filter's place
+        ``jump_search_s`` after it started, once it settles on the filter's place while the
+        flag is down, or once it confirms that place after a jump (``search_confirmations``);
+        it starts again after an adoption, when it settles on the filter's place
         while the flag is up, when it settles on a place that fits worse than the filter's, and
         when it stays undecided on a look-alike (``search_restart_misfit``)."""
         search = self.search
@@ -285,11 +290,16 @@ class LostDetector:
         if search.filter is None or search.converged_for <= 0.0:
             return False
         if search.settled() and search.agrees_with(estimate):
+            if self.jumped and self.lost and self._confirmed():
+                search.stop()
+                return False
             if self.lost:
                 search.start(pf)
             else:
                 search.stop()
             return False
+        if search.settled():
+            self._agreements = 0  # this search settled elsewhere
         found = search.filter.estimate()
         search_fit = self.fit_at(search.filter, found, scan)
         loglik_gap = math.nan  # the scan's log-likelihood, search minus filter, after a jump
@@ -304,6 +314,20 @@ class LostDetector:
         if verdict != 0 or self._look_alike():
             search.start(pf)
         return verdict > 0
+
+    def _confirmed(self) -> bool:
+        """Count one more search settled on the filter's place after a jump; True (and the car
+        found: ``jumped`` cleared) once ``search_confirmations`` did in a row and the averaged
+        fit is above ``clear_above`` without saying lost."""
+        p = self.params
+        self._agreements += 1
+        if p.search_confirmations <= 0 or self._agreements < p.search_confirmations:
+            return False
+        if not (self.smoothed_fit > p.clear_above and not self.fit_lost):
+            return False
+        self.jumped = False
+        self._agreements = 0
+        return True
 
     def _look_alike(self) -> bool:
         """Whether, the flag up, the undecided search has stayed converged ``search_restart_s``
@@ -340,6 +364,7 @@ class LostDetector:
                 self._found_fit = usual - p.jump_found_within
             self.jumped = True
             self.jumps += 1
+            self._agreements = 0
             pf.moved_elsewhere()  # its window holds the jump: nothing to learn from
             self._since_jump = 0.0
             self._since_burst = math.inf  # search at once

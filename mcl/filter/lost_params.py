@@ -107,6 +107,14 @@ class LostParams:
             a draw moves (docs/recovery.md). A search that keeps its places
             (``search_place_draws``) found cluttered kidnap 5 without the restart.
         search_restart_s: seconds converged before such a restart.
+        search_confirmations: after a jump, the car counts as found (the flag comes down and the
+            search ends) once this many searches in a row, each started anew from its own
+            uniform draw, have settled on the filter's own place (within 1 m and 0.5 rad) with
+            no search settling elsewhere in between, while the averaged fit is above
+            ``clear_above`` and does not say lost: where the car was carried to a place the old
+            map explains less well than the one it left, the fit alone would keep the flag up
+            over a car already found; one search can settle on the filter's look-alike too
+            (0: only the fit's return to ``jump_found_within`` of the usual fit finds it).
         search_draw_density: poses per m² of the filter map's free floor in the search filter's
             first draw, at its start and at each restart (at most ``search_draw_max``): the first
             scan weighs them all, then the cloud is resampled to the filter's global count
@@ -170,6 +178,7 @@ class LostParams:
     search_adopt_loglik: float = 30.0
     search_restart_misfit: float = 0.15
     search_restart_s: float = 3.0
+    search_confirmations: int = 3
     search_draw_density: float = 0.0
     search_draw_max: int = 100_000
     search_place_draws: float = 4.0
@@ -194,7 +203,8 @@ class LostParams:
                 raise ValueError(
                     f"LostParams.{name} = {short(getattr(self, name))} must be true or false"
                 )
-        for name in ("beams", "burst_max", "local_particles", "search_draw_max", "search_place_headings"):
+        for name in ("beams", "burst_max", "local_particles", "search_draw_max", "search_place_headings",
+                     "search_confirmations"):  # fmt: skip
             v = getattr(self, name)
             low = 1 if name in ("beams", "search_draw_max", "search_place_headings") else 0
             high = 360 if name == "search_place_headings" else 1_000_000  # PlaceKeeping's bound

@@ -105,6 +105,29 @@ def test_a_search_agrees_within_a_metre_and_half_a_radian(room, sensor) -> None:
     assert search.agrees_with(TRUTH + np.array([0.0, 0.0, 2 * math.pi - 0.2]))  # wrapped: 0.2 rad
 
 
+def test_a_search_whose_weight_hops_to_another_place_counts_as_converged_anew(room, sensor) -> None:
+    pf = _pf(room, sensor, TRUTH)
+    lidar, rng = Lidar(room), np.random.default_rng(3)
+    search = GlobalSearch(converged_sd=0.5, adopt_after_s=0.05)
+    search.start(pf)
+    search.filter.initialize(ELSEWHERE, (0.01, 0.01, 0.01))
+    for _ in range(3):  # converged on ELSEWHERE, and settled there
+        search.correct(lidar.measure(ELSEWHERE, rng), DT)
+        search.compare(0.9, 0.5, DT)
+    assert search.converged_for == pytest.approx(3 * DT) and search.settled()
+    assert search.fit_gap == pytest.approx(0.4)
+    # a rival place kept with a millionth of the weight; the car's scan moves the weight there
+    poses = np.vstack([np.tile(ELSEWHERE, (150, 1)), np.tile(TRUTH, (150, 1))])
+    search.filter.set_particles(poses, np.r_[np.ones(150), np.full(150, 1e-6)])
+    assert math.dist(search.filter.estimate()[:2], ELSEWHERE[:2]) < 0.01
+    search.correct(lidar.measure(TRUTH, rng), DT)
+    assert math.dist(search.filter.estimate()[:2], TRUTH[:2]) < 0.01  # one tight cloud again
+    assert search.converged_for == 0.0 and not search.settled()  # but on another place
+    assert math.isnan(search.fit_gap) and math.isnan(search.fit)  # the old place's averages go
+    search.correct(lidar.measure(TRUTH, rng), DT)
+    assert search.converged_for == pytest.approx(DT)  # counted from the hop
+
+
 # ---------------------------------------------------------------------- the search
 def test_a_search_beside_a_wrong_filter_finds_the_car_and_the_filter_takes_its_cloud(
     room, sensor
