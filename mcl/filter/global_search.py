@@ -13,8 +13,9 @@ poses (augmented MCL's injection; none by default): the first scans of a global 
 look-alike place (a corridor fits from anywhere along it) before a pose near the car was drawn,
 and injected poses that land near the car take over when its scans favour them. Its cloud has
 *settled* once its position standard deviation has stayed under
-``converged_sd`` for ``adopt_after_s`` seconds (a global start's first scans can gather the weight
-on a few poses that later scans refute); it is then resampled down to the filter's particle
+``converged_sd`` for ``adopt_after_s`` seconds on one place (a global start's first scans can
+gather the weight on a few poses that later scans refute; a scan that moves its estimate farther
+than ``agree_m`` or ``agree_rad`` starts that time again); it is then resampled down to the filter's particle
 count, and its estimate is compared with the filter's on every scan by the scan fit (the lost
 flag's share of beams that agree with the map, averaged over ``adopt_after_s``):
 

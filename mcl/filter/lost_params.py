@@ -114,7 +114,10 @@ class LostParams:
             ``clear_above`` and does not say lost: where the car was carried to a place the old
             map explains less well than the one it left, the fit alone would keep the flag up
             over a car already found; one search can settle on the filter's look-alike too
-            (0: only the fit's return to ``jump_found_within`` of the usual fit finds it).
+            (0: only the fit's return to ``jump_found_within`` of the usual fit finds it). On 40
+            honest kidnaps in three draws of the filter, 3 found the same kidnaps as 0 and
+            flagged 3.5-4.9 % of the cluttered kidnap drives' steps under 0.3 m against
+            4.4-6.7 % (docs/recovery.md).
         search_draw_density: poses per m² of the filter map's free floor in the search filter's
             first draw, at its start and at each restart (at most ``search_draw_max``): the first
             scan weighs them all, then the cloud is resampled to the filter's global count
