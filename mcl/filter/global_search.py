@@ -174,14 +174,17 @@ class GlobalSearch:
         if self.inject_share > 0.0 or extra > 0:
             search.request_recovery(self.inject_share, burst=extra)
         self.filter = search
-        self.fit = self.fit_gap = self.loglik_gap = math.nan
-        self.converged_for = 0.0
+        self._converged_anew()
 
     def stop(self) -> None:
         """End the search (its particles are dropped)."""
         self.filter = None
-        self.fit = self.fit_gap = self.loglik_gap = math.nan
+        self._converged_anew()
+
+    def _converged_anew(self) -> None:
+        """Forget how long the cloud has been converged and the averages taken meanwhile."""
         self.converged_for = 0.0
+        self.fit = self.fit_gap = self.loglik_gap = math.nan
 
     def predict(self, twist: np.ndarray, dt: float) -> None:
         """Move the search's particles by the car-frame odometry ``twist`` [vx m/s, vy m/s,
@@ -202,13 +205,9 @@ class GlobalSearch:
             return
         before = search.estimate() if self.converged_for > 0.0 else None
         search.correct(scan)
-        if before is not None and not self.agrees_with(before):  # its weight hopped elsewhere
-            self.converged_for = 0.0
-            self.fit = self.fit_gap = self.loglik_gap = math.nan
-            return
-        if not largest_position_sd(search.covariance()) < self.converged_sd:
-            self.converged_for = 0.0
-            self.fit = self.fit_gap = self.loglik_gap = math.nan
+        hopped = before is not None and not self.agrees_with(before)  # to a rival place
+        if hopped or not largest_position_sd(search.covariance()) < self.converged_sd:
+            self._converged_anew()
             return
         self.converged_for += dt
         count = search.params.n_particles
