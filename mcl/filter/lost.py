@@ -64,8 +64,9 @@ flag is up, when it stayed ``search_restart_s`` undecided on a place fitting
 ``search_restart_misfit`` under the car's usual fit (a look-alike); on the filter's place with
 the flag down it stops. After a jump, ``search_confirmations`` searches in a row that settle on
 the filter's own place (each from a new uniform draw, none settling elsewhere in between) find
-the car, the fit above ``clear_above``: where the car was carried to a place the old map explains
-less well than the one it left, the fit alone would keep the flag up over a car already found.
+the car while the fit does not say lost (its average at least ``raise_below``): where the car was
+carried to a place the old map explains less well than the one it left, the fit alone would keep
+the flag up over a car already found.
 
 Frames and units: world frame; metres, radians, seconds.
 """
@@ -317,13 +318,13 @@ class LostDetector:
 
     def _confirmed(self) -> bool:
         """Count one more search settled on the filter's place after a jump; True (and the car
-        found: ``jumped`` cleared) once ``search_confirmations`` did in a row and the averaged
-        fit is above ``clear_above`` without saying lost."""
+        found: ``jumped`` cleared) once ``search_confirmations`` did in a row and the fit does not
+        say lost (its average at least ``raise_below``)."""
         p = self.params
         self._agreements += 1
         if p.search_confirmations <= 0 or self._agreements < p.search_confirmations:
             return False
-        if not (self.smoothed_fit > p.clear_above and not self.fit_lost):
+        if not (self.smoothed_fit >= p.raise_below and not self.fit_lost):
             return False
         self.jumped = False
         self._agreements = 0
