@@ -63,10 +63,10 @@ when it settled on a worse place, or on the filter's place while the flag is up,
 flag is up, when it stayed ``search_restart_s`` undecided on a place fitting
 ``search_restart_misfit`` under the car's usual fit (a look-alike); on the filter's place with
 the flag down it stops. After a jump, ``search_confirmations`` searches in a row that settle on
-the filter's own place (each from a new uniform draw, none settling elsewhere in between) find
-the car while the fit does not say lost (its average at least ``raise_below``): where the car was
-carried to a place the old map explains less well than the one it left, the fit alone would keep
-the flag up over a car already found.
+the filter's own place (each from a new uniform draw, none settling in between on another place
+that fits as well) find the car while the fit does not say lost (its average at least
+``raise_below``): where the car was carried to a place the old map explains less well than the
+one it left, the fit alone would keep the flag up over a car already found.
 
 Frames and units: world frame; metres, radians, seconds.
 """
@@ -299,8 +299,6 @@ class LostDetector:
             else:
                 search.stop()
             return False
-        if search.settled():
-            self._agreements = 0  # this search settled elsewhere
         found = search.filter.estimate()
         search_fit = self.fit_at(search.filter, found, scan)
         loglik_gap = math.nan  # the scan's log-likelihood, search minus filter, after a jump
@@ -310,6 +308,8 @@ class LostDetector:
             ll = pf.sensor_model.log_evaluate(poses, scan)
             loglik_gap = float(ll[0] - ll[1])
         verdict = search.compare(search_fit, self.fit, self._since_scan, loglik_gap)
+        if search.settled() and verdict >= 0:  # settled elsewhere, on a place that fits as well
+            self._agreements = 0
         if verdict > 0:
             search.adopt(pf)
         if verdict != 0 or self._look_alike():

@@ -110,15 +110,16 @@ class LostParams:
         search_confirmations: after a jump, the car counts as found (the flag comes down and the
             search ends) once this many searches in a row, each started anew from its own
             uniform draw, have settled on the filter's own place (within 1 m and 0.5 rad) with
-            no search settling elsewhere in between, while the fit does not say lost (its
-            average at least ``raise_below``, not ``clear_above``: three searches that agree
-            outweigh a place the old map explains only in half): where the car was carried to a
-            place the old map explains less well than the one it left, the fit alone would keep
-            the flag up over a car already found; one search can settle on the filter's
-            look-alike too (0: only the fit's return to ``jump_found_within`` of the usual fit
-            finds it). On 40 honest kidnaps in three draws of the filter, 3 found the same
-            kidnaps as 0 and flagged 2.6-3.5 % of the cluttered kidnap drives' steps under 0.3 m
-            against 4.4-6.7 % (docs/recovery.md).
+            no search settling in between on another place that fits as well (one settled on a
+            place that fits worse by ``burst_accept`` neither confirms nor refutes), while the
+            fit does not say lost (its average at least ``raise_below``, not ``clear_above``:
+            searches that agree outweigh a place the old map explains only in half): where the
+            car was carried to a place the old map explains less well than the one it left, the
+            fit alone would keep the flag up over a car already found; one search can settle on
+            the filter's look-alike too (0: only the fit's return to ``jump_found_within`` of
+            the usual fit finds it). On 40 honest kidnaps in three draws of the filter, 3 found
+            the same kidnaps as 0 and flagged 2.3-3.1 % of the cluttered kidnap drives' steps
+            under 0.3 m against 4.4-6.7 % (docs/recovery.md).
         search_draw_density: poses per m² of the filter map's free floor in the search filter's
             first draw, at its start and at each restart (at most ``search_draw_max``): the first
             scan weighs them all, then the cloud is resampled to the filter's global count

@@ -110,7 +110,7 @@ def _flag_down_after(log: ErrorLog, kidnap_at: float = 10.0) -> float:
 
 def test_searches_that_settle_on_the_filters_place_take_the_flag_down_over_a_found_car(tmp_path) -> None:
     # cluttered kidnap 8: found at once, where the old map explains the scans less well than
-    # where the car was; three searches in a row settle there and the flag comes down (3.7 s
+    # where the car was; three searches in a row settle there and the flag comes down (2.3 s
     # after the kidnap where measured), and the car is held
     log = _kidnap_log(tmp_path, None, "cluttered", 8, after_kidnap=10.0)
     assert _flag_down_after(log) <= 5.0
