@@ -117,9 +117,10 @@ class LostParams:
             car was carried to a place the old map explains less well than the one it left, the
             fit alone would keep the flag up over a car already found; one search can settle on
             the filter's look-alike too (0: only the fit's return to ``jump_found_within`` of
-            the usual fit finds it). On 40 honest kidnaps in three draws of the filter, 3 found
-            the same kidnaps as 0 and flagged 2.3-3.1 % of the cluttered kidnap drives' steps
-            under 0.3 m against 4.4-6.7 % (docs/recovery.md).
+            the usual fit finds it). On 40 honest kidnaps in three draws of the filter, 2 found
+            the same kidnaps as 0 and 3 and flagged 1.8-3.6 % of the cluttered kidnap drives'
+            steps under 0.3 m (3: 2.3-3.1 %; 0: 4.4-6.7 %), and the clean ones' 1.0-1.5 %
+            (3: 1.2-1.9 %; docs/recovery.md).
         search_draw_density: poses per m² of the filter map's free floor in the search filter's
             first draw, at its start and at each restart (at most ``search_draw_max``): the first
             scan weighs them all, then the cloud is resampled to the filter's global count
@@ -183,7 +184,7 @@ class LostParams:
     search_adopt_loglik: float = 30.0
     search_restart_misfit: float = 0.15
     search_restart_s: float = 3.0
-    search_confirmations: int = 3
+    search_confirmations: int = 2
     search_draw_density: float = 0.0
     search_draw_max: int = 100_000
     search_place_draws: float = 4.0

@@ -110,7 +110,7 @@ def _flag_down_after(log: ErrorLog, kidnap_at: float = 10.0) -> float:
 
 def test_searches_that_settle_on_the_filters_place_take_the_flag_down_over_a_found_car(tmp_path) -> None:
     # cluttered kidnap 8: found at once, where the old map explains the scans less well than
-    # where the car was; three searches in a row settle there and the flag comes down (2.3 s
+    # where the car was; two searches in a row settle there and the flag comes down (1.2 s
     # after the kidnap where measured), and the car is held
     log = _kidnap_log(tmp_path, None, "cluttered", 8, after_kidnap=10.0)
     assert _flag_down_after(log) <= 5.0
@@ -126,7 +126,7 @@ def test_searches_that_settle_on_the_filters_place_take_the_flag_down_over_a_fou
 def test_searches_that_confirm_the_place_take_the_flag_down_where_the_old_map_fits_half(tmp_path) -> None:
     # cluttered kidnap 13: the car is carried to a place whose scans the old map explains only
     # about half (0.47-0.60 of the beams, under clear_above's 0.65); the filter finds it within
-    # a second, three searches in a row settle there, and the flag comes down (5.7 s after the
+    # a second, two searches in a row settle there, and the flag comes down (5.0 s after the
     # kidnap where measured; asking the fit to pass clear_above, never within 20 s)
     log = _kidnap_log(tmp_path, None, "cluttered", 13, after_kidnap=7.5)
     assert _flag_down_after(log) <= 7.0
