@@ -52,6 +52,7 @@ class OccupancyMap:
     name: str = "map"
     path: Path | None = None
     _distance: np.ndarray | None = field(default=None, repr=False)
+    _free_by_clearance: dict[float, np.ndarray] = field(default_factory=dict, repr=False)
 
     def __post_init__(self) -> None:
         occ = np.ascontiguousarray(self.occupied, dtype=bool)
@@ -187,6 +188,20 @@ class OccupancyMap:
         """int64 (K, 2) [row, col] of every free cell."""
         return np.argwhere(~self.occupied)
 
+    def _free_cells_with(self, clearance: float) -> np.ndarray:
+        """int64 (K, 2) [row, col] of the free cells whose distance field is at least
+        ``clearance`` metres (any free cell for 0), found once per clearance (the grid never
+        changes) and read-only: recovery draws from them at every resampling while lost."""
+        cells = self._free_by_clearance.get(clearance)
+        if cells is None:
+            mask = ~self.occupied
+            if clearance > 0:
+                mask = mask & (self.distance >= clearance)
+            cells = np.argwhere(mask)
+            cells.setflags(write=False)
+            self._free_by_clearance[clearance] = cells
+        return cells
+
     def sample_free_poses(
         self, rng: np.random.Generator, n: int, clearance: float = 0.0
     ) -> np.ndarray:
@@ -198,10 +213,7 @@ class OccupancyMap:
             clearance: minimum distance field value (metres) of the chosen cells; 0 allows any free
                 cell. Positions are uniform within each chosen cell.
         """
-        mask = ~self.occupied
-        if clearance > 0:
-            mask = mask & (self.distance >= clearance)
-        cells = np.argwhere(mask)
+        cells = self._free_cells_with(float(clearance))
         if len(cells) == 0:
             raise MapError(f"map {self.name!r}: no free cell with clearance >= {clearance} m")
         pick = cells[rng.integers(0, len(cells), size=n)]

@@ -249,6 +249,18 @@ def test_sample_free_poses_respects_clearance() -> None:
         grid.sample_free_poses(np.random.default_rng(1), 1, clearance=100.0)
 
 
+def test_sampling_keeps_each_clearance_apart_on_one_map() -> None:
+    # the free cells are found once per clearance: a draw with another clearance in between
+    # must neither narrow nor widen the next
+    grid = OccupancyMap(occupied=np.zeros((40, 40), bool), resolution=0.1)
+    rng = np.random.default_rng(2)
+    for clearance in (1.0, 0.0, 1.0, 0.0):
+        d = grid.distance_at(grid.sample_free_poses(rng, 300, clearance=clearance)[:, :2])
+        assert (d >= clearance).all()
+        if clearance == 0.0:  # 70 % of this room's cells lie under 1 m from its edge
+            assert (d < 1.0).mean() > 0.6
+
+
 # ---------------------------------------------------------------- real and bundled maps
 def test_stata_basement_loads_with_its_yaw(stata_map: OccupancyMap) -> None:
     assert stata_map.shape == (1300, 1730)
