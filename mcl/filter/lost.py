@@ -77,6 +77,7 @@ import math
 
 import numpy as np
 
+from mcl.filter.confirmations import SearchConfirmations
 from mcl.filter.global_search import GlobalSearch
 from mcl.filter.lost_params import LostParams
 from mcl.filter.particle_filter import ParticleFilter
@@ -112,6 +113,8 @@ class LostDetector:
         lost: the flag: ``fit_lost``, a spread cloud, or ``jumped``.
         search: the search filter run after a jump
             ([GlobalSearch][mcl.filter.global_search.GlobalSearch]).
+        confirmations: the searches in a row that settled on the filter's place since the jump
+            ([SearchConfirmations][mcl.filter.confirmations.SearchConfirmations]).
     """
 
     def __init__(self, params: LostParams | None = None) -> None:
@@ -134,7 +137,7 @@ class LostDetector:
         self._since_dip = math.inf  # seconds since the continuity last dipped under jump_below
         self._since_search = math.inf  # seconds since the search filter started
         self._since_local = math.inf  # seconds since the last local burst
-        self._agreements = 0  # searches in a row settled on the filter's place since the jump
+        self.confirmations = SearchConfirmations(self.params.search_confirmations)
         self._local_burst = False  # the burst asked for is a local one
         self._scans: ScanContinuity | None = None  # built at the first scan (needs the lidar)
         self._scan_fit = ScanFit(self.params.beams, self.params.fit_tolerance, self.params.skip_short)
@@ -308,8 +311,8 @@ class LostDetector:
             ll = pf.sensor_model.log_evaluate(poses, scan)
             loglik_gap = float(ll[0] - ll[1])
         verdict = search.compare(search_fit, self.fit, self._since_scan, loglik_gap)
-        if search.settled() and verdict >= 0:  # settled elsewhere, on a place that fits as well
-            self._agreements = 0
+        if search.settled():  # settled elsewhere: a place fitting as well breaks the row
+            self.confirmations.settled_elsewhere(verdict)
         if verdict > 0:
             search.adopt(pf)
         if verdict != 0 or self._look_alike():
@@ -321,13 +324,12 @@ class LostDetector:
         found: ``jumped`` cleared) once ``search_confirmations`` did in a row and the fit does not
         say lost (its average at least ``raise_below``)."""
         p = self.params
-        self._agreements += 1
-        if p.search_confirmations <= 0 or self._agreements < p.search_confirmations:
+        if not self.confirmations.agreed():
             return False
         if not (self.smoothed_fit >= p.raise_below and not self.fit_lost):
             return False
         self.jumped = False
-        self._agreements = 0
+        self.confirmations.restart()
         return True
 
     def _look_alike(self) -> bool:
@@ -365,7 +367,7 @@ class LostDetector:
                 self._found_fit = usual - p.jump_found_within
             self.jumped = True
             self.jumps += 1
-            self._agreements = 0
+            self.confirmations.restart()
             pf.moved_elsewhere()  # its window holds the jump: nothing to learn from
             self._since_jump = 0.0
             self._since_burst = math.inf  # search at once
