@@ -1,9 +1,9 @@
 """The calibration on the shared MIT racecar bags, and the test that the simulator now looks like
 the real lidar (skipped when ../shared or the rosbags package is absent).
 
-The reference poses come from scan matching (global search tested separately, slow); the fixture
-starts the tracking from lidar poses that the global search finds (``START``), to keep the suite
-short.
+The reference poses come from scan matching (global search tested separately, slow); one
+fixture tracks and judges each bag once, from the lidar pose the global search finds a third into
+it (``STARTS``), to keep the suite short.
 """
 
 from __future__ import annotations
@@ -32,35 +32,6 @@ def _bag(name: str) -> Path:
 
 
 @pytest.fixture(scope="module")
-def references(stata_map):
-    """Per bag: (recording, reference poses, exact casts at those poses)."""
-    from mcl.calibration.reference_poses import track_recording
-    from mcl.calibration.scan_match import ScanMatcher
-    from mcl.io import read_bag
-
-    out = {}
-    for name in NAMES:
-        rec = read_bag(_bag(name))
-        matcher = ScanMatcher(stata_map, rec.angles, MAX)
-        k, guess = START[name]
-        poses = track_recording(rec, matcher, start=k, start_guess=np.array(guess))
-        out[name] = (rec, poses, matcher.caster.cast(poses.lidar, rec.angles))
-    return out
-
-
-@pytest.mark.slow
-def test_reference_poses_fit_the_map(references):
-    for rec, poses, _ in references.values():
-        assert len(poses.lidar) == len(rec.scans)
-        assert np.median(poses.fit15) > 0.7  # most beams within 15 cm of the map
-        steps = np.hypot(*np.diff(poses.base[:, :2], axis=0).T)
-        # 2.9 m/s at most, scans 25 ms apart: 7 cm. Where the scan fits the map poorly (the first
-        # second of bag 1, parts of bag 2) consecutive poses jitter by a few cm, up to 0.16 m
-        # apart: a limit of these reference poses (README), hence the percentile
-        assert np.percentile(steps, 90) < 0.08 and steps.max() < 0.3
-
-
-@pytest.fixture(scope="module")
 def judged(stata_map):
     """Per bag: the recording judged by :mod:`mcl.calibration.judge` (de-skewed scans, exact
     casts from robustly refined poses)."""
@@ -75,6 +46,19 @@ CLEAN_FROM = (84, 232)
 0.23 to 0.03 there: something unmapped beside the start), bag 2's last third (after the
 people around the car: 0.35 to 0.04)."""
 BLOCK = 40  # scans: one second
+
+
+@pytest.mark.slow
+def test_reference_poses_fit_the_map(judged):
+    for bag in judged:
+        rec, poses = bag.rec, bag.poses
+        assert len(poses.lidar) == len(rec.scans)
+        assert np.median(poses.fit15) > 0.7  # most beams within 15 cm of the map
+        steps = np.hypot(*np.diff(poses.base[:, :2], axis=0).T)
+        # 2.9 m/s at most, scans 25 ms apart: 7 cm. Where the scan fits the map poorly (the first
+        # second of bag 1, parts of bag 2) consecutive poses jitter by a few cm, up to 0.16 m
+        # apart: a limit of these reference poses (README), hence the percentile
+        assert np.percentile(steps, 90) < 0.08 and steps.max() < 0.3
 
 
 def _clean(judged):
