@@ -66,7 +66,11 @@ the flag down it stops. After a jump, ``search_confirmations`` searches in a row
 the filter's own place (each from a new uniform draw, none settling in between on another place
 that fits as well) find the car while the fit does not say lost (its average at least
 ``raise_below``): where the car was carried to a place the old map explains less well than the
-one it left, the fit alone would keep the flag up over a car already found.
+one it left, the fit alone would keep the flag up over a car already found. From then on
+(``confirmed_bar``) that place is judged by its own fit: the bar the average must fall under is
+the average at the confirmation minus the hysteresis band (``clear_above - raise_below``) where
+that is under ``raise_below``, and the car's usual fit is learned afresh from there, until the
+average climbs above ``clear_above`` again.
 
 Frames and units: world frame; metres, radians, seconds.
 """
@@ -138,6 +142,7 @@ class LostDetector:
         self._since_search = math.inf  # seconds since the search filter started
         self._since_local = math.inf  # seconds since the last local burst
         self.confirmations = SearchConfirmations(self.params.search_confirmations)
+        self._raise_below = self.params.raise_below  # the bar in use (lowered at a confirmed place)
         self._local_burst = False  # the burst asked for is a local one
         self._scans: ScanContinuity | None = None  # built at the first scan (needs the lidar)
         self._scan_fit = ScanFit(self.params.beams, self.params.fit_tolerance, self.params.skip_short)
@@ -238,11 +243,13 @@ class LostDetector:
                 usual = math.inf
             if self.fit_lost and s > p.clear_above and 1.0 - s < 0.5 * p.misfit_ratio * usual:
                 self.fit_lost = False
-            elif not self.fit_lost and (s < p.raise_below or 1.0 - s > p.misfit_ratio * usual):
+            elif not self.fit_lost and (s < self._raise_below or 1.0 - s > p.misfit_ratio * usual):
                 self._low_for += since_scan
                 self.fit_lost = self._low_for >= p.raise_after_s
             elif s > p.clear_above:  # a good fit again; in between, the time so far is kept
                 self._low_for = 0.0
+            if s > p.clear_above:  # the car left the place its searches confirmed, if any
+                self._raise_below = p.raise_below
             if self.fit_lost:
                 self._low_for = 0.0
         cov = pf.covariance()
@@ -330,6 +337,11 @@ class LostDetector:
             return False
         self.jumped = False
         self.confirmations.restart()
+        if p.confirmed_bar:  # judge the place by its own fit, not the one the car left
+            band = p.clear_above - p.raise_below
+            self._raise_below = min(p.raise_below, self.smoothed_fit - band)
+            self.reference_fit = self.smoothed_fit
+            self._reference_age = 0.0
         return True
 
     def _look_alike(self) -> bool:
@@ -368,6 +380,7 @@ class LostDetector:
             self.jumped = True
             self.jumps += 1
             self.confirmations.restart()
+            self._raise_below = p.raise_below
             pf.moved_elsewhere()  # its window holds the jump: nothing to learn from
             self._since_jump = 0.0
             self._since_burst = math.inf  # search at once

@@ -16,7 +16,8 @@ out-of-date ``stata_basement.yaml``, the ``mit_racecar`` noise) of `racecar-sim 
 - cluttered kidnap seed 8: the car is found at once, on a place the old map explains less well
   than the one it left; searches that settle on the filter's place take the flag down;
 - cluttered kidnap seed 13: the same, where the old map explains only half the beams at the
-  car's new place."""
+  car's new place; in the filter's second draw the flag stays down over the car found there,
+  judged by the place's own fit once the searches confirmed it."""
 
 from __future__ import annotations
 
@@ -33,16 +34,18 @@ from tests.skips import need_shared
 
 
 def _kidnap_log(
-    tmp_path, settings: dict | None, world: str, seed: int, after_kidnap: float = 15.0
+    tmp_path, settings: dict | None, world: str, seed: int, after_kidnap: float = 15.0,
+    draw: int = 0,
 ) -> ErrorLog:
     """The error log of kidnap ``seed`` of ``world``, ``after_kidnap`` seconds driven after the
-    kidnap at 10 s."""
+    kidnap at 10 s, the filter seeded by ``seed + draw``."""
     need_shared("maps/basement_fixed_aligned.yaml", "maps/stata_basement.yaml")
     from tests.skips import SHARED
 
     worlds = [w for w in default_worlds(SHARED) if w.name == world]
     config = LostFlagConfig(
-        worlds=tuple(worlds), seeds=0, kidnap_seeds=seed + 1, after_kidnap=after_kidnap
+        worlds=tuple(worlds), seeds=0, kidnap_seeds=seed + 1, after_kidnap=after_kidnap,
+        filter_seed_offset=draw,
     )
     spec = config.runs()[seed]
     assert spec.scenario == "kidnap" and spec.seed == seed
@@ -132,3 +135,14 @@ def test_searches_that_confirm_the_place_take_the_flag_down_where_the_old_map_fi
     assert _flag_down_after(log) <= 7.0
     found = log.time > 11.0
     assert float(np.max(log.position_error[found])) < 1.0
+
+
+def test_a_confirmed_place_is_judged_by_its_own_fit(tmp_path) -> None:
+    # cluttered kidnap 13, the filter's second draw: two searches confirm the car 1.4 s after
+    # the kidnap, where the old map explains 0.44-0.55 of the beams; judged by the bars of the
+    # place it left, the averaged fit's dips under 0.5 raise the flag at 16.0 s over a car
+    # 0.14 m away, and it stays up to the end of the drive
+    log = _kidnap_log(tmp_path, None, "cluttered", 13, after_kidnap=8.0, draw=1000)
+    found = log.time > 12.0
+    assert float(np.max(log.position_error[found])) < 0.5
+    assert not np.any(np.asarray(log.lost, dtype=np.bool_)[found])
