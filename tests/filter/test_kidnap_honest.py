@@ -57,16 +57,20 @@ def _kidnap_log(
 
 
 def _recovered_after(
-    tmp_path, settings: dict | None, world: str = "clean", seed: int = 4
+    tmp_path, settings: dict | None, world: str = "clean", seed: int = 4,
+    after_kidnap: float = 15.0,
 ) -> float:
-    """Seconds from the kidnap until the error stays under 0.5 m for 2 s (NaN: never)."""
-    log = _kidnap_log(tmp_path, settings, world, seed)
+    """Seconds from the kidnap until the error stays under 0.5 m for 2 s (NaN: never within
+    ``after_kidnap`` seconds)."""
+    log = _kidnap_log(tmp_path, settings, world, seed, after_kidnap)
     config = LostFlagConfig()
     return kidnap_times(log, config.kidnap_time, config.hold_s)[1]
 
 
 def test_the_default_filter_finds_the_car_in_a_corridor_like_another(tmp_path) -> None:
-    assert _recovered_after(tmp_path, None) <= 10.0  # 2.2 s on the machine that measured it
+    # 2.2 s on the machine that measured it; driven 12 s after the kidnap, enough for 10 s and
+    # the 2 s the error must stay under 0.5 m
+    assert _recovered_after(tmp_path, None, after_kidnap=12.0) <= 10.0
 
 
 def test_without_the_log_likelihood_and_the_injection_the_search_keeps_the_other_end(
@@ -98,7 +102,7 @@ def test_a_search_that_keeps_its_places_finds_the_car_a_plain_one_never_draws_ne
 
 
 def test_a_search_compared_after_half_a_second_finds_a_car_it_would_hop_away_from(tmp_path) -> None:
-    assert _recovered_after(tmp_path, None, "clean", 7) <= 15.0  # 1.97 s where measured
+    assert _recovered_after(tmp_path, None, "clean", 7, after_kidnap=12.0) <= 10.0  # 1.97 s measured
     # settled for 1 s (the earlier default), the search hops away first, every time
     assert math.isnan(_recovered_after(tmp_path, {"lost": {"search_adopt_s": 1.0}}, "clean", 7))
 
