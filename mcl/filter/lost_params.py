@@ -126,10 +126,10 @@ class LostParams:
             minus ``clear_above - raise_below`` (when that is under ``raise_below``), and the
             car's usual fit (the reference) starts afresh there, until the average climbs above
             ``clear_above`` (false: the bars and the record of the place the car left). On 40
-            honest kidnaps in three draws of the filter it changed one drive (cluttered kidnap
-            13 in the second draw, where the old map explains 0.44-0.55 of the beams at the
-            car's place): the cluttered kidnaps' false alarms 3.6 -> 2.2 % in that draw, the
-            same in the others (docs/recovery.md).
+            honest kidnaps in the filter's second draw it changed one drive (cluttered kidnap
+            13, where the old map explains 0.44-0.55 of the beams at the car's place): the
+            cluttered kidnaps' false alarms 3.6 -> 2.2 %; in the other two draws the false
+            alarms, precision and times are those of before (docs/recovery.md).
         search_draw_density: poses per m² of the filter map's free floor in the search filter's
             first draw, at its start and at each restart (at most ``search_draw_max``): the first
             scan weighs them all, then the cloud is resampled to the filter's global count
