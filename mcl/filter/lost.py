@@ -13,8 +13,9 @@ What the filter can see, measured once per used scan (no truth involved):
   neither confirm nor refute the pose, and the honest world's furniture and people would
   otherwise pull the fit at the true pose down to that of a wrong one.
 - **Smoothing and hysteresis**: the fit is averaged exponentially with a time constant of
-  ``window_s`` seconds of driving; the flag is raised when the average falls below ``raise_below``
-  and cleared only once it climbs above ``clear_above``.
+  ``window_s`` seconds of driving; the flag is raised when the average has stayed below
+  ``raise_below`` for ``raise_after_s`` (``raise_continuous``: in one stretch) and cleared only
+  once it climbs above ``clear_above``.
 - **Against the car's own record**: a slower average of the smoothed fit, over ``reference_s``
   seconds of the time the flag was down, is the fit this world usually gives at the right pose.
   The flag is also raised when the misfit (1 - smoothed fit) grows beyond ``misfit_ratio`` times
@@ -246,8 +247,8 @@ class LostDetector:
             elif not self.fit_lost and (s < self._raise_below or 1.0 - s > p.misfit_ratio * usual):
                 self._low_for += since_scan
                 self.fit_lost = self._low_for >= p.raise_after_s
-            elif s > p.clear_above:  # a good fit again; in between, the time so far is kept
-                self._low_for = 0.0
+            elif s > p.clear_above or (p.raise_continuous and not self.fit_lost):
+                self._low_for = 0.0  # over the bar again (or, not continuous, a good fit again)
             if s > p.clear_above:  # the car left the place its searches confirmed, if any
                 self._raise_below = p.raise_below
             if self.fit_lost:
