@@ -343,18 +343,18 @@ class ParticleFilter(Belief, GlobalRecovery):
         shrink_to, self._shrink_to = self._shrink_to, None
         self._before_burst = None if shrink_to is None else (*self._require(), shrink_to)
         self._join_pending_random()
-        log_likelihood = self.sensor_model.log_evaluate(self.particles, scan)
         self.searching = self.is_searching()
-        if self.sensor_model.has_search_hit and self.searching:
-            # weigh by the wide hit; the likelihood averages (augmented MCL) keep the narrow one
-            _, _, top, total, _ = bayes_step(self._log_weights, log_likelihood)
-            self.update_weights(self.sensor_model.log_evaluate(self.particles, scan, True))
+        # averages (augmented MCL) follow the model's own; weights: search hit or beam bound
+        own, weighing = self.sensor_model.weigh(self.particles, scan, self.searching)
+        if weighing is own:
+            self.update_weights(own)
+        else:
+            _, _, top, total, _ = bayes_step(self._log_weights, own)
+            self.update_weights(weighing)
             if math.isfinite(self.last_log_mean_likelihood):
                 self.last_log_mean_likelihood = (
                     float(top + math.log(total)) if total > 0 else -math.inf
                 )
-        else:
-            self.update_weights(log_likelihood)
         if shrink_to is not None:  # a recovery burst: back to the cloud's count (or KLD's)
             self.resample(None if self.params.kld.enabled else shrink_to)
             self._confirm_scale(scan)

@@ -34,81 +34,18 @@ from dataclasses import replace
 import numba as nb
 import numpy as np
 
+from mcl.filter.beam_bound import bounded_scores
 from mcl.filter.beam_skip import BeamSkip, beam_skip_mask, cloud_converged
+from mcl.filter.beam_table import PARALLEL_MIN_LOOKUPS, beam_table, score_serial, score_shared
 from mcl.filter.likelihood_field import likelihood_table, score_endpoints
 from mcl.filter.sensor_params import MODELS, SensorModelParams
 from racecar_sim.maps import OccupancyMap
 from racecar_sim.raycast import LutParams, RayCaster
-from racecar_sim.raycast.shared_work import fetch_add, run_shared
+from racecar_sim.raycast.shared_work import run_shared
 
-__all__ = ["MODELS", "SensorModel", "SensorModelParams", "beam_table"]
-
-
-def beam_table(params: SensorModelParams) -> np.ndarray:
-    """The (W, W) float64 table ``[z_measured_px, d_expected_px]``; every column sums to 1.
-
-    See the module docstring for the four components.
-    """
-    z_max = params.z_max
-    z = np.arange(params.table_width, dtype=np.float64)[:, None]  # rows: measured
-    d = np.arange(params.table_width, dtype=np.float64)[None, :]  # columns: expected
-
-    hit = np.exp(-0.5 * ((z - d) / params.sigma_hit) ** 2)
-    hit /= hit.sum(axis=0, keepdims=True)
-
-    d_safe = np.where(d > 0, d, 1.0)
-    short = np.where((d > 0) & (z <= d), (2.0 / d_safe) * (1.0 - z / d_safe), 0.0)
-    max_ = (z == z_max).astype(np.float64) * np.ones_like(d)
-    rand = np.full_like(hit, 1.0 / z_max)
-
-    table = (
-        params.alpha_hit * hit
-        + params.alpha_short * short
-        + params.alpha_max * max_
-        + params.alpha_rand * rand
-    )
-    return table / table.sum(axis=0, keepdims=True)
+__all__ = ["MODELS", "PARALLEL_MIN_LOOKUPS", "SensorModel", "SensorModelParams", "beam_table"]
 
 
-@nb.njit(cache=True, inline="always")
-def _score_row(ranges, z_obs, log_table, px_per_m, z_max, out, i):
-    """out[i] = sum_b log_table[z_obs[b], round(clip(ranges[i, b] * px_per_m, 0, z_max))]."""
-    acc = 0.0
-    for b in range(ranges.shape[1]):
-        d = ranges[i, b] * px_per_m
-        if d > z_max:
-            d = z_max
-        elif d < 0.0:
-            d = 0.0
-        acc += log_table[z_obs[b], int(d + 0.5)]
-    out[i] = acc
-
-
-@nb.njit(cache=True, nogil=True)
-def _score_shared(ranges, z_obs, log_table, px_per_m, z_max, out, counter):
-    """Log-likelihood sums for blocks of 256 particles (rows of ``ranges``) taken from
-    ``counter``: one of the threads sharing the particles (`racecar_sim.raycast.shared_work`)."""
-    n = ranges.shape[0]
-    while True:
-        i0 = fetch_add(counter, 1) * 256
-        if i0 >= n:
-            break
-        for i in range(i0, min(n, i0 + 256)):
-            _score_row(ranges, z_obs, log_table, px_per_m, z_max, out, i)
-
-
-@nb.njit(cache=True)
-def _score_serial(ranges, z_obs, log_table, px_per_m, z_max, out):
-    """Same as `_score_shared()` on one thread, all the particles."""
-    for i in range(ranges.shape[0]):
-        _score_row(ranges, z_obs, log_table, px_per_m, z_max, out, i)
-
-
-PARALLEL_MIN_LOOKUPS = 2_000_000
-"""Table look-ups per scoring call (particles x beams) from which the scoring kernel runs on all
-numba threads. A look-up costs 1-2 ns, so below this one thread takes a few milliseconds at most,
-while a parallel region on a busy 2-core machine (other processes running) was measured to stall for
-about 10 ms waiting for a descheduled thread (4 000 x 100: 0.6 ms serial, 12 ms parallel)."""
 
 
 class SensorModel:
@@ -290,9 +227,9 @@ class SensorModel:
             parallel = expected.size >= PARALLEL_MIN_LOOKUPS
         args = (expected, rows, table, 1.0 / self.m_per_px, float(self.z_max), out)
         if parallel:
-            run_shared(_score_shared, args, nb.get_num_threads())
+            run_shared(score_shared, args, nb.get_num_threads())
         else:
-            _score_serial(*args)
+            score_serial(*args)
         return out
 
     def _score_skipping(self, particles: np.ndarray, angles: np.ndarray, z_px: np.ndarray):
@@ -364,6 +301,57 @@ class SensorModel:
         return self._score_into(
             expected, np.ascontiguousarray(z_px, dtype=np.int64), log_table, out
         )
+
+    @property
+    def bounds_beams(self) -> bool:
+        """Whether `log_evaluate_tracking()` bounds each beam's say (``params.beam_bound`` set,
+        the beam model)."""
+        return self.params.beam_bound is not None and self.caster is not None
+
+    def log_evaluate_tracking(
+        self, particles: np.ndarray, scan: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(plain, bounded): the (N,) log-likelihoods of `log_evaluate()` and the same with each
+        beam's term at most ``params.beam_bound`` under the cloud's best for that beam
+        ([bounded_scores][mcl.filter.beam_bound.bounded_scores]); the two are the same array
+        when the bound is off or beam skipping scores the scan. For weighing a tracking cloud:
+        the bound is relative to the particles given."""
+        if not self.bounds_beams:
+            plain = self.log_evaluate(particles, scan)
+            return plain, plain
+        if self.params.beam_skip:
+            plain = self.log_evaluate(particles, scan)
+            if self.last_beam_skip.converged:
+                return plain, plain
+        particles = np.ascontiguousarray(particles, dtype=np.float64)
+        if particles.ndim != 2 or particles.shape[1] != 3:
+            raise ValueError(f"particles must have shape (N, 3), got {particles.shape}")
+        angles, z_px = self.observe(scan)
+        if z_px.size == 0:
+            plain = np.zeros(particles.shape[0])
+            return plain, plain
+        terms = np.empty((particles.shape[0], z_px.size))
+        plain = self.caster.cast_score(
+            particles, angles, self._log_table[z_px], 1.0 / self.m_per_px,
+            offset=float(self.params.mount_offset), terms=terms,
+        )  # fmt: skip
+        bounded = np.empty_like(plain)
+        bounded_scores(terms, float(self.params.beam_bound), bounded)
+        return plain, bounded
+
+    def weigh(
+        self, particles: np.ndarray, scan: np.ndarray, searching: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(own, weighing): the (N,) log-likelihoods of `log_evaluate()` (the narrow hit, no
+        bound: what likelihood averages follow) and those a filter weighs its cloud by: the wide
+        search hit while ``searching``, the bounded ones (`log_evaluate_tracking()`) while not.
+        The two are the same array when they do not differ."""
+        if searching and self.has_search_hit:
+            return self.log_evaluate(particles, scan), self.log_evaluate(particles, scan, True)
+        if not searching:
+            return self.log_evaluate_tracking(particles, scan)
+        own = self.log_evaluate(particles, scan)
+        return own, own
 
     def _log_evaluate_field(self, particles: np.ndarray, scan: np.ndarray) -> np.ndarray:
         """The likelihood-field model's log-likelihoods (see [`mcl.filter.likelihood_field`][mcl.filter.likelihood_field])."""

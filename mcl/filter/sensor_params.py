@@ -86,6 +86,11 @@ class SensorModelParams:
             lies this close to the particles' mean in x and in y (amcl's 0.5).
         beam_skip_short_only: skip only beams that return short of what the particles expect
             (what an occluding opponent makes); not in amcl.
+        beam_bound: while the cloud tracks (not searching), a beam's log-likelihood counts at
+            most this far under the cloud's best for that beam (natural log, after the squash;
+            the table's hit peak lies about 2.5 above its floor), so no beam outvotes the rest
+            where the map is out of date (`mcl.filter.beam_bound`). None: the plain sum. The
+            beam model only; beam skipping, when it decides, scores instead.
     """
 
     alpha_hit: float = 0.74
@@ -118,6 +123,7 @@ class SensorModelParams:
     beam_skip_error_threshold: float = 0.9
     beam_skip_converged_distance: float = 0.5
     beam_skip_short_only: bool = False
+    beam_bound: float | None = 0.5
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -213,6 +219,11 @@ class SensorModelParams:
             raise bad(
                 "beam_skip", f"is implemented for the beam model only, not {short(self.model)}"
             )
+        bb = self.beam_bound
+        if bb is not None and (
+            isinstance(bb, bool) or not isinstance(bb, int | float) or not 0 <= bb < math.inf
+        ):
+            raise bad("beam_bound", "must be None or a number >= 0 (log-likelihood)")
         for name in ("beam_skip_distance", "beam_skip_converged_distance"):
             if getattr(self, name) <= 0:
                 raise bad(name, "must be > 0 metres")

@@ -326,6 +326,7 @@ class RayCaster:
         rows: np.ndarray,
         per_metre: float,
         offset: float = 0.0,
+        terms: np.ndarray | None = None,
     ) -> np.ndarray:
         """(N,) ``sum_b rows[b, round(clip(range_ib * per_metre, 0, W - 1))]`` over the beams.
 
@@ -333,10 +334,11 @@ class RayCaster:
         ``rows`` (M, W) float64, e.g. a sensor model's log-likelihood row for each beam's measured
         range. The ``"lut"`` method casts and scores in one pass without storing the (N, M) ranges;
         the others cast, then score. ``offset``: metres; the rays start that far ahead of each
-        pose along its heading (a lidar's mount) instead of at the pose.
+        pose along its heading (a lidar's mount) instead of at the pose. ``terms``: an (N, M)
+        float64 array that receives each ray's term of the sum, when given.
 
         Raises:
-            ValueError: as `cast()`; rows not (M, W) for the M angles.
+            ValueError: as `cast()`; rows not (M, W) for the M angles; terms not (N, M) float64.
         """
         poses = np.asarray(poses, dtype=np.float64)
         if poses.ndim == 1:
@@ -349,6 +351,12 @@ class RayCaster:
             raise ValueError(f"poses must have shape (N, 3) or (3,), got {poses.shape}")
         if not math.isfinite(offset):
             raise ValueError(f"offset must be a finite number of metres, got {offset!r}")
+        if terms is not None and (
+            terms.shape != (poses.shape[0], angles.shape[0]) or terms.dtype != np.float64
+            or not terms.flags.c_contiguous
+        ):
+            raise ValueError(f"terms must be a C-contiguous float64 array of shape "
+                             f"({poses.shape[0]}, {angles.shape[0]}), got {terms.shape}")  # fmt: skip
         if self.method != "lut" or self.dtype != np.float64:
             if offset != 0.0:
                 th = poses[:, 2]
@@ -358,7 +366,10 @@ class RayCaster:
             ranges = self.cast(poses, angles).astype(np.float64, copy=False)
             top = rows.shape[1] - 1
             d = np.floor(np.clip(ranges * per_metre, 0.0, top) + 0.5).astype(np.int64)
-            return rows[np.arange(rows.shape[0])[None, :], d].sum(axis=1)
+            each = rows[np.arange(rows.shape[0])[None, :], d]
+            if terms is not None:
+                terms[:] = each
+            return each.sum(axis=1)
         if not (np.isfinite(poses).all() and np.isfinite(angles).all()):
             raise ValueError("poses and angles must be finite (found NaN or inf)")
         out = np.empty(poses.shape[0], dtype=np.float64)
@@ -378,6 +389,6 @@ class RayCaster:
             self._lut, p.tolerance / res, p.guide / res, self._field,
             gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a,
             self._max_cells, res, self.max_range, rows, float(per_metre), out, parallel,
-            p.sort_extent / res,
+            p.sort_extent / res, terms,
         )  # fmt: skip
         return out

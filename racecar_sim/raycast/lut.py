@@ -125,10 +125,11 @@ def _prefetch_row(index, table, gu, gv, i, i1):
 @nb.njit(cache=True, error_model="numpy")
 def _lut_poses(
     table, index, unit, sub, tol, guide, field, gu, gv, heading, cos_h, sin_h,
-    afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores, i0, i1,
+    afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores, terms, i0, i1,
 ):  # fmt: skip
     """Poses ``i0 <= i < i1``: their rays' ranges into ``ranges`` (N, M), or, when ``ranges`` is
-    empty, ``scores[i] = sum_b rows[b, round(clip(range * per_out, 0, top))]``.
+    empty, ``scores[i] = sum_b rows[b, round(clip(range * per_out, 0, top))]``, each term also
+    into ``terms[i, b]`` when ``terms`` is not empty.
 
     ``heading`` (N,) radians, map frame; ``afix`` (M,) int64 beam angles in fixed point (a turn
     is 2**32, see `_fixed()`). ``error_model="numpy"``: a float division raises nothing, which
@@ -144,6 +145,7 @@ def _lut_poses(
     tol_code = tol / unit
     sat = max_t + SANE  # both table ranges beyond this: the ray reaches max range
     want_ranges = ranges.shape[0] > 0
+    want_terms = terms.shape[0] > 0
     kb = np.empty(m, dtype=np.int64)
     e0b = np.empty(m, dtype=np.uint16)
     e1b = np.empty(m, dtype=np.uint16)
@@ -238,19 +240,18 @@ def _lut_poses(
                     )
             else:
                 acc = 0.0
-                if off_map[j]:
-                    for b in range(m):
-                        acc += rows[b, 0]
-                else:
-                    for b in range(m):
-                        acc += rows[b, int(dbs[j, b])]
+                for b in range(m):
+                    term = rows[b, 0] if off_map[j] else rows[b, int(dbs[j, b])]
+                    acc += term
+                    if want_terms:
+                        terms[i, b] = term
                 scores[i] = acc
 
 
 @nb.njit(cache=True, nogil=True)
 def _lut_shared(
     table, index, unit, sub, tol, guide, field, gu, gv, heading, cos_h, sin_h,
-    afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores, counter,
+    afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores, terms, counter,
 ):  # fmt: skip
     """`_lut_poses()` over blocks of about ``_BLOCK_RAYS`` rays taken from ``counter`` until
     none is left (see `shared_work`); one of the threads that share the poses."""
@@ -262,7 +263,7 @@ def _lut_shared(
             break
         _lut_poses(
             table, index, unit, sub, tol, guide, field, gu, gv, heading, cos_h, sin_h,
-            afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores,
+            afix, cos_a, sin_a, max_t, scale, max_out, ranges, rows, per_out, top, scores, terms,
             i0, min(n, i0 + blk),
         )  # fmt: skip
 
@@ -279,21 +280,25 @@ def _fixed(angles: np.ndarray) -> np.ndarray:
 
 
 def _run(lut, tol, guide, field, gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a, max_t,
-         scale, max_out, ranges, rows, per_out, top, scores, parallel, sort_cells):  # fmt: skip
+         scale, max_out, ranges, rows, per_out, top, scores, parallel, sort_cells,
+         terms=None):  # fmt: skip
     heading = np.ascontiguousarray(heading, dtype=np.float64)
     order = spread_order(gu, gv, sort_cells)
-    out_ranges, out_scores = ranges, scores
+    terms = _NO_RANGES if terms is None else terms
+    out_ranges, out_scores, out_terms = ranges, scores, terms
     if order is not None:  # cast in Z-order, scatter back below (each pose's numbers unchanged)
         gu, gv, heading, cos_h, sin_h = (a[order] for a in (gu, gv, heading, cos_h, sin_h))
         if ranges.shape[0] > 0:
             ranges = np.empty_like(ranges)
         if scores.shape[0] > 0:
             scores = np.empty_like(scores)
+        if terms.shape[0] > 0:
+            terms = np.empty_like(terms)
     args = (
         lut.table, lut.index, lut.unit, float(lut.sub_lines), float(tol), float(guide), field,
         gu, gv, heading, cos_h, sin_h, _fixed(angles),
         cos_a, sin_a, float(max_t), float(scale), float(max_out), ranges, rows, float(per_out),
-        float(top), scores,
+        float(top), scores, terms,
     )  # fmt: skip
     if parallel:
         run_shared(_lut_shared, args, nb.get_num_threads())
@@ -304,6 +309,8 @@ def _run(lut, tol, guide, field, gu, gv, heading, cos_h, sin_h, angles, cos_a, s
             out_ranges[order] = ranges
         if scores.shape[0] > 0:
             out_scores[order] = scores
+        if terms.shape[0] > 0:
+            out_terms[order] = terms
 
 
 def lut_rays(
@@ -360,16 +367,18 @@ def lut_score(
     out: np.ndarray,
     parallel: bool,
     sort_cells: float = math.inf,
+    terms: np.ndarray | None = None,
 ) -> None:
     """``out[i] = sum_b rows[b, round(clip(range_ib * per_out, 0, W - 1))]`` without storing ranges.
 
     ``range_ib`` is exactly what `lut_rays()` writes for pose ``i`` and beam ``b`` (same
     arguments); ``rows`` is a float64 (M, W) table of per-beam scores (a sensor model's log
     likelihood row of each beam's measured range), ``per_out`` converts the output unit to row
-    columns. Cast and score share one pass over the poses, so the (N, M) ranges never reach memory.
+    columns. Cast and score share one pass over the poses, so the (N, M) ranges never reach memory;
+    ``terms`` (N, M) float64, when given, receives each ray's score ``rows[b, ...]``.
     """
     _run(
         lut, tol, guide, field, gu, gv, heading, cos_h, sin_h, angles, cos_a, sin_a, max_t,
         scale, max_out, _NO_RANGES, rows, per_out, float(rows.shape[1] - 1), out, parallel,
-        sort_cells,
+        sort_cells, terms,
     )  # fmt: skip

@@ -80,6 +80,27 @@ def test_cast_score_exact_method_matches_table_lookup(room) -> None:
 
 
 @pytest.mark.parametrize("method", ["lut", "exact"])
+@pytest.mark.parametrize("sort_extent", [10.0, 0.0])  # 0: the lut casts in Z-order, scatters back
+def test_cast_score_terms_are_each_ray_s_lookup(room, method: str, sort_extent: float) -> None:
+    """The per-ray terms (what the beam bound reads) are each ray's table lookup by hand, in the
+    caller's pose order, and sum to the scores; off-map and in-wall poses included."""
+    from racecar_sim.raycast import LutParams
+
+    rng = np.random.default_rng(11)
+    caster = RayCaster(room, 10.0, method=method, lut=LutParams(sort_extent=sort_extent))
+    poses = _particles(room, rng, 120)
+    angles = np.linspace(-2.0, 2.0, 7)
+    rows = rng.normal(size=(7, 41))
+    terms = np.full((120, 7), np.nan)
+    scores = caster.cast_score(poses, angles, rows, 4.0, terms=terms)
+    cols = np.floor(np.clip(caster.cast(poses, angles) * 4.0, 0, 40) + 0.5).astype(int)
+    np.testing.assert_array_equal(terms, rows[np.arange(7)[None, :], cols])
+    np.testing.assert_allclose(terms.sum(axis=1), scores, rtol=0, atol=1e-9)
+    with pytest.raises(ValueError, match="terms must be"):
+        caster.cast_score(poses, angles, rows, 4.0, terms=np.empty((120, 6)))
+
+
+@pytest.mark.parametrize("method", ["lut", "exact"])
 def test_cast_score_rejects_bad_input(room, method: str) -> None:
     caster = RayCaster(room, 10.0, method=method)
     with pytest.raises(ValueError, match="rows must have shape"):
