@@ -123,7 +123,7 @@ class SensorModelParams:
     beam_skip_error_threshold: float = 0.9
     beam_skip_converged_distance: float = 0.5
     beam_skip_short_only: bool = False
-    beam_bound: float | None = 0.5
+    beam_bound: float | None = None
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:

@@ -17,7 +17,6 @@ from racecar_sim.sensors.scan_effects import OdometryBias
 from tests.skips import need_shared
 
 HONEST = (("noise_profile", "mit_racecar"), ("scene", "cluttered"))
-PLAIN = SensorModelParams(beam_bound=None)  # every beam's say unbounded (the defaults before 2026-12-07)
 
 
 def _drive(
@@ -69,31 +68,28 @@ def test_the_filter_stays_with_a_car_whose_wheels_spin_against_the_clutter(tmp_p
 def test_a_scale_learned_between_confirmed_poses_keeps_a_drive_the_drag_loses(tmp_path):
     """Cluttered seed 3: the wheels read about 7 % slow; where the old map drags the estimate back
     along a corridor, a scale learned from every bridge (``fit_gate`` 0: the drag's poses count)
-    follows the drag and the estimate falls over a metre behind by 20 s. The default learner learns
-    only between poses the scan confirms and keeps the car; so do the car's calibrated odometry
+    follows the drag and the estimate falls over a metre behind by 20 s. The default learns only
+    between poses the scan confirms and keeps the car; so do the car's calibrated odometry
     (calibrate-noise on the real bags: the VESC reads vx 5.3 % low and 0.029 m/s under, omega
     10.1 % high) undone with the scale held, and the calibrated speed scale alone, 1 / 0.947 =
-    1.056, held (docs/localization_changing_world.md). The scan's beams count unbounded here
-    (``PLAIN``), to judge the learner alone: with the default bound per beam this drive comes
-    1.1 m off at 20 s and is held over its 60 s (0.8 % of the time over 1 m)."""
+    1.056, held (docs/localization_changing_world.md)."""
     errors = {}
     calibration = OdometryBias(scale=(-0.0529, 0.0, 0.1013), offset=(-0.0287, -0.0131, 0.0432))
     held = OdometryScaleParams(learn=False)
     for name, bias, scale in (
         ("every_bridge", OdometryBias(), OdometryScaleParams(fit_gate=0.0, settle_bridges=0)),
-        ("confirmed", OdometryBias(), OdometryScaleParams()),
+        ("default", OdometryBias(), OdometryScaleParams()),
         ("calibrated", calibration, held),
         ("scale_only", OdometryBias(), OdometryScaleParams(initial=1.056, learn=False)),
     ):
         config = LocalizationConfig(
-            sensor=PLAIN,
             filter=ParticleFilterParams(
                 init_spread=(0.25, 0.25, 0.1), odometry_bias=bias, odometry_scale=scale
-            ),
+            )
         )
         errors[name] = _drive(tmp_path, config, name, seed=3, duration=22.0)
     assert errors["every_bridge"].max() > 1.0  # the drive is one the drag loses
-    for name in ("confirmed", "calibrated", "scale_only"):
+    for name in ("default", "calibrated", "scale_only"):
         assert errors[name].max() < 0.8, (name, errors[name].max())
 
 
@@ -116,13 +112,13 @@ def test_a_pinned_car_s_estimate_neither_keeps_the_wheels_drive_nor_slides(tmp_p
 
 def test_a_bound_on_each_beam_s_say_keeps_a_start_the_recesses_drag(tmp_path):
     """Held-out cluttered seed 36 starts on the corridor at y = 0.5, whose recesses the old map
-    draws as wall: the beams that see into them outvote the rest, and without the bound the
+    draws as wall: the beams that see into them outvote the rest, and with the defaults the
     estimate is pulled 1.5-1.9 m behind the car within 10 s. With each beam's say bounded to 0.5
-    under the cloud's best (``sensor.beam_bound``, the default) it stays within a metre
-    (docs/localization_changing_world.md)."""
+    under the cloud's best (``sensor.beam_bound``; off by default: it loses other drives) it stays
+    within a metre (docs/localization_changing_world.md)."""
     errors = {}
-    for name, bound in (("bounded", 0.5), ("plain", None)):
+    for name, bound in (("bounded", 0.5), ("default", None)):
         config = LocalizationConfig(sensor=SensorModelParams(beam_bound=bound))
         errors[name] = _drive(tmp_path, config, name, seed=36, duration=12.0)
-    assert errors["plain"].max() > 1.4, errors["plain"].max()  # the drive is one the drag loses
+    assert errors["default"].max() > 1.4, errors["default"].max()  # the drive is one the drag loses
     assert errors["bounded"].max() < 1.0, errors["bounded"].max()

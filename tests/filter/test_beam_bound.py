@@ -74,7 +74,7 @@ def test_a_beam_one_particle_explains_separates_them_by_the_bound_at_most() -> N
     the bound 0.5 by at most that (beam 0's small difference counts in full)."""
     expected = np.array([[5.0, 2.0], [5.05, 4.0]])
     z_px = np.array([100, 40])  # beam 1 measured 2 m
-    plain, bounded = _run(expected, z_px, 0.5)
+    _, bounded = _run(expected, z_px, 0.5)
     terms = _terms(expected, z_px)
     assert terms[0, 1] - terms[1, 1] > 1.0  # the plain model reads beam 1 as strong evidence
     assert abs(terms[0, 0] - terms[1, 0]) < 0.5
@@ -90,10 +90,10 @@ def _true_scan(room, pose: np.ndarray) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def bounded_and_plain(room) -> tuple[SensorModel, SensorModel]:
-    base = SensorModelParams(mount_offset=LIDAR.mount_offset, parallel=False)
-    plain = SensorModel(room, SensorModelParams(**{**base.__dict__, "beam_bound": None}),
-                        beam_angles=LIDAR.angles)  # fmt: skip
-    return SensorModel(room, base, beam_angles=LIDAR.angles), plain
+    base = SensorModelParams(mount_offset=LIDAR.mount_offset, parallel=False)  # no bound: default
+    bounded = SensorModel(room, SensorModelParams(**{**base.__dict__, "beam_bound": 0.5}),
+                          beam_angles=LIDAR.angles)  # fmt: skip
+    return bounded, SensorModel(room, base, beam_angles=LIDAR.angles)
 
 
 def test_weigh_bounds_only_a_tracking_cloud(room, bounded_and_plain) -> None:
@@ -109,7 +109,7 @@ def test_weigh_bounds_only_a_tracking_cloud(room, bounded_and_plain) -> None:
     assert np.ptp(weighing) <= n_beams * bounded.params.beam_bound + 1e-9
     assert np.ptp(weighing) < np.ptp(own)
     # searching: the wide hit weighs, unbounded; the plain model never bounds
-    own_s, weighing_s = bounded.weigh(particles, scan, searching=True)
+    _, weighing_s = bounded.weigh(particles, scan, searching=True)
     np.testing.assert_array_equal(weighing_s, bounded.log_evaluate(particles, scan, True))
     own_p, weighing_p = plain.weigh(particles, scan, searching=False)
     assert weighing_p is own_p
