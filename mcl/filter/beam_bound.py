@@ -13,7 +13,7 @@ raised to at least ``best_b - bound``. A beam that one particle explains and ano
 separates them by ``bound`` at most; a beam no particle explains (all near the random floor)
 says next to nothing about which of them is right; small differences (a hit a few centimetres
 off) count in full. The terms come from the caster's fused cast-and-score pass
-([cast_score][racecar_sim.raycast.RayCaster.cast_score] with ``terms``), so the bound costs one
+([RayCaster][racecar_sim.raycast.RayCaster]'s ``cast_score`` with ``terms``), so the bound costs one
 more pass over the (N, K) terms. ``bound`` is in the units of the sensor model's log table (natural log,
 after the squash exponent): the table's hit peak lies about 2.5 above its floor, so a bound of
 0.5 keeps a fifth of a beam's range. The sums without the bound come out of the same pass, for
@@ -34,10 +34,10 @@ def bounded_scores(terms, bound, out):
     ``bound`` under the cloud's best for that beam.
 
     Args:
-        terms: (N, K) float64 per-particle, per-beam log-likelihoods (the sensor model's
+        terms (np.ndarray): (N, K) float64 per-particle, per-beam log-likelihoods (the sensor model's
             squashed log table looked up at each ray's expected range).
-        bound: how far under the cloud's best a beam's term may fall (log units, >= 0).
-        out: (N,) float64 output, the bounded sums.
+        bound (float): how far under the cloud's best a beam's term may fall (log units, >= 0).
+        out (np.ndarray): (N,) float64 output, the bounded sums.
     """
     n, k = terms.shape
     best = np.full(k, -np.inf)

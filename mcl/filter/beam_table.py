@@ -1,7 +1,7 @@
 """The beam model's table and the kernels that score expected ranges against it.
 
 ``beam_table()`` builds the MIT RSS lab's mixture ``table[z_measured_px, d_expected_px]`` (see
-[`mcl.filter.sensor_model`][mcl.filter.sensor_model] for its four components); the kernels sum a
+[SensorModel][mcl.filter.sensor_model.SensorModel]'s module for its four components); the kernels sum a
 particle's log-likelihood over its beams, on one thread or shared by all (blocks of 256
 particles). Ranges in metres become pixels as ``round(clip(r * px_per_m, 0, z_max))``.
 """
@@ -37,7 +37,7 @@ def table_term(ranges, z_obs, log_table, px_per_m, z_max, i, b):
 def beam_table(params: SensorModelParams) -> np.ndarray:
     """The (W, W) float64 table ``[z_measured_px, d_expected_px]``; every column sums to 1.
 
-    See the module docstring for the four components.
+    The four components are described in `mcl.filter.sensor_model`'s module docstring.
     """
     z_max = params.z_max
     z = np.arange(params.table_width, dtype=np.float64)[:, None]  # rows: measured
