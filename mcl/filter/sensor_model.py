@@ -314,15 +314,11 @@ class SensorModel:
         """(plain, bounded): the (N,) log-likelihoods of `log_evaluate()` and the same with each
         beam's term at most ``params.beam_bound`` under the cloud's best for that beam
         ([bounded_scores][mcl.filter.beam_bound.bounded_scores]); the two are the same array
-        when the bound is off or beam skipping scores the scan. For weighing a tracking cloud:
-        the bound is relative to the particles given."""
+        when the bound is off. For weighing a tracking cloud: the bound is relative to the
+        particles given."""
         if not self.bounds_beams:
             plain = self.log_evaluate(particles, scan)
             return plain, plain
-        if self.params.beam_skip:
-            plain = self.log_evaluate(particles, scan)
-            if self.last_beam_skip.converged:
-                return plain, plain
         particles = np.ascontiguousarray(particles, dtype=np.float64)
         if particles.ndim != 2 or particles.shape[1] != 3:
             raise ValueError(f"particles must have shape (N, 3), got {particles.shape}")

@@ -90,7 +90,8 @@ class SensorModelParams:
             most this far under the cloud's best for that beam (natural log, after the squash;
             the table's hit peak lies about 2.5 above its floor), so no beam outvotes the rest
             where the map is out of date (`mcl.filter.beam_bound`). None: the plain sum. The
-            beam model only; beam skipping, when it decides, scores instead.
+            beam model only; not with beam skipping (both leave out what most particles
+            cannot explain: choose one).
     """
 
     alpha_hit: float = 0.74
@@ -224,6 +225,8 @@ class SensorModelParams:
             isinstance(bb, bool) or not isinstance(bb, int | float) or not 0 <= bb < math.inf
         ):
             raise bad("beam_bound", "must be None or a number >= 0 (log-likelihood)")
+        if self.beam_skip and self.beam_bound is not None:
+            raise bad("beam_bound", "cannot be combined with beam_skip: set one of them")
         for name in ("beam_skip_distance", "beam_skip_converged_distance"):
             if getattr(self, name) <= 0:
                 raise bad(name, "must be > 0 metres")

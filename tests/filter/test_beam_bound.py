@@ -119,3 +119,9 @@ def test_weigh_bounds_only_a_tracking_cloud(room, bounded_and_plain) -> None:
 def test_a_bad_bound_is_refused_by_name(value) -> None:
     with pytest.raises(ValueError, match="beam_bound"):
         SensorModelParams(beam_bound=value)
+
+
+def test_the_bound_and_beam_skipping_are_not_combined() -> None:
+    with pytest.raises(ValueError, match=r"beam_bound.*beam_skip"):
+        SensorModelParams(beam_bound=0.5, beam_skip=True)
+    assert SensorModelParams(beam_bound=None, beam_skip=True).beam_skip
