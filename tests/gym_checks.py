@@ -7,6 +7,7 @@ wrappers (``LocalizationWrapper``) are checked as wrappers, not unwrapped."""
 
 from __future__ import annotations
 
+import gc
 import warnings
 from typing import Any
 
@@ -24,7 +25,11 @@ DESIGN_RECOMMENDATIONS = (
 
 
 def check_env_as_designed(env: Any, **kwargs: Any) -> None:
-    """``check_env(env, **kwargs)``; fails on any warning but :data:`DESIGN_RECOMMENDATIONS`."""
+    """``check_env(env, **kwargs)``; fails on any warning but :data:`DESIGN_RECOMMENDATIONS`.
+
+    Garbage that earlier tests in the same worker left (an event loop never closed, say) is
+    collected first, so that its ``ResourceWarning`` is not taken for one of the env's."""
+    gc.collect()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         check_env(env, **kwargs)

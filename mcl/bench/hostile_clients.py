@@ -170,7 +170,11 @@ class HostileClients:
 
     def _run(self) -> None:
         asyncio.set_event_loop(self._loop)
-        self.counts = self._loop.run_until_complete(attack(self.port, self.kinds, self._stop))
+        try:
+            self.counts = self._loop.run_until_complete(attack(self.port, self.kinds, self._stop))
+        finally:
+            asyncio.set_event_loop(None)
+            self._loop.close()
 
     def start(self) -> HostileClients:
         """Start attacking."""
@@ -179,6 +183,7 @@ class HostileClients:
 
     def stop(self, timeout: float = 30.0) -> Counter:
         """Stop every client; the counts."""
-        self._loop.call_soon_threadsafe(self._stop.set)
+        if not self._loop.is_closed():  # closed when the attack ended on its own
+            self._loop.call_soon_threadsafe(self._stop.set)
         self._thread.join(timeout)
         return self.counts

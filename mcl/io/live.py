@@ -136,15 +136,14 @@ class LiveServer:
         """Messages handed to the server (each one whole)."""
         self.n_dropped = 0
         """Messages replaced by a newer one of their topic before the server could take them."""
-        self._status_file = tempfile.TemporaryFile()
-        self._status_file.truncate(worker.STATUS_BYTES)
-        self._status = mmap.mmap(self._status_file.fileno(), worker.STATUS_BYTES)
-        status_fd = self._status_file.fileno()
-        self._proc = subprocess.Popen(
-            [sys.executable, "-P", str(Path(worker.__file__)), str(status_fd)],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-            pass_fds=(status_fd,), close_fds=True,
-        )  # fmt: skip
+        with tempfile.TemporaryFile() as status_file:  # the map keeps its own handle
+            status_file.truncate(worker.STATUS_BYTES)
+            self._status = mmap.mmap(status_fd := status_file.fileno(), worker.STATUS_BYTES)
+            self._proc = subprocess.Popen(
+                [sys.executable, "-P", str(Path(worker.__file__)), str(status_fd)],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                pass_fds=(status_fd,), close_fds=True,
+            )  # fmt: skip
         atexit.register(self.close)
         config = {
             "name": name, "host": self.host, "port": port, "max_clients": self.max_clients,
@@ -376,21 +375,21 @@ class LiveServer:
         if proc is None:
             return
         atexit.unregister(self.close)
-        with contextlib.suppress(OSError):
-            proc.stdin.close()  # the server's input ends: it stops
-        with contextlib.suppress(OSError):
-            proc.stdout.close()
+        for pipe in (proc.stdin, proc.stdout):  # the server's input ends: it stops
+            with contextlib.suppress(OSError):
+                pipe.close()
         try:
             proc.wait(2.0)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        mapped, self._status = self._status, bytes(self._status)  # the last counts stay readable
+        mapped.close()
         if self._waiter is not None and self._waiter is not threading.current_thread():
             self._waiter.join(START_S)
 
     def __deepcopy__(self, memo: dict) -> LiveServer:
-        """The same server: it is a running process, not a value (a deep copy of whatever holds
-        it shares it)."""
+        """The same server: a running process, not a value (a deep copy of its holder shares it)."""
         return self
 
     def __enter__(self) -> LiveServer:

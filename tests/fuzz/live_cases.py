@@ -205,6 +205,8 @@ class _Clients:
             asyncio.run_coroutine_threadsafe(finish(), self.loop).result(30)
         self.loop.call_soon_threadsafe(self.loop.stop)
         self.thread.join(30)
+        if not self.thread.is_alive():
+            self.loop.close()
 
 
 def _drive(steps: int, live: Any = None, clients: _Clients | None = None, case=None) -> list:

@@ -117,12 +117,11 @@ def test_the_server_process_dies_with_its_drive(tmp_path: Path) -> None:
         "import sys, time\nfrom mcl.io.bag_writer import start_live\ns = start_live(0)\n"
         "print(s.worker_pid, flush=True)\ntime.sleep(600)\n"
     )
-    drive = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True,
-                             env={**os.environ, "PYTHONPATH": str(REPO)})  # fmt: skip
-    worker = int(drive.stdout.readline())
-    assert not _gone(worker)
-    drive.kill()  # no clean-up of any kind
-    drive.wait()
+    with subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True,
+                          env={**os.environ, "PYTHONPATH": str(REPO)}) as drive:  # fmt: skip
+        worker = int(drive.stdout.readline())
+        assert not _gone(worker)
+        drive.kill()  # no clean-up of any kind
     _wait_until(lambda: _gone(worker))
 
 
@@ -302,3 +301,25 @@ def test_a_refused_connection_waits_before_its_503() -> None:
     finally:
         server.close()
     assert server.stats()["refused"] == 1
+
+
+def test_the_hostile_clients_close_their_event_loop() -> None:
+    """Stopped clients leave no open event loop behind: its ``ResourceWarning`` would otherwise
+    surface in whichever later test the garbage collector happens to run in."""
+    import gc
+    import warnings
+
+    server = start_live(0)
+    try:
+        clients = HostileClients(server.port, ["silent"]).start()
+        while server.stats()["accepted"] < 1:
+            time.sleep(0.05)
+        counts = clients.stop()
+    finally:
+        server.close()
+    assert counts["silent"] == 1
+    del clients
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        gc.collect()
+    assert [str(w.message) for w in caught if "event loop" in str(w.message)] == []
