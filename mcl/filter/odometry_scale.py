@@ -41,21 +41,14 @@ Units: metres, radians, seconds; the scale is dimensionless (1 = trust the wheel
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from mcl.filter.bounds import check_filter
-from mcl.filter.scan_scale import ScanScale, ScanScaleParams
-from racecar_sim.settings.params import nested
 from racecar_sim.settings.validation import short
 
-__all__ = ["SOURCES", "OdometryScale", "OdometryScaleParams"]
-
-SOURCES = ("map", "scans")
-"""Where the scale is learned from: ``"map"``, bridges between poses the scan confirms against
-the map (module docstring); ``"scans"``, consecutive scans matched to each other, no map involved
-([ScanScale][mcl.filter.scan_scale.ScanScale])."""
+__all__ = ["OdometryScale", "OdometryScaleParams"]
 
 
 @dataclass(frozen=True)
@@ -83,9 +76,6 @@ class OdometryScaleParams:
             deviation (square root of the covariance's xy trace) is at most this.
         min_straightness: a bridge is used only when its odometry displacement (along the
             estimate's heading) is at least this fraction of the path driven.
-        source: ``"map"`` (the bridges above) or ``"scans"`` (consecutive scans matched to each
-            other, [ScanScale][mcl.filter.scan_scale.ScanScale]; the bridges' settings unused).
-        scans: [ScanScaleParams][mcl.filter.scan_scale.ScanScaleParams] of ``"scans"``.
     """
 
     enabled: bool = True
@@ -103,17 +93,8 @@ class OdometryScaleParams:
     high: float = 1.25
     max_spread: float = 0.3
     min_straightness: float = 0.5
-    source: str = "map"
-    scans: ScanScaleParams = field(default_factory=ScanScaleParams)
 
     def __post_init__(self) -> None:
-        if self.source not in SOURCES:
-            raise ValueError(
-                f"OdometryScaleParams.source = {short(self.source)}; choose one of {list(SOURCES)}"
-            )
-        object.__setattr__(
-            self, "scans", nested(self.scans, ScanScaleParams, "OdometryScaleParams.scans")
-        )
         for name in ("enabled", "learn"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(
@@ -209,20 +190,11 @@ class OdometryScale:
         self._heading = 0.0  # radians, world: the estimate's at the last scan, then odometry's
         self._path = 0.0  # metres of raw odometry travel since the anchor
         self._settling = params.settle_bridges
-        self._scans = ScanScale(params.scans, params.initial) if params.source == "scans" else None
 
     @property
     def learning(self) -> bool:
-        """Whether the scale is learned from bridges between confirmed poses (enabled,
-        ``learn`` and ``source="map"``)."""
-        return self.params.enabled and self.params.learn and self._scans is None
-
-    @property
-    def wants_scans(self) -> bool:
-        """Whether the scale is learned from the scans matched to each other (enabled, ``learn``
-        and ``source="scans"``): [observe_scan][mcl.filter.odometry_scale.OdometryScale.observe_scan]
-        wants every scan."""
-        return self.params.enabled and self.params.learn and self._scans is not None
+        """Whether the scale is learned (enabled and ``learn``)."""
+        return self.params.enabled and self.params.learn
 
     def restart(self) -> None:
         """Forget the bridge in progress and the recent fits (a new episode, a global start, a
@@ -230,8 +202,6 @@ class OdometryScale:
         are not used."""
         self.drop_bridge()
         self._settling = self.params.settle_bridges
-        if self._scans is not None:
-            self._scans.restart()
 
     def drop_bridge(self) -> None:
         """Forget the bridge in progress and the recent fits (the estimate was moved by other
@@ -253,8 +223,6 @@ class OdometryScale:
         the filter."""
         self.scale = other.scale
         self._weighted, self._metres = other.evidence
-        if self._scans is not None and other._scans is not None:
-            self._scans.take(other._scans)
 
     def scaled(self, twist: np.ndarray) -> np.ndarray:
         """``twist`` [vx m/s, vy m/s, omega rad/s] with its forward speed times the scale."""
@@ -267,8 +235,6 @@ class OdometryScale:
     def observe(self, twist: np.ndarray, dt: float) -> None:
         """Account for one step of raw odometry ``twist`` [vx m/s, vy m/s, omega rad/s] (car
         frame) held ``dt`` seconds."""
-        if self._scans is not None and self.wants_scans:
-            self._scans.observe(twist, dt)
         if self._anchor is None or not self.learning:
             return
         vx, vy, omega = float(twist[0]), float(twist[1]), float(twist[2])
@@ -278,19 +244,6 @@ class OdometryScale:
         self._odometry[1] += (vx * s + vy * c) * dt
         self._heading += omega * dt
         self._path += math.hypot(vx, vy) * dt
-
-    def observe_scan(
-        self, ranges: np.ndarray, angles: np.ndarray, mount: np.ndarray, max_range: float
-    ) -> None:
-        """``source="scans"``: a new scan (``ranges`` metres at ``angles`` radians, lidar frame;
-        the lidar's ``mount`` pose in the car frame), matched to the one ``scans.spacing`` metres
-        before it ([ScanScale][mcl.filter.scan_scale.ScanScale]); the scale follows the matches,
-        clipped to [``low``, ``high``]."""
-        if self._scans is not None and self.wants_scans:
-            if self._scans.observe_scan(ranges, angles, mount, max_range):
-                p = self.params
-                self.scale = min(p.high, max(p.low, self._scans.scale))
-                self.bridges_used = self._scans.pairs_used
 
     def confirm(self, estimate: np.ndarray, spread: float, fit: float) -> None:
         """After a corrected scan: the filter's ``estimate`` (world [x m, y m, theta rad]), its
