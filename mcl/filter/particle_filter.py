@@ -338,14 +338,14 @@ class ParticleFilter(Belief, GlobalRecovery):
             self.n_skipped += 1
             return False
         n_beams = self.sensor_model.observe(scan)[1].size  # checks the scan before any change
-        self._moved, self.last_injected = [0.0, 0.0], 0
+        self._moved = [0.0, 0.0]
+        self.last_injected = 0
         shrink_to, self._shrink_to = self._shrink_to, None
         self._before_burst = None if shrink_to is None else (*self._require(), shrink_to)
         self._join_pending_random()
         self.searching = self.is_searching()
         # averages (augmented MCL) follow the model's own; weights: search hit or beam bound
-        bounded = self.scan_exponent == 1.0  # a filter that tempers its scans: no bound
-        own, weighing = self.sensor_model.weigh(self.particles, scan, self.searching, bounded)
+        own, weighing = self.sensor_model.weigh(self.particles, scan, self.searching)
         if weighing is own:
             self.update_weights(own)
         else:

@@ -336,16 +336,15 @@ class SensorModel:
         return plain, bounded
 
     def weigh(
-        self, particles: np.ndarray, scan: np.ndarray, searching: bool, bounded: bool = True
+        self, particles: np.ndarray, scan: np.ndarray, searching: bool
     ) -> tuple[np.ndarray, np.ndarray]:
         """(own, weighing): the (N,) log-likelihoods of `log_evaluate()` (the narrow hit, no
         bound: what likelihood averages follow) and those a filter weighs its cloud by: the wide
-        search hit while ``searching``, the bounded ones (`log_evaluate_tracking()`) while not
-        and ``bounded`` (False: a cloud whose places must stay told apart, as the lost flag's
-        search filter's). The two are the same array when they do not differ."""
+        search hit while ``searching``, the bounded ones (`log_evaluate_tracking()`) while not.
+        The two are the same array when they do not differ."""
         if searching and self.has_search_hit:
             return self.log_evaluate(particles, scan), self.log_evaluate(particles, scan, True)
-        if not searching and bounded:
+        if not searching:
             return self.log_evaluate_tracking(particles, scan)
         own = self.log_evaluate(particles, scan)
         return own, own

@@ -4,7 +4,6 @@ against a plain numpy reading of its rule, its invariants, and the sensor model'
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -114,33 +113,6 @@ def test_weigh_bounds_only_a_tracking_cloud(room, bounded_and_plain) -> None:
     np.testing.assert_array_equal(weighing_s, bounded.log_evaluate(particles, scan, True))
     own_p, weighing_p = plain.weigh(particles, scan, searching=False)
     assert weighing_p is own_p
-    # a cloud whose places must stay told apart (bounded=False): the plain model's own
-    own_u, weighing_u = bounded.weigh(particles, scan, searching=False, bounded=False)
-    assert weighing_u is own_u
-    np.testing.assert_array_equal(own_u, own)
-
-
-def test_a_filter_that_tempers_its_scans_is_not_bounded(room, bounded_and_plain) -> None:
-    """The lost flag's search filter tempers its scans (``scan_exponent`` < 1) and keeps
-    particles in several places: the bound, relative to the best over all of them, would flatten
-    what tells the places apart, so it weighs as the plain model does; the tracking filter
-    (``scan_exponent`` 1) is bounded."""
-    from mcl.filter.particle_filter import ParticleFilter
-
-    bounded, plain = bounded_and_plain
-    scan = _true_scan(room, POSE)
-    scan[200:420] = np.maximum(scan[200:420] + 3.0, 0.0)  # a stretch seen through a wall
-
-    def weights(model: SensorModel, exponent: float) -> np.ndarray:
-        pf = ParticleFilter(room, n_particles=300, sensor_model=model, rng=5)
-        pf.initialize(POSE, spread=(0.2, 0.2, 0.05))
-        pf.scan_exponent = exponent
-        pf.params = replace(pf.params, resample_threshold=0.0)  # keep the weights to compare
-        pf.correct(scan)
-        return pf.weights
-
-    np.testing.assert_allclose(weights(bounded, 0.25), weights(plain, 0.25), rtol=1e-12)
-    assert not np.allclose(weights(bounded, 1.0), weights(plain, 1.0), rtol=1e-6)
 
 
 @pytest.mark.parametrize("value", [-0.1, math.nan, math.inf, True, "0.5"])
