@@ -183,7 +183,7 @@ class HostileClients:
 
     def stop(self, timeout: float = 30.0) -> Counter:
         """Stop every client; the counts."""
-        if not self._loop.is_closed():  # closed when the attack ended on its own
+        with contextlib.suppress(RuntimeError):  # the loop closed: the attack ended on its own
             self._loop.call_soon_threadsafe(self._stop.set)
         self._thread.join(timeout)
         return self.counts

@@ -384,7 +384,8 @@ class LiveServer:
             proc.kill()
             proc.wait()
         mapped, self._status = self._status, bytes(self._status)  # the last counts stay readable
-        mapped.close()
+        with contextlib.suppress(BufferError):  # a reader mid-read: the collector closes it
+            mapped.close()
         if self._waiter is not None and self._waiter is not threading.current_thread():
             self._waiter.join(START_S)
 

@@ -11,12 +11,14 @@ assertions: a wait only has a generous limit so that a broken build fails instea
 from __future__ import annotations
 
 import asyncio
+import gc
 import os
 import re
 import signal
 import subprocess
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -306,9 +308,6 @@ def test_a_refused_connection_waits_before_its_503() -> None:
 def test_the_hostile_clients_close_their_event_loop() -> None:
     """Stopped clients leave no open event loop behind: its ``ResourceWarning`` would otherwise
     surface in whichever later test the garbage collector happens to run in."""
-    import gc
-    import warnings
-
     server = start_live(0)
     try:
         clients = HostileClients(server.port, ["silent"]).start()
