@@ -5,29 +5,43 @@ drives: ``docs/honest_noise.md``). Where the scan pins the car along its path th
 it; in a long corridor, and worse where the map is out of date, nothing does, and the estimate falls
 behind the car at the scale error times the speed (0.1 m/s at 2 m/s: a metre in ten seconds).
 
-[OdometryScale][mcl.filter.odometry_scale.OdometryScale] learns the scale **between poses the scan
-confirms**: a pose is confirmed when the scan fit at the filter's estimate
-([`mcl.filter.scan_fit`][mcl.filter.scan_fit], the fraction of beams the filter's map explains,
-averaged over the last ``fit_scans`` corrected scans) is at least ``fit_gate`` and the cloud's
-position spread is at most ``max_spread``. From one confirmed pose to the next at least ``window``
-metres of odometry travel later (a *bridge*), it integrates the raw odometry's displacement along
-the estimate's heading (the heading is taken from the estimate at every corrected scan, so turns
-do not mix heading and speed errors) and compares it with the estimate's displacement: the
-bridge's ratio is their dot product over the odometry's squared length. The scale is the mean of
-the bridges' ratios weighted by their lengths, with ``initial`` counted as ``prior_metres`` of
-bridges; it is clipped to [``low``, ``high``]. The first ``settle_bridges`` bridges after a start
-(the cloud still settling on the car) are not used, nor bridges whose odometry displacement is
-under ``min_straightness`` of the path driven, nor, once ``max_bridge`` metres have passed without
-a confirmed pose, the bridge in progress (the next confirmed pose starts a new one).
+[OdometryScale][mcl.filter.odometry_scale.OdometryScale] learns the scale one of two ways
+(``source``):
 
-Why bridges between confirmed poses: where the map is out of date, the scan drags the estimate
-back along a corridor; a learner that compared every window (as this one did before) saw the
+- ``"scans"`` (the default): from **consecutive scans matched to each other**, no map involved
+  ([ScanScale][mcl.filter.scan_scale.ScanScale]): every ``scans.spacing`` metres of travel the
+  newest scan is matched to the one before it over the odometry's forward travel times a scale,
+  and the scale is the matched travel over the odometry's, summed over the pairs. The world
+  agrees with itself wherever it stands still, whatever the map says; on the 80 honest drives of
+  ``docs/localization_changing_world.md`` it lost 9 drives in each of three draws of the filter's
+  random numbers where the bridges below lost 13-14.
+- ``"map"``: **between poses the scan confirms** against the map, the bridges below.
+
+A pose is confirmed when the scan fit at the filter's
+estimate ([`mcl.filter.scan_fit`][mcl.filter.scan_fit], the fraction of beams the filter's map
+explains, averaged over the last ``fit_scans`` corrected scans) is at least ``fit_gate`` and the
+cloud's position spread is at most ``max_spread``. From one confirmed pose to the next at least
+``window`` metres of odometry travel later (a *bridge*), it integrates the raw odometry's
+displacement along the estimate's heading (the heading is taken from the estimate at every
+corrected scan, so turns do not mix heading and speed errors) and compares it with the estimate's
+displacement: the bridge's ratio is their dot product over the odometry's squared length. The
+scale is the mean of the bridges' ratios weighted by their lengths, with ``initial`` counted as
+``prior_metres`` of bridges; it is clipped to [``low``, ``high``]. The first ``settle_bridges``
+bridges after a start (the cloud still settling on the car) are not used, nor bridges whose
+odometry displacement is under ``min_straightness`` of the path driven, nor, once ``max_bridge``
+metres have passed without a confirmed pose, the bridge in progress (the next confirmed pose
+starts a new one).
+
+Why bridges between confirmed poses, when the map is the source: where the map is out of date,
+the scan drags the estimate back along a corridor; a learner that compared every window saw the
 estimate move 0.85-0.95 of the odometry there and followed the drag, which let the estimate fall
 further behind. The drag's poses fit the old map poorly (0.48-0.79 of the beams in the honest
 world's cluttered seed 9) and are not confirmed; a bridge over them ends where the scan confirms
 the car again, after the estimate has caught up. The weighted mean does not let one short bridge
-move the scale far (``docs/localization_changing_world.md``). Where the scan says nothing along the
-path the estimate follows the scaled odometry, the ratios equal the scale, and the scale stays.
+move the scale far. Where the scan says nothing along the path the estimate follows the scaled
+odometry, the ratios equal the scale, and the scale stays. But where the old map fits poorly at
+the car's own place, few poses are confirmed and the scale is learned late or not at all: that is
+why the scans are the default.
 
 A car whose odometry has been calibrated (``racecar-sim calibrate-noise`` measures the wheels'
 speed bias from the car's own recordings: the MIT racecar's VESC reads 5.3 % slow, a scale of
@@ -41,14 +55,21 @@ Units: metres, radians, seconds; the scale is dimensionless (1 = trust the wheel
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from mcl.filter.bounds import check_filter
+from mcl.filter.scan_scale import ScanScale, ScanScaleParams
+from racecar_sim.settings.params import nested
 from racecar_sim.settings.validation import short
 
-__all__ = ["OdometryScale", "OdometryScaleParams"]
+__all__ = ["SOURCES", "OdometryScale", "OdometryScaleParams"]
+
+SOURCES = ("map", "scans")
+"""Where the scale is learned from: ``"map"``, bridges between poses the scan confirms against
+the map (module docstring); ``"scans"``, consecutive scans matched to each other, no map involved
+([ScanScale][mcl.filter.scan_scale.ScanScale])."""
 
 
 @dataclass(frozen=True)
@@ -60,7 +81,8 @@ class OdometryScaleParams:
         initial: the scale at the start (dimensionless; 1 = trust the wheels, 1.056 = wheels that
             read 5.3 % slow), e.g. from a calibration of the car's odometry.
         learn: learn the scale online from the estimate (False: hold ``initial``).
-        window: metres of odometry travel a bridge spans at least.
+        window: metres of odometry travel a bridge spans at least (this and the settings
+            down to ``min_straightness``: ``source="map"`` only).
         max_bridge: metres of odometry travel after which a bridge with no confirmed pose at its
             end is dropped.
         prior_metres: metres of bridges that ``initial`` counts as in the weighted mean.
@@ -76,6 +98,10 @@ class OdometryScaleParams:
             deviation (square root of the covariance's xy trace) is at most this.
         min_straightness: a bridge is used only when its odometry displacement (along the
             estimate's heading) is at least this fraction of the path driven.
+        source: ``"scans"`` (consecutive scans matched to each other,
+            [ScanScale][mcl.filter.scan_scale.ScanScale]; the bridges' settings unused) or
+            ``"map"`` (bridges between poses the scan confirms, module docstring).
+        scans: [ScanScaleParams][mcl.filter.scan_scale.ScanScaleParams] of ``"scans"``.
     """
 
     enabled: bool = True
@@ -93,8 +119,17 @@ class OdometryScaleParams:
     high: float = 1.25
     max_spread: float = 0.3
     min_straightness: float = 0.5
+    source: str = "scans"
+    scans: ScanScaleParams = field(default_factory=ScanScaleParams)
 
     def __post_init__(self) -> None:
+        if self.source not in SOURCES:
+            raise ValueError(
+                f"OdometryScaleParams.source = {short(self.source)}; choose one of {list(SOURCES)}"
+            )
+        object.__setattr__(
+            self, "scans", nested(self.scans, ScanScaleParams, "OdometryScaleParams.scans")
+        )
         for name in ("enabled", "learn"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(
@@ -190,11 +225,20 @@ class OdometryScale:
         self._heading = 0.0  # radians, world: the estimate's at the last scan, then odometry's
         self._path = 0.0  # metres of raw odometry travel since the anchor
         self._settling = params.settle_bridges
+        self._scans = ScanScale(params.scans, params.initial) if params.source == "scans" else None
 
     @property
     def learning(self) -> bool:
-        """Whether the scale is learned (enabled and ``learn``)."""
-        return self.params.enabled and self.params.learn
+        """Whether the scale is learned from bridges between confirmed poses (enabled,
+        ``learn`` and ``source="map"``)."""
+        return self.params.enabled and self.params.learn and self._scans is None
+
+    @property
+    def wants_scans(self) -> bool:
+        """Whether the scale is learned from the scans matched to each other (enabled, ``learn``
+        and ``source="scans"``): [observe_scan][mcl.filter.odometry_scale.OdometryScale.observe_scan]
+        wants every scan."""
+        return self.params.enabled and self.params.learn and self._scans is not None
 
     def restart(self) -> None:
         """Forget the bridge in progress and the recent fits (a new episode, a global start, a
@@ -202,6 +246,8 @@ class OdometryScale:
         are not used."""
         self.drop_bridge()
         self._settling = self.params.settle_bridges
+        if self._scans is not None:
+            self._scans.restart()
 
     def drop_bridge(self) -> None:
         """Forget the bridge in progress and the recent fits (the estimate was moved by other
@@ -218,11 +264,18 @@ class OdometryScale:
         sum of their lengths), both in metres, the initial scale's ``prior_metres`` included."""
         return self._weighted, self._metres
 
+    @property
+    def scan_scale(self) -> ScanScale | None:
+        """The scans' learner of ``source="scans"`` (None with ``"map"``)."""
+        return self._scans
+
     def take(self, other: OdometryScale) -> None:
         """Start from what ``other`` learned (its scale and evidence), e.g. a search filter beside
         the filter."""
         self.scale = other.scale
         self._weighted, self._metres = other.evidence
+        if self._scans is not None and other.scan_scale is not None:
+            self._scans.take(other.scan_scale)
 
     def scaled(self, twist: np.ndarray) -> np.ndarray:
         """``twist`` [vx m/s, vy m/s, omega rad/s] with its forward speed times the scale."""
@@ -235,6 +288,8 @@ class OdometryScale:
     def observe(self, twist: np.ndarray, dt: float) -> None:
         """Account for one step of raw odometry ``twist`` [vx m/s, vy m/s, omega rad/s] (car
         frame) held ``dt`` seconds."""
+        if self._scans is not None and self.wants_scans:
+            self._scans.observe(twist, dt)
         if self._anchor is None or not self.learning:
             return
         vx, vy, omega = float(twist[0]), float(twist[1]), float(twist[2])
@@ -244,6 +299,19 @@ class OdometryScale:
         self._odometry[1] += (vx * s + vy * c) * dt
         self._heading += omega * dt
         self._path += math.hypot(vx, vy) * dt
+
+    def observe_scan(
+        self, ranges: np.ndarray, angles: np.ndarray, mount: np.ndarray, max_range: float
+    ) -> None:
+        """``source="scans"``: a new scan (``ranges`` metres at ``angles`` radians, lidar frame;
+        the lidar's ``mount`` pose in the car frame), matched to the one ``scans.spacing`` metres
+        before it ([ScanScale][mcl.filter.scan_scale.ScanScale]); the scale follows the matches,
+        clipped to [``low``, ``high``]."""
+        if self._scans is not None and self.wants_scans:
+            if self._scans.observe_scan(ranges, angles, mount, max_range):
+                p = self.params
+                self.scale = min(p.high, max(p.low, self._scans.scale))
+                self.bridges_used = self._scans.pairs_used
 
     def confirm(self, estimate: np.ndarray, spread: float, fit: float) -> None:
         """After a corrected scan: the filter's ``estimate`` (world [x m, y m, theta rad]), its

@@ -123,8 +123,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         self._before_burst: tuple[np.ndarray, np.ndarray, int] | None = None  # for undo_burst
         self._moved = [math.inf, math.inf]  # metres, radians of odometry since the last used scan
         self._global_count: int | None = None
-        self.odometry_scale = OdometryScale(params.odometry_scale)
-        scale = params.odometry_scale
+        self.odometry_scale = OdometryScale(scale := params.odometry_scale)
         self._scale_fit = ScanFit(scale.fit_beams, scale.fit_tolerance, skip_short=True)
         self.standstill = Standstill(params.standstill)
         self.searching = False  # whether the last correction scored with the wide search hit
@@ -338,8 +337,7 @@ class ParticleFilter(Belief, GlobalRecovery):
             self.n_skipped += 1
             return False
         n_beams = self.sensor_model.observe(scan)[1].size  # checks the scan before any change
-        self._moved = [0.0, 0.0]
-        self.last_injected = 0
+        self._moved, self.last_injected = [0.0, 0.0], 0
         shrink_to, self._shrink_to = self._shrink_to, None
         self._before_burst = None if shrink_to is None else (*self._require(), shrink_to)
         self._join_pending_random()
@@ -371,20 +369,22 @@ class ParticleFilter(Belief, GlobalRecovery):
         """Give the learned odometry scale the corrected estimate, its spread and the scan's fit
         there (skip_short: beams short of the map are furniture, people, cars)."""
         if self.odometry_scale.learning:
-            covariance = self.covariance()
+            estimate, covariance = self.estimate(), self.covariance()
             spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
-            estimate = self.estimate()
             fit = self._scale_fit.at(self.sensor_model, self.map, estimate, scan)
             self.odometry_scale.confirm(estimate, spread, fit)
 
     def _check_standstill(self, scan: np.ndarray) -> None:
-        """Give the scan to the standstill check (before the filter decides to use it); when it
-        first finds the car standing or slipping, take back what the filter predicted beyond it."""
-        if self.standstill.due():  # only then the scan's bearings and the lidar's mount
+        """Give the scan to the standstill check and to a scale learned from scans (before the
+        filter uses it); take back what the filter predicted beyond a car found standing."""
+        due, scales = self.standstill.due(), self.odometry_scale.wants_scans
+        if due or scales:  # only then the scan's bearings and the lidar's mount
             sm = self.sensor_model
             z = np.asarray(scan, dtype=np.float64).reshape(-1)
-            mount = sm.lidar_poses(np.zeros((1, 3)))[0]
-            angles = scan_bearings(sm, z.size)
+            mount, angles = sm.lidar_poses(np.zeros((1, 3)))[0], scan_bearings(sm, z.size)
+            if scales:
+                self.odometry_scale.observe_scan(z, angles, mount, float(sm.max_range))
+        if due:
             estimate = self.estimate() if self.standstill.params.take_back else None
             self.standstill.observe(z, angles, mount, float(sm.max_range), estimate)
             back = self.standstill.take_back()

@@ -63,9 +63,11 @@ def test_replay_is_the_online_wrapper_bit_for_bit(env, config, filter_map):
     if "lidar_rate" in env:  # the replay must skip the steps without a fresh scan
         assert 0 < np.count_nonzero(drive.fresh) < len(drive.fresh)
     run = localize_recorded(drive, config)
-    np.testing.assert_array_equal(run.position_error, errors)
     np.testing.assert_array_equal(run.estimate, estimates)
     np.testing.assert_array_equal(run.lost, lost)
+    # the errors of equal estimates: numpy's hypot (vectorised) and math.hypot (the wrapper's)
+    # may differ in the last bit
+    np.testing.assert_allclose(run.position_error, errors, rtol=1e-15, atol=0.0)
     if config is CONFIG:
         assert errors[-1] < 0.5 and not lost.any()  # a filter that tracks, not two equal failures
     else:  # the flag and its search ran: the replay must have run them too

@@ -17,6 +17,12 @@ from racecar_sim.maps import OccupancyMap
 from racecar_sim.settings.config import from_mapping
 
 
+def _bridges(**settings) -> OdometryScaleParams:
+    """The scale learned between poses the scan confirms (``source="map"``), the learner these
+    tests drive; the default learns from the scans (tests/filter/test_scan_scale.py)."""
+    return OdometryScaleParams(source="map", **settings)
+
+
 def _drive(
     scale: OdometryScale,
     true_over_reported: float,
@@ -51,7 +57,7 @@ def _drive(
 @settings(deadline=None, max_examples=10)
 @given(k=st.floats(0.85, 1.2))
 def test_the_scale_converges_to_the_wheels_error_where_the_scan_pins_the_car(k):
-    scale, _ = _drive(OdometryScale(OdometryScaleParams()), k, "truth", steps=4000)  # 200 m
+    scale, _ = _drive(OdometryScale(_bridges()), k, "truth", steps=4000)  # 200 m
     assert scale.scale == pytest.approx(k, abs=0.01)
     assert scale.bridges_used > 50
 
@@ -61,7 +67,7 @@ def test_the_scale_converges_to_the_wheels_error_where_the_scan_pins_the_car(k):
 def test_on_a_circle_the_scale_converges_as_on_a_straight(k):
     # the odometry is integrated along the estimate's heading: turning does not mix heading and
     # speed errors (radius 2 m at 2 m/s true speed)
-    scale, _ = _drive(OdometryScale(OdometryScaleParams()), k, "truth", steps=4000, omega=1.0)
+    scale, _ = _drive(OdometryScale(_bridges()), k, "truth", steps=4000, omega=1.0)
     assert scale.scale == pytest.approx(k, abs=0.01)
     assert scale.bridges_used > 50
 
@@ -69,7 +75,7 @@ def test_on_a_circle_the_scale_converges_as_on_a_straight(k):
 @settings(deadline=None, max_examples=10)
 @given(k=st.floats(0.85, 1.2))
 def test_where_the_scan_says_nothing_the_scale_keeps_what_it_learned(k):
-    scale, _ = _drive(OdometryScale(OdometryScaleParams()), k, "truth", steps=4000)
+    scale, _ = _drive(OdometryScale(_bridges()), k, "truth", steps=4000)
     learned = scale.scale
     scale.restart()
     _drive(scale, k, "odometry", steps=4000)  # a long featureless corridor
@@ -82,9 +88,9 @@ def test_a_drag_the_scan_does_not_confirm_does_not_move_the_scale(k, drag):
     # the honest world's failure: where the map is out of date the scan holds the estimate back
     # (it moves ``drag`` of the odometry) and fits poorly; the estimate catches up where the
     # scan confirms the car again. The scale ends at the wheels' error, not at the drag's.
-    scale, truth = _drive(OdometryScale(OdometryScaleParams()), k, "truth", steps=2000)
+    scale, truth = _drive(OdometryScale(_bridges()), k, "truth", steps=2000)
     before = scale.scale
-    held = OdometryScale(OdometryScaleParams())
+    held = OdometryScale(_bridges())
     held.take(scale)
     # the drag: 20 m along which the estimate moves ``drag`` x the scaled odometry, fit 0.6
     estimate = truth.copy()
@@ -100,19 +106,19 @@ def test_a_drag_the_scan_does_not_confirm_does_not_move_the_scale(k, drag):
 
 
 def test_an_untrusted_cloud_or_a_poor_fit_teaches_nothing():
-    spread, _ = _drive(OdometryScale(OdometryScaleParams()), 1.1, "truth", steps=2000, spread=1.0)
+    spread, _ = _drive(OdometryScale(_bridges()), 1.1, "truth", steps=2000, spread=1.0)
     assert spread.scale == 1.0 and spread.bridges_used == 0
-    poor, _ = _drive(OdometryScale(OdometryScaleParams()), 1.1, "truth", steps=2000, fit=0.8)
+    poor, _ = _drive(OdometryScale(_bridges()), 1.1, "truth", steps=2000, fit=0.8)
     assert poor.scale == 1.0 and poor.bridges_used == 0
-    unknown, _ = _drive(OdometryScale(OdometryScaleParams()), 1.1, "truth", steps=2000,
+    unknown, _ = _drive(OdometryScale(_bridges()), 1.1, "truth", steps=2000,
                         fit=math.nan)  # fmt: skip
     assert unknown.scale == 1.0 and unknown.bridges_used == 0
 
 
 def test_the_scale_is_bounded():
-    scale, _ = _drive(OdometryScale(OdometryScaleParams(high=1.1)), 1.5, "truth", steps=4000)
+    scale, _ = _drive(OdometryScale(_bridges(high=1.1)), 1.5, "truth", steps=4000)
     assert scale.scale == pytest.approx(1.1)
-    off, _ = _drive(OdometryScale(OdometryScaleParams(enabled=False)), 1.2, "truth", steps=2000)
+    off, _ = _drive(OdometryScale(_bridges(enabled=False)), 1.2, "truth", steps=2000)
     assert off.scale == 1.0
     assert np.array_equal(off.scaled(np.array([1.0, 0.0, 0.0])), [1.0, 0.0, 0.0])
 
@@ -171,9 +177,9 @@ def test_the_first_bridge_after_a_start_is_not_used_and_one_bridge_moves_little(
     # the first bridge (the cloud settling) teaches nothing; one more, taken where the estimate
     # lagged (k < 1) or ran ahead, counts as 2 m against the initial scale's 5 m
     steps = int(40 * k) + 3  # one bridge of 2 m of reported travel (2 / k m/s, 25 ms steps)
-    scale, _ = _drive(OdometryScale(OdometryScaleParams()), k, "truth", steps=steps)
+    scale, _ = _drive(OdometryScale(_bridges()), k, "truth", steps=steps)
     assert scale.bridges_used == 0 and scale.scale == 1.0
-    scale, _ = _drive(OdometryScale(OdometryScaleParams()), k, "truth", steps=2 * steps)
+    scale, _ = _drive(OdometryScale(_bridges()), k, "truth", steps=2 * steps)
     assert scale.bridges_used == 1
     assert scale.scale == pytest.approx(min(1.25, max(0.8, (5.0 + 2.0 * k) / 7.0)), abs=0.02)
 
@@ -192,7 +198,8 @@ def test_a_filter_learns_the_scale_from_its_own_scans():
     sensor = SensorModel(grid, SensorModelParams(parallel=False), beam_angles=angles)
     truth_caster = RayCaster(grid, float(sensor.max_range), method="exact")
     pf = ParticleFilter(grid, motion_model=MotionModel(MotionModelParams()), sensor_model=sensor,
-                        params=ParticleFilterParams(n_particles=300), rng=1)  # fmt: skip
+                        params=ParticleFilterParams(n_particles=300, odometry_scale=_bridges()),
+                        rng=1)  # fmt: skip
     truth = np.array([2.0, 3.0, 0.0])
     pf.initialize(truth, (0.05, 0.05, 0.01))
     for _ in range(800):  # 1.5 m/s, 40 Hz: 30 m
@@ -209,11 +216,11 @@ def test_a_filter_learns_the_scale_from_its_own_scans():
 def test_a_calibrated_scale_is_held_where_the_learner_would_move_it(k, initial):
     # wheels that read 1 / k of the speed, the scan pinning the car: the learner goes to k; a
     # calibrated car given its scale with learning off keeps exactly that scale and uses it
-    held, _ = _drive(OdometryScale(OdometryScaleParams(initial=initial, learn=False)), k,
+    held, _ = _drive(OdometryScale(_bridges(initial=initial, learn=False)), k,
                      "truth", steps=2000)  # fmt: skip
     assert held.scale == initial and held.bridges_used == 0
     assert held.scaled(np.array([2.0, 0.1, 0.3]))[0] == pytest.approx(2.0 * initial)
-    learned, _ = _drive(OdometryScale(OdometryScaleParams(initial=initial)), k, "truth",
+    learned, _ = _drive(OdometryScale(_bridges(initial=initial)), k, "truth",
                         steps=4000)  # fmt: skip
     assert learned.scale == pytest.approx(k, abs=0.01)
 
