@@ -13,8 +13,8 @@ behind the car at the scale error times the speed (0.1 m/s at 2 m/s: a metre in 
   newest scan is matched to the one before it over the odometry's forward travel times a scale,
   and the scale is the matched travel over the odometry's, summed over the pairs. The world
   agrees with itself wherever it stands still, whatever the map says; on the 80 honest drives of
-  ``docs/localization_changing_world.md`` it lost 9 drives in each of three draws of the filter's
-  random numbers where the bridges below lost 13-14.
+  ``docs/localization_changing_world.md`` it lost 9, 9 and 8 drives in three draws of the
+  filter's random numbers where the bridges below lost 13, 14 and 13.
 - ``"map"``: **between poses the scan confirms** against the map, the bridges below.
 
 A pose is confirmed when the scan fit at the filter's
