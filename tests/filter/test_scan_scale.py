@@ -113,17 +113,23 @@ def test_the_scale_is_the_matched_travel_over_the_odometry_s_with_the_prior() ->
 
 
 @settings(max_examples=15, deadline=None)
-@given(st.integers(0, 10_000), st.floats(0.85, 1.1), st.integers(1, 4), st.floats(0.0, 5.0))
-def test_the_scale_lies_between_the_prior_and_the_truth(seed, read, pairs, prior) -> None:
-    """A weighted mean of the prior (1) and pairs that each match near the truth (1 / read):
-    whatever the place, the wheels' error, the pairs and the prior's weight, the scale lies
-    between the two (within the matches' 0.03), and with no pair counted it is the prior."""
-    learner = _learn(ScanScaleParams(prior_metres=prior), pairs, seed, read)
-    if learner.pairs_used == 0:
-        assert learner.scale == 1.0
+@given(st.integers(0, 10_000), st.floats(0.85, 1.1), st.integers(1, 4), st.floats(0.0, 5.0),
+       st.floats(0.1, 5.0))  # fmt: skip
+def test_more_weight_on_the_prior_pulls_the_scale_towards_it(seed, read, pairs, prior, more) -> None:
+    """A weighted mean of the prior (1) and the pairs' matches, whatever they matched (a pair in
+    a place that looks alike along the path may match a wrong scale): the same pairs with the
+    prior counted as more metres give a scale on the same side of 1 and no farther from it; with
+    no pair counted the scale is the prior."""
+    light = _learn(ScanScaleParams(prior_metres=prior), pairs, seed, read)
+    heavy = _learn(ScanScaleParams(prior_metres=prior + more), pairs, seed, read)
+    assert light.pairs_used == heavy.pairs_used
+    if light.pairs_used == 0:
+        assert light.scale == heavy.scale == 1.0
     else:
-        truth = 1 / read
-        assert min(1.0, truth) - 0.03 <= learner.scale <= max(1.0, truth) + 0.03
+        assert (heavy.scale - 1.0) * (light.scale - 1.0) >= 0.0
+        assert abs(heavy.scale - 1.0) <= abs(light.scale - 1.0) + 1e-12
+        if light.scale != 1.0:
+            assert abs(heavy.scale - 1.0) < abs(light.scale - 1.0)
 
 
 def test_the_filter_learns_its_scale_from_its_scans() -> None:
