@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from racecar_sim.settings.validation import short
+from racecar_sim.settings.validation import check_number, short
 
 __all__ = ["ScanScale", "ScanScaleParams", "match_forward_scale"]
 
@@ -87,25 +87,18 @@ class ScanScaleParams:
     prior_metres: float = 2.0
 
     def __post_init__(self) -> None:
-        def bad(name: str, why: str) -> ValueError:
-            return ValueError(f"ScanScaleParams.{name} = {short(getattr(self, name))}: {why}")
-
-        for name in ("spacing", "heading", "lateral", "tolerance"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value < math.inf:
-                raise bad(name, "must be a finite number > 0")
+        owner = "ScanScaleParams"
+        for name in ("spacing", "heading", "lateral", "tolerance", "low", "high"):
+            value = check_number(owner, name, getattr(self, name), low=0.0, low_open=True)
+            object.__setattr__(self, name, value)
         for name in ("tolerance_per_m", "min_sharpness", "prior_metres"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value < math.inf:
-                raise bad(name, "must be a finite number >= 0")
-        if isinstance(self.beams, bool) or not isinstance(self.beams, int) or self.beams < 20:
-            raise bad("beams", "must be a whole number >= 20")
-        for name in ("low", "high"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float) or not 0 < value < math.inf:
-                raise bad(name, "must be a finite number > 0")
+            object.__setattr__(self, name, check_number(owner, name, getattr(self, name), low=0.0))
+        object.__setattr__(self, "beams", check_number(owner, "beams", self.beams, low=20, integer=True))
         if self.high - self.low < 2 * COARSE_STEPS[0]:
-            raise bad("high", f"must be at least {2 * COARSE_STEPS[0]:g} above low ({self.low:g})")
+            raise ValueError(
+                f"ScanScaleParams.high = {short(self.high)} must be at least"
+                f" {2 * COARSE_STEPS[0]:g} above low ({self.low:g})"
+            )
 
 
 @nb.njit(cache=True)
