@@ -202,15 +202,16 @@ class OdometryScale:
     """The learned forward-speed scale of one filter (module docstring).
 
     The filter calls [observe][mcl.filter.odometry_scale.OdometryScale.observe] with every step's
-    odometry and [confirm][mcl.filter.odometry_scale.OdometryScale.confirm] after every corrected
-    scan.
+    odometry, [observe_scan][mcl.filter.odometry_scale.OdometryScale.observe_scan] with every scan
+    (``source="scans"``) and [confirm][mcl.filter.odometry_scale.OdometryScale.confirm] after every
+    corrected scan (``source="map"``).
 
     Args:
         params: the settings.
 
     Attributes:
         scale: the scale in use (dimensionless).
-        bridges_used: bridges that moved the scale.
+        bridges_used: bridges (``"map"``) or pairs of scans (``"scans"``) that moved the scale.
     """
 
     def __init__(self, params: OdometryScaleParams) -> None:
