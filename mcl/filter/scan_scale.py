@@ -165,8 +165,9 @@ def match_forward_scale(before, before_angles, after, after_angles, odometry, mo
 
     The result is ``(scale, score, sharpness)``: the best scale, its fine score (a share of the
     points, 0-1) and how much the best coarse score beats every scale 0.08 or more away; NaNs
-    when too few points could be compared or the best coarse scale is ``low`` or the highest
-    tried (the motion lies outside the grid: a car pinned while its wheels spin).
+    when too few points could be compared (on the coarse grid, or on the fine one, whose narrower
+    width counts more of them as hidden) or the best coarse scale is ``low`` or the highest tried
+    (the motion lies outside the grid: a car pinned while its wheels spin).
 
     Args:
         before (np.ndarray): (K,) ranges of the earlier scan, metres (``max_range`` or more, or
@@ -212,6 +213,8 @@ def match_forward_scale(before, before_angles, after, after_angles, odometry, mo
     value, scale, _, _ = _grid(px, py, after, a0, step, odometry_fine, mount, max_range,
                                tolerance, tolerance_per_m, scale - ds, 9, ds / 4,
                                -dt, 7, dt / 3, -dy, 5, dy / 2, fine)  # fmt: skip
+    if value < 0.0:  # the fine grid's narrower width left too few points anywhere
+        return np.nan, np.nan, np.nan
     return scale, value, sharpness
 
 

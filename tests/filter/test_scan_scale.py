@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from mcl.filter.motion_model import twist_to_odometry
@@ -61,6 +61,7 @@ def test_two_scans_tell_how_much_the_wheels_under_read() -> None:
 
 @settings(max_examples=25, deadline=None)
 @given(st.integers(0, 10_000), st.floats(0.9, 1.2), st.floats(-0.05, 0.05))
+@example(623, 0.9375, 0.0)  # the coarse grid matched, the fine one had too few points: NaNs
 def test_the_match_is_a_scale_on_the_grid_or_nothing(seed, true_scale, heading_error) -> None:
     """Whatever the place, the scale, or a turn the odometry has wrong: a scale inside the grid
     (never its edges) with a score and sharpness in [0, 1], or NaNs."""
