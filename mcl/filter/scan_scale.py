@@ -167,7 +167,10 @@ def match_forward_scale(before, before_angles, after, after_angles, odometry, mo
     points, 0-1) and how much the best coarse score beats every scale 0.08 or more away; NaNs
     when too few points could be compared (on the coarse grid, or on the fine one, whose narrower
     width counts more of them as hidden) or the best coarse scale is ``low`` or the highest tried
-    (the motion lies outside the grid: a car pinned while its wheels spin).
+    (the motion lies outside the grid: a car pinned while its wheels spin). The fine grid spans
+    one coarse step either side of the coarse best, so from the second coarse point it may end on
+    ``low`` or ``high`` itself (27 of the 15 782 matches of the honest and ideal recorded drives,
+    2026-12-07); such a scale counts.
 
     Args:
         before (np.ndarray): (K,) ranges of the earlier scan, metres (``max_range`` or more, or
