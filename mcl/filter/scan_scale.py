@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from mcl.filter.scan_continuity import even_subset
 from racecar_sim.settings.validation import check_number, short
 
 __all__ = ["ScanScale", "ScanScaleParams", "match_forward_scale"]
@@ -292,7 +293,7 @@ class ScanScale:
             return False
         changed = False
         if abs(self._motion[0]) >= 0.5 * self._path:  # mostly straight: the scale is what counts
-            idx = np.unique(np.rint(np.linspace(0, z.size - 1, min(p.beams, z.size))).astype(np.int64))
+            idx = even_subset(z.size, p.beams)
             scale, _, sharpness = match_forward_scale(
                 self._reference[idx], self._reference_angles[idx], z,
                 np.asarray(angles, dtype=np.float64), self._motion.copy(),
