@@ -43,6 +43,7 @@ examples:
       --map ../shared/maps/stata_basement.yaml --out out/bag1
   racecar-sim replay out/drive_bag --map basement_loop --out out/roundtrip
   racecar-sim replay BAG --map MAP.yaml --init -20.9,-0.3,1.26 --seed 3 --out out/tracked
+  racecar-sim replay BAG --map MAP.yaml --filter filter.kld.max_particles=3000 --out out/capped
 """
 
 
@@ -74,6 +75,12 @@ def build_parser() -> Parser:
     parser.add_argument(
         "--seed", type=non_negative_int, default=0, metavar="N", help="the filter's random seed"
     )
+    parser.add_argument(
+        "--filter", action="append", default=[], metavar="KEY=VALUE",
+        help="a filter setting over the replay's own (LocalizationConfig, dotted, YAML values; "
+        "repeatable; default: the adaptive filter of mcl.experiments.replay), e.g. "
+        "filter.kld.max_particles=3000 or sensor.sigma_hit=2.0",
+    )  # fmt: skip
     parser.add_argument("--scan-topic", default="/scan", metavar="T", help="LaserScan topic")
     parser.add_argument(
         "--odom-topic",
@@ -128,10 +135,12 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``racecar-sim replay``; returns the exit code (a user mistake exits with 2)."""
     parser = build_parser()
     args = parser.parse_args(argv)
-    from mcl.experiments.replay import ReplayConfig, replay
+    from mcl.experiments.replay import ReplayConfig, replay, unknown_start_localization
     from mcl.experiments.replay_output import write_outputs
     from mcl.io import BagError, read_bag
+    from mcl.wrappers.localization import dotted_settings
     from racecar_sim.maps import resolve_map
+    from racecar_sim.settings.params import settings_over
 
     if args.bag is None:
         parser.fail("bag", "name the bag to replay (a ROS 1 .bag or a ROS 2 bag folder)")
@@ -139,6 +148,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.fail("--map", "required: the map the bag was recorded on")
     check_map(parser, args.map)
     init = _init(parser, args.init)
+    try:
+        settings = dotted_settings(args.filter)
+        localization = settings_over(unknown_start_localization(), settings)
+    except (TypeError, ValueError) as exc:
+        parser.fail("--filter", str(exc))
+    if "init" in settings:
+        parser.fail("--filter", "init: give the start with --init")
     if args.mount_offset is not None and not (
         math.isfinite(args.mount_offset) and 0 <= args.mount_offset < 5
     ):
@@ -157,7 +173,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"warning: {w}", file=sys.stderr)
     print(data.summary())
     occupancy_map = resolve_map(args.map)
-    config = ReplayConfig(init=init, seed=args.seed, no_return=args.no_return)
+    config = ReplayConfig(
+        init=init, seed=args.seed, no_return=args.no_return, localization=localization
+    )
     compile_notice()
     server = start_live_view(parser, live)
     try:

@@ -1,16 +1,18 @@
 """Building the parameter dataclasses: from a mapping or a YAML file (unknown keys raise a
-``ValueError`` naming them), nested parameter classes, and the positive-number check they share."""
+``ValueError`` naming them), nested parameter classes, settings put over other settings, and the
+positive-number check they share."""
 
 from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
 from racecar_sim.settings.validation import check_number, read_yaml_mapping, short
 
-__all__ = ["from_mapping", "from_yaml", "nested", "positive"]
+__all__ = ["from_mapping", "from_yaml", "nested", "positive", "settings_over"]
 
 T = TypeVar("T")
 
@@ -45,6 +47,35 @@ def nested(value: Any, cls: type[T], owner: str) -> T:
         except (TypeError, ValueError) as exc:
             raise ValueError(f"{owner}: {exc}") from exc
     raise ValueError(f"{owner} must be a {cls.__name__} or a mapping, got {short(value)}")
+
+
+def settings_over(base: T, settings: Mapping[str, Any], owner: str | None = None) -> T:
+    """``base`` (a parameter dataclass) with the nested ``settings`` put over it.
+
+    A mapping given for a field that holds a parameter dataclass changes only the keys it names
+    (``{"filter": {"kld": {"epsilon": 0.05}}}`` keeps every other filter and KLD setting of
+    ``base``); any other value replaces the field. Each changed dataclass is checked again by its
+    own validation.
+
+    Raises:
+        ValueError: a key that is not a field (named, with its owner, e.g.
+            ``LocalizationConfig.filter``), or a value the validation rejects.
+    """
+    owner = owner or type(base).__name__
+    names = {f.name for f in dataclasses.fields(base)}  # type: ignore[arg-type]
+    unknown = sorted(set(settings) - names)
+    if unknown:
+        raise ValueError(f"unknown {owner} parameter(s) {short(unknown, 200)}; known: {sorted(names)}")
+    changes: dict[str, Any] = {}
+    for key, value in settings.items():
+        current = getattr(base, key)
+        if isinstance(value, Mapping) and dataclasses.is_dataclass(current):
+            value = settings_over(current, value, f"{owner}.{key}")
+        changes[key] = value
+    try:
+        return dataclasses.replace(base, **changes)  # type: ignore[type-var]
+    except TypeError as exc:
+        raise ValueError(f"{owner}: {exc}") from exc
 
 
 def from_yaml(cls: type[T], path: str | os.PathLike[str], section: str | None = None) -> T:

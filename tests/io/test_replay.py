@@ -124,12 +124,36 @@ def test_replay_command(recorded, room, tmp_path, capsys):
     assert (out / "trajectory.csv").exists() and (out / "scan_fit.png").exists()
 
 
+def test_replay_filter_settings_reach_the_filter(recorded, room, tmp_path, capsys):
+    """``--filter`` changes what it names: the tracking filter's particle bounds here, so every
+    scan's count after the start lies within them, where the replay's own bounds keep 1 000 or
+    so; the car is tracked either way."""
+    yaml_path = room_yaml(room, tmp_path)
+    counts = {}
+    for name, extra in (("own", []), ("bounded", ["--filter", "adaptive.track_min_particles=300",
+                                                  "--filter", "filter.kld.min_particles=300",
+                                                  "--filter", "filter.kld.max_particles=400"])):
+        out = tmp_path / name
+        argv = ["replay", str(recorded[0]), "--map", yaml_path, "--out", str(out), "--init", "5,2,0"]
+        assert main([*argv, "--video-fps", "0", *extra]) == 0
+        with (out / "trajectory.csv").open() as fh:
+            counts[name] = [int(float(row["n_particles"])) for row in csv.DictReader(fh)]
+        mean_error = float(capsys.readouterr().out.split("position mean ")[1].split(" m")[0])
+        assert mean_error < 0.05, name
+    assert min(counts["own"][1:]) > 900  # the start's 5 000, then KLD's 1 000 or so
+    assert max(counts["bounded"][1:]) <= 400
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
         (["--init", "1,2"], "--init: '1,2': 'global' or three numbers X,Y,THETA"),
         (["--scan-topic", "/laser"], "no scan topic /laser; the bag has:"),
         (["--mount-offset", "-1"], "--mount-offset"),
+        (["--filter", "filter.kdl=3"], "--filter: unknown LocalizationConfig.filter parameter(s) ['kdl']"),
+        (["--filter", "filter.kld=3"], "--filter: ParticleFilterParams.kld must be a KLDParams"),
+        (["--filter", "init=pose"], "--filter: init: give the start with --init"),
+        (["--filter", "sensor.sigma_hit"], "--filter: 'sensor.sigma_hit' is not KEY=VALUE"),
     ],
 )
 def test_replay_mistakes(recorded, tmp_path, capsys, argv, message):
