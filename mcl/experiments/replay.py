@@ -2,8 +2,10 @@
 
 Each odometry message's twist is held until the next message (or scan) and integrated exactly
 ([`mcl.filter.motion_model.twist_to_odometry()`][mcl.filter.motion_model.twist_to_odometry]); at every scan the filter moves by the odometry
-gathered since the previous scan (one predict per scan, as in the simulator, 40 Hz), then weighs
-the scan. After every scan one row: the base_link estimate in the map's world frame, the cloud's
+gathered since the previous scan, held as one constant twist over the time between the scans
+([`ParticleFilter.predict()`][mcl.filter.particle_filter.ParticleFilter.predict]: one predict per
+scan, as in the simulator, 40 Hz; the learned odometry scale and the standstill check see the
+motion as they do online), then weighs the scan. After every scan one row: the base_link estimate in the map's world frame, the cloud's
 size and spread, the ambiguity flag and ``scan_fit``, the fraction of valid beams within
 ``fit_tolerance`` (0.15 m) of an exact cast from the estimate (a measure of how well the pose
 explains the scan that needs no ground truth). When the bag carries ``/ground_truth`` (a recorded
@@ -31,7 +33,7 @@ from mcl.filter.adaptive import AdaptiveParams, AdaptiveParticleFilter
 from mcl.filter.angles import wrap_angle
 from mcl.filter.augmented import AugmentedParams
 from mcl.filter.kld import KLDParams
-from mcl.filter.motion_model import MotionModel, compose, twist_to_odometry
+from mcl.filter.motion_model import MotionModel, compose, odometry_to_twist, twist_to_odometry
 from mcl.filter.params import ParticleFilterParams
 from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.sensor_model import SensorModel, SensorModelParams
@@ -328,6 +330,8 @@ def replay(
     k = 0  # next odometry message
     twist: np.ndarray | None = None
     t_last = 0.0
+    # the scan before (s); the first scan's motion runs from the first odometry message
+    t_prev = min([float(t) for t in data.scan_times[:1]] + [float(t) for t in odom_t[:1]] or [0.0])
     moved = np.zeros(3)
     for i in range(n):
         t_scan = float(data.scan_times[i])
@@ -339,8 +343,9 @@ def replay(
         if twist is not None:
             moved = compose(moved[None], twist_to_odometry(twist, t_scan - t_last))[0]
             t_last = t_scan
-        pf.move(moved)
-        step, moved = moved, np.zeros(3)
+        if t_scan > t_prev:  # as one twist held since the scan before, as online
+            pf.predict(odometry_to_twist(moved, t_scan - t_prev), t_scan - t_prev)
+        step, moved, t_prev = moved, np.zeros(3), t_scan
         scan = data.scans[i]
         if config.no_return == "max":
             scan = np.where(np.isnan(scan), no_return_range, scan)

@@ -187,8 +187,10 @@ class AdaptiveParticleFilter(ParticleFilter):
 
     # ------------------------------------------------------------------ update
     def correct(self, scan: np.ndarray) -> bool:
-        """`ParticleFilter.correct()` with the current mode's squash and scan spacing."""
+        """`ParticleFilter.correct()` with the current mode's squash and scan spacing (the scan
+        also goes to the standstill check and the learned odometry scale, as there)."""
         self._require()
+        self._check_standstill(scan)
         if self.n_updates > 0:
             self._update_mode()
         use = self.should_correct() or (
@@ -209,7 +211,8 @@ class AdaptiveParticleFilter(ParticleFilter):
             self.sensor_model.log_evaluate(self.particles, scan, self.is_searching()) * factor
         )
         self.averages.update(self.last_log_mean_likelihood, int(n_beams), squash)
-        if self.needs_resampling():
+        resampled = self.needs_resampling()
+        if resampled:
             self.resample()
-            return True
-        return False
+        self._confirm_scale(scan)
+        return resampled

@@ -36,6 +36,7 @@ __all__ = [
     "carry",
     "compose",
     "gaussian_to_uniform",
+    "odometry_to_twist",
     "twist_to_odometry",
     "uniform_to_gaussian",
 ]
@@ -185,6 +186,25 @@ def twist_to_odometry(twist: np.ndarray, dt: float) -> np.ndarray:
     else:
         a, b = math.sin(dth) / dth, (1.0 - math.cos(dth)) / dth
     return np.array([(a * vx - b * vy) * dt, (b * vx + a * vy) * dt, dth])
+
+
+def odometry_to_twist(odometry: np.ndarray, dt: float) -> np.ndarray:
+    """The constant car-frame twist [vx m/s, vy m/s, omega rad/s] that moves the car by the
+    car-frame displacement ``odometry`` [dx m, dy m, dtheta rad] in ``dt`` seconds (> 0): the
+    exact inverse of `twist_to_odometry`.
+
+    Raises:
+        ValueError: ``dt`` is not a positive number of seconds.
+    """
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    dx, dy, dth = (float(v) for v in odometry)
+    if abs(dth) < 1e-6:
+        a, b = 1.0 - dth * dth / 6.0, dth / 2.0
+    else:
+        a, b = math.sin(dth) / dth, (1.0 - math.cos(dth)) / dth
+    norm = (a * a + b * b) * dt
+    return np.array([(a * dx + b * dy) / norm, (a * dy - b * dx) / norm, dth / dt])
 
 
 class MotionModel:

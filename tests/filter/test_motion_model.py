@@ -16,6 +16,7 @@ from mcl.filter.motion_model import (
     MotionModelParams,
     compose,
     gaussian_to_uniform,
+    odometry_to_twist,
     twist_to_odometry,
     uniform_to_gaussian,
 )
@@ -167,6 +168,31 @@ def test_twist_integration_is_many_small_steps(vx: float, vy: float, om: float, 
         steps = compose(steps, small)
     np.testing.assert_allclose(one[:2], steps[0, :2], atol=1e-9)
     assert abs(wrap_angle(one[2] - steps[0, 2])) < 1e-9
+
+
+@settings(max_examples=60)
+@given(
+    st.floats(-3, 3, allow_nan=False),
+    st.floats(-1, 1, allow_nan=False),
+    st.floats(-4, 4, allow_nan=False),
+    st.floats(0.001, 0.75, allow_nan=False),
+)
+def test_odometry_to_twist_undoes_twist_to_odometry(vx: float, vy: float, om: float, dt: float) -> None:
+    """The twist held ``dt`` that gives a displacement is the one that made it (turns under 3 rad,
+    where the arc is one to one), both ways round."""
+    twist = np.array([vx, vy, om])
+    back = odometry_to_twist(twist_to_odometry(twist, dt), dt)
+    np.testing.assert_allclose(back, twist, atol=1e-9)
+    moved = twist_to_odometry(twist, dt)
+    np.testing.assert_allclose(twist_to_odometry(odometry_to_twist(moved, dt), dt), moved, atol=1e-12)
+
+
+def test_odometry_to_twist_of_a_quarter_circle() -> None:
+    """A quarter circle of radius 2 m to the left in 2 s: 1/4 of 2 pi r = pi metres at pi/4 rad/s."""
+    twist = odometry_to_twist(np.array([2.0, 2.0, math.pi / 2]), 2.0)
+    np.testing.assert_allclose(twist, [math.pi / 2, 0.0, math.pi / 4], atol=1e-12)
+    with pytest.raises(ValueError, match="dt must be a positive number of seconds"):
+        odometry_to_twist(np.zeros(3), 0.0)
 
 
 def test_params_from_mapping_and_errors() -> None:
