@@ -30,7 +30,7 @@ def _leaves(value, prefix=""):
 @given(
     epsilon=st.floats(0.001, 0.5, allow_nan=False),
     sigma_hit=st.floats(0.05, 5.0, allow_nan=False),
-    track=st.integers(1, 5000),
+    track=st.integers(1, 3000),  # at most the tracking cloud's bound (AdaptiveParams)
 )
 def test_only_the_named_settings_change(epsilon, sigma_hit, track):
     items = [f"filter.kld.epsilon={epsilon!r}", f"sensor.sigma_hit={sigma_hit!r}",
@@ -43,6 +43,13 @@ def test_only_the_named_settings_change(epsilon, sigma_hit, track):
     for name in ("filter.kld.epsilon", "sensor.sigma_hit", "adaptive.track_min_particles"):
         before.pop(name)
     assert after == before  # the replay's own settings (KLD on, 300 000 global cap...) are kept
+
+
+def test_settings_checked_together_may_be_changed_together():
+    """A lower bound above the upper one's default is refused alone and taken with the upper one."""
+    changed = settings_over(BASE, dotted_settings(["adaptive.track_min_particles=4000",
+                                                   "adaptive.track_max_particles=6000"]))  # fmt: skip
+    assert (changed.adaptive.track_min_particles, changed.adaptive.track_max_particles) == (4000, 6000)
 
 
 def test_the_base_is_not_the_defaults():
@@ -62,6 +69,7 @@ def test_the_base_is_not_the_defaults():
         ({"filter": {"kld": 5}}, "ParticleFilterParams.kld must be a KLDParams or a mapping"),
         ({"filter": {"n_particles": -1}}, "ParticleFilterParams.n_particles = -1"),
         ({"filter": {"kld": {"max_particles": 400}}}, "KLDParams.max_particles = 400"),
+        ({"adaptive": {"track_min_particles": 4000}}, "track_max_particles must be >= track_min"),
     ],
 )
 def test_bad_settings_are_named(mapping, message):
