@@ -5,13 +5,15 @@ Each odometry message's twist is held until the next message (or scan) and integ
 gathered since the previous scan, held as one constant twist over the time between the scans
 ([`ParticleFilter.predict()`][mcl.filter.particle_filter.ParticleFilter.predict]: one predict per
 scan, as in the simulator, 40 Hz; the learned odometry scale and the standstill check see the
-motion as they do online), then weighs the scan. After every scan one row: the base_link estimate in the map's world frame, the cloud's
-size and spread, the ambiguity flag and ``scan_fit``, the fraction of valid beams within
-``fit_tolerance`` (0.15 m) of an exact cast from the estimate (a measure of how well the pose
-explains the scan that needs no ground truth). When the bag carries ``/ground_truth`` (a recorded
+motion as they do online), then weighs the scan. After every scan one row: the base_link
+estimate in the map's world frame, the cloud's size and spread, the ambiguity flag and
+``scan_fit``, the fraction of valid beams within ``fit_tolerance`` (0.15 m) of an exact cast from
+the estimate (a measure of how well the pose explains the scan that needs no ground truth). When the bag carries ``/ground_truth`` (a recorded
 simulated drive), also the position and heading error against it.
 
-The filter is `unknown_start_localization()`: [`mcl.filter.adaptive.AdaptiveParticleFilter`][mcl.filter.adaptive.AdaptiveParticleFilter],
+The filter is `unknown_start_localization()` (`ReplayConfig.localization`, e.g. with
+`racecar-sim replay --filter`):
+[`mcl.filter.adaptive.AdaptiveParticleFilter`][mcl.filter.adaptive.AdaptiveParticleFilter],
 which searches from a global start and tracks once converged, without switching anything.
 
 No-returns (NaN from [`mcl.io.read_bag()`][mcl.io.read_bag]) are given to the beam model as max-range readings by
@@ -331,7 +333,7 @@ def replay(
     twist: np.ndarray | None = None
     t_last = 0.0
     # the scan before (s); the first scan's motion runs from the first odometry message
-    t_prev = min([float(t) for t in data.scan_times[:1]] + [float(t) for t in odom_t[:1]] or [0.0])
+    t_prev = min((float(t) for t in (*data.scan_times[:1], *odom_t[:1])), default=0.0)
     moved = np.zeros(3)
     for i in range(n):
         t_scan = float(data.scan_times[i])
