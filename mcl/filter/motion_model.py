@@ -180,12 +180,16 @@ def twist_to_odometry(twist: np.ndarray, dt: float) -> np.ndarray:
     """
     vx, vy, om = (float(v) for v in twist)
     dth = om * dt
-    if abs(dth) < 1e-6:
-        # Second-order series of sin(a)/a and (1 - cos(a))/a.
-        a, b = 1.0 - dth * dth / 6.0, dth / 2.0
-    else:
-        a, b = math.sin(dth) / dth, (1.0 - math.cos(dth)) / dth
+    a, b = _arc_factors(dth)
     return np.array([(a * vx - b * vy) * dt, (b * vx + a * vy) * dt, dth])
+
+
+def _arc_factors(dth: float) -> tuple[float, float]:
+    """sin(dth)/dth and (1 - cos(dth))/dth: what a constant twist's turn ``dth`` (radians) does to
+    its straight-line displacement (second-order series near 0)."""
+    if abs(dth) < 1e-6:
+        return 1.0 - dth * dth / 6.0, dth / 2.0
+    return math.sin(dth) / dth, (1.0 - math.cos(dth)) / dth
 
 
 def odometry_to_twist(odometry: np.ndarray, dt: float) -> np.ndarray:
@@ -199,10 +203,7 @@ def odometry_to_twist(odometry: np.ndarray, dt: float) -> np.ndarray:
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
     dx, dy, dth = (float(v) for v in odometry)
-    if abs(dth) < 1e-6:
-        a, b = 1.0 - dth * dth / 6.0, dth / 2.0
-    else:
-        a, b = math.sin(dth) / dth, (1.0 - math.cos(dth)) / dth
+    a, b = _arc_factors(dth)
     norm = (a * a + b * b) * dt
     return np.array([(a * dx + b * dy) / norm, (a * dy - b * dx) / norm, dth / dt])
 

@@ -24,11 +24,17 @@ def from_mapping(cls: type[T], mapping: dict[str, Any] | None) -> T:
         ValueError: a key is not a field of ``cls``, or a value is rejected by its validation.
     """
     mapping = dict(mapping or {})
-    names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    _check_known(cls, mapping, cls.__name__)
+    return cls(**mapping)
+
+
+def _check_known(cls: Any, mapping: Mapping[str, Any], owner: str) -> None:
+    """Raise a ValueError naming the keys of ``mapping`` that are not fields of dataclass ``cls``
+    (``owner`` names it in the message), and the fields there are."""
+    names = {f.name for f in dataclasses.fields(cls)}
     unknown = sorted(set(mapping) - names)
     if unknown:
-        raise ValueError(f"unknown {cls.__name__} parameter(s) {short(unknown, 200)}; known: {sorted(names)}")
-    return cls(**mapping)
+        raise ValueError(f"unknown {owner} parameter(s) {short(unknown, 200)}; known: {sorted(names)}")
 
 
 def nested(value: Any, cls: type[T], owner: str) -> T:
@@ -62,10 +68,7 @@ def settings_over(base: T, settings: Mapping[str, Any], owner: str | None = None
             ``LocalizationConfig.filter``), or a value the validation rejects.
     """
     owner = owner or type(base).__name__
-    names = {f.name for f in dataclasses.fields(base)}  # type: ignore[arg-type]
-    unknown = sorted(set(settings) - names)
-    if unknown:
-        raise ValueError(f"unknown {owner} parameter(s) {short(unknown, 200)}; known: {sorted(names)}")
+    _check_known(base, settings, owner)
     changes: dict[str, Any] = {}
     for key, value in settings.items():
         current = getattr(base, key)

@@ -22,6 +22,13 @@ from mcl.filter.motion_model import (
 )
 from racecar_sim.settings.config import from_mapping
 
+TWISTS = (
+    st.floats(-3, 3, allow_nan=False),  # vx, m/s
+    st.floats(-1, 1, allow_nan=False),  # vy, m/s
+    st.floats(-4, 4, allow_nan=False),  # omega, rad/s
+)
+"""Car-frame twists the integration properties draw."""
+
 finite = st.floats(-50, 50, allow_nan=False, allow_infinity=False)
 angle = st.floats(-10, 10, allow_nan=False, allow_infinity=False)
 poses = arrays(np.float64, st.tuples(st.integers(1, 20), st.just(3)), elements=finite)
@@ -155,9 +162,7 @@ def test_twist_straight_and_quarter_circle() -> None:
 
 @settings(max_examples=30)
 @given(
-    st.floats(-3, 3, allow_nan=False),
-    st.floats(-1, 1, allow_nan=False),
-    st.floats(-4, 4, allow_nan=False),
+    *TWISTS,
     st.floats(0.0, 1.0, allow_nan=False),
 )
 def test_twist_integration_is_many_small_steps(vx: float, vy: float, om: float, dt: float) -> None:
@@ -172,9 +177,7 @@ def test_twist_integration_is_many_small_steps(vx: float, vy: float, om: float, 
 
 @settings(max_examples=60)
 @given(
-    st.floats(-3, 3, allow_nan=False),
-    st.floats(-1, 1, allow_nan=False),
-    st.floats(-4, 4, allow_nan=False),
+    *TWISTS,
     st.floats(0.001, 0.75, allow_nan=False),
 )
 def test_odometry_to_twist_undoes_twist_to_odometry(vx: float, vy: float, om: float, dt: float) -> None:
