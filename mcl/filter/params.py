@@ -16,6 +16,7 @@ from mcl.filter.bounds import FILTER_BOUNDS, check_filter
 from mcl.filter.kld import KLDParams
 from mcl.filter.odometry_scale import OdometryScaleParams
 from mcl.filter.resampling import RESAMPLERS
+from mcl.filter.scan_turn import TurnCheckParams
 from mcl.filter.standstill import StandstillParams
 from mcl.filter.uncertainty import ClusterParams
 from racecar_sim.sensors.scan_effects import OdometryBias
@@ -73,6 +74,9 @@ class ParticleFilterParams:
         standstill: [StandstillParams][mcl.filter.standstill.StandstillParams]: predict no
             motion while the scans say the car stands and the odometry says it drives (wheels
             turning against a wall; on by default).
+        turn_check: [TurnCheckParams][mcl.filter.scan_turn.TurnCheckParams]: turn the cloud
+            when the scans and the odometry agree that the car turned and the estimate did not
+            (on by default).
     """
 
     n_particles: int = DEFAULT_PARTICLES
@@ -92,6 +96,7 @@ class ParticleFilterParams:
     odometry_scale: OdometryScaleParams = field(default_factory=OdometryScaleParams)
     clusters: ClusterParams = field(default_factory=ClusterParams)
     standstill: StandstillParams = field(default_factory=StandstillParams)
+    turn_check: TurnCheckParams = field(default_factory=TurnCheckParams)
 
     def __post_init__(self) -> None:
         owner = "ParticleFilterParams"  # bounds and their reasons: mcl.filter.bounds
@@ -155,6 +160,7 @@ class ParticleFilterParams:
             ("odometry_bias", OdometryBias),
             ("odometry_scale", OdometryScaleParams),
             ("standstill", StandstillParams),
+            ("turn_check", TurnCheckParams),
         ):
             object.__setattr__(
                 self, name, nested(getattr(self, name), cls, f"ParticleFilterParams.{name}")

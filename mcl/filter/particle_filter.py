@@ -32,15 +32,15 @@ import numpy as np
 
 from mcl.filter.angles import wrap_angle
 from mcl.filter.augmented import LikelihoodAverages
-from mcl.filter.belief import Belief
-from mcl.filter.motion_model import MotionModel, carry, twist_to_odometry
+from mcl.filter.motion_model import MotionModel, twist_to_odometry
 from mcl.filter.odometry_scale import OdometryScale
 from mcl.filter.params import ParticleFilterParams, spread_sd
 from mcl.filter.place_keeping import PlaceKeeping, resample_keeping_places
 from mcl.filter.recovery import GlobalRecovery
 from mcl.filter.resampling import resample_particles
-from mcl.filter.scan_continuity import scan_bearings
+from mcl.filter.scan_checks import ScanChecks
 from mcl.filter.scan_fit import ScanFit
+from mcl.filter.scan_turn import TurnCheck
 from mcl.filter.sensor_model import SensorModel
 from mcl.filter.standstill import Standstill
 from mcl.filter.step_kernels import bayes_step
@@ -49,7 +49,7 @@ from racecar_sim.maps import OccupancyMap
 __all__ = ["ParticleFilter", "ParticleFilterParams"]
 
 
-class ParticleFilter(Belief, GlobalRecovery):
+class ParticleFilter(ScanChecks, GlobalRecovery):
     """Monte Carlo Localization on an occupancy map (see the module docstring).
 
     Args:
@@ -126,6 +126,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         self.odometry_scale = OdometryScale(scale := params.odometry_scale)
         self._scale_fit = ScanFit(scale.fit_beams, scale.fit_tolerance, skip_short=True)
         self.standstill = Standstill(params.standstill)
+        self.turn_check = TurnCheck(params.turn_check)
         self.searching = False  # whether the last correction scored with the wide search hit
         self.place_keeping: PlaceKeeping | None = None
         self.scan_exponent = 1.0
@@ -198,6 +199,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         self._moved = [math.inf, math.inf]
         self.odometry_scale.restart()
         self.standstill.restart()
+        self.turn_check.restart()
         self.searching = False
 
     # ------------------------------------------------------------------ update steps
@@ -220,6 +222,7 @@ class ParticleFilter(Belief, GlobalRecovery):
         if self.standstill.slipping:
             twist = self.standstill.scaled(twist)
         scale.observe(twist, dt)
+        self.turn_check.advance(twist, dt)
         still = self.standstill.params
         if still.hold_still and self.standstill.standing and (still.hold_searching or not self.searching):
             return  # a car that stands: nothing moved, no motion to be unsure of
@@ -364,33 +367,6 @@ class ParticleFilter(Belief, GlobalRecovery):
             self.resample()
         self._confirm_scale(scan)
         return resampled
-
-    def _confirm_scale(self, scan: np.ndarray) -> None:
-        """Give the learned odometry scale the corrected estimate, its spread and the scan's fit
-        there (skip_short: beams short of the map are furniture, people, cars)."""
-        if self.odometry_scale.learning:
-            estimate, covariance = self.estimate(), self.covariance()
-            spread = math.sqrt(max(0.0, covariance[0, 0] + covariance[1, 1]))
-            fit = self._scale_fit.at(self.sensor_model, self.map, estimate, scan)
-            self.odometry_scale.confirm(estimate, spread, fit)
-
-    def _check_standstill(self, scan: np.ndarray) -> None:
-        """Give the scan to the standstill check and to a scale learned from scans (before the
-        filter uses it); take back what the filter predicted beyond a car found standing."""
-        due, scales = self.standstill.due(), self.odometry_scale.wants_scans
-        if due or scales:  # only then the scan's bearings and the lidar's mount
-            sm = self.sensor_model
-            z = np.asarray(scan, dtype=np.float64).reshape(-1)
-            mount, angles = sm.lidar_poses(np.zeros((1, 3)))[0], scan_bearings(sm, z.size)
-            if scales:
-                self.odometry_scale.observe_scan(z, angles, mount, float(sm.max_range))
-        if due:
-            estimate = self.estimate() if self.standstill.params.take_back else None
-            self.standstill.observe(z, angles, mount, float(sm.max_range), estimate)
-            back = self.standstill.take_back()
-            if back is not None and estimate is not None:  # the wheels drove on: move back
-                self._particles = carry(self._require()[0], estimate, back)
-                self.odometry_scale.drop_bridge()  # its path holds the motion taken back
 
     def update(self, twist: np.ndarray, dt: float, scan: np.ndarray | None) -> np.ndarray:
         """``predict``, then ``correct`` when a scan is given, then return ``estimate()``."""

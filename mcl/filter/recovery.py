@@ -61,10 +61,12 @@ class GlobalRecovery:
 
     def moved_elsewhere(self) -> None:
         """The cloud was moved to another place other than by the odometry and the scans (a
-        burst's outcome kept, the search's cloud taken, a jump): the odometry scale's bridge and
-        the standstill check's recorded estimates span the move, and are dropped."""
+        burst's outcome kept, the search's cloud taken, a jump): the odometry scale's bridge,
+        the standstill check's recorded estimates and the turn check's window span the move,
+        and are dropped."""
         self.odometry_scale.restart()
         self.standstill.cloud_replaced()
+        self.turn_check.restart()
 
     def global_particle_count(self) -> int:
         """Particles of a global start: ``params.global_particles`` when given, else

@@ -51,7 +51,7 @@ import numpy as np
 from mcl.filter.scan_continuity import even_subset
 from racecar_sim.settings.validation import check_number, short
 
-__all__ = ["ScanScale", "ScanScaleParams", "match_forward_scale"]
+__all__ = ["ScanScale", "ScanScaleParams", "lidar_motion", "match_forward_scale", "point_score"]
 
 COARSE_STEPS = (0.04, 0.03, 0.04)
 """The coarse grid's steps: scale, heading (rad), lateral (m); the fine grid's are a quarter, a
@@ -103,7 +103,7 @@ class ScanScaleParams:
 
 
 @nb.njit(cache=True)
-def _score(px, py, after, a0, step, motion_x, motion_y, motion_t, max_range, tol, tol_per_m):
+def point_score(px, py, after, a0, step, motion_x, motion_y, motion_t, max_range, tol, tol_per_m):
     """Mean Gaussian score of the points (px, py) (earlier lidar frame) moved into the later lidar
     frame at (motion_x, motion_y, motion_t) and compared with ``after`` at their bearings; NaN
     under 20 points."""
@@ -131,7 +131,7 @@ def _score(px, py, after, a0, step, motion_x, motion_y, motion_t, max_range, tol
 
 
 @nb.njit(cache=True)
-def _lidar_motion(car_x, car_y, car_t, mount):
+def lidar_motion(car_x, car_y, car_t, mount):
     """The later lidar pose in the earlier lidar frame: mount⁻¹ ∘ car ∘ mount."""
     c, s = math.cos(car_t), math.sin(car_t)
     dx = car_x + c * mount[0] - s * mount[1] - mount[0]
@@ -149,8 +149,8 @@ def _grid(px, py, after, a0, step, odometry, mount, max_range, tol, tol_per_m,
             for k in range(ny):
                 car_x = odometry[0] * (s0 + ds * i)
                 car_t = odometry[2] + t0 + dt * j
-                mx, my, mt = _lidar_motion(car_x, odometry[1] + y0 + dy * k, car_t, mount)
-                value = _score(px, py, after, a0, step, mx, my, mt, max_range, tol, tol_per_m)
+                mx, my, mt = lidar_motion(car_x, odometry[1] + y0 + dy * k, car_t, mount)
+                value = point_score(px, py, after, a0, step, mx, my, mt, max_range, tol, tol_per_m)
                 if value == value:
                     if value > profile[i]:
                         profile[i] = value
