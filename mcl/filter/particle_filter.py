@@ -222,7 +222,7 @@ class ParticleFilter(ScanChecks, GlobalRecovery):
         if self.standstill.slipping:
             twist = self.standstill.scaled(twist)
         scale.observe(twist, dt)
-        self.turn_check.advance(twist, dt)
+        self.turn_check.advance(scale.scaled(twist), dt)
         still = self.standstill.params
         if still.hold_still and self.standstill.standing and (still.hold_searching or not self.searching):
             return  # a car that stands: nothing moved, no motion to be unsure of

@@ -139,6 +139,31 @@ def test_an_estimate_that_turns_with_the_car_is_left_alone() -> None:
     assert corrections == [] and check.counted > 5
 
 
+def test_an_estimate_turned_once_and_then_turning_with_the_car_is_turned_once() -> None:
+    """The estimate misses 2 s of the car's turn, is turned, then turns with the car: one
+    correction, not a second one that takes the first back (the keyframe after a correction
+    holds the heading the cloud was given). What stays missed is the turn before the first full
+    window (the first keyframe's quarter second and the window's slack: 0.4 rad here)."""
+    check = TurnCheck()
+    car = _free_pose(0)
+    corrections, car, heading = _feed(check, np.array([0.0, 0.0, 0.88]), 2.5, car, 0.8, 0.0, 0.0)
+    assert len(corrections) == 1
+    more, car, heading = _feed(check, np.array([0.0, 0.0, 0.88]), 4.0, car, 0.8, heading, 0.8)
+    assert more == []
+    assert abs(_wrapped(heading - (car[2] - _free_pose(0)[2]))) <= 0.45
+
+
+def test_an_estimate_that_mends_its_own_heading_is_left_alone() -> None:
+    """The car drives straight; the estimate starts 0.6 rad off and turns back within half a
+    second (its scans mending it): that is no missed turn, and nothing is corrected."""
+    check = TurnCheck()
+    car = _free_pose(0)
+    corrections, car, heading = _feed(check, np.zeros(3), 1.0, car, 0.0, 0.6, 0.0)
+    more, _, _ = _feed(check, np.zeros(3), 0.5, car, 0.0, heading, -1.2)
+    rest, _, _ = _feed(check, np.zeros(3), 3.0, car, 0.0, heading - 0.6, 0.0)
+    assert corrections == more == rest == []
+
+
 def test_wheels_that_turn_a_pinned_car_do_not_turn_the_estimate() -> None:
     """The car stands, its wheels report a turn at 0.8 rad/s, the estimate (held by its scans)
     stays: the scans and the odometry disagree, so nothing is corrected."""
@@ -176,9 +201,9 @@ def _wrapped(angle: float) -> float:
 
 
 def test_settings_refuse_nonsense() -> None:
-    with pytest.raises(ValueError, match="TurnCheckParams.bound"):
+    with pytest.raises(ValueError, match=r"TurnCheckParams\.bound"):
         TurnCheckParams(bound=0.0)
-    with pytest.raises(ValueError, match="TurnCheckParams.keyframe_scans"):
+    with pytest.raises(ValueError, match=r"TurnCheckParams\.keyframe_scans"):
         TurnCheckParams(keyframe_scans=0)
-    with pytest.raises(ValueError, match="TurnCheckParams.min_score"):
+    with pytest.raises(ValueError, match=r"TurnCheckParams\.min_score"):
         TurnCheckParams(min_score=1.5)
