@@ -51,7 +51,7 @@ import numpy as np
 from mcl.filter.scan_continuity import even_subset
 from racecar_sim.settings.validation import check_number, short
 
-__all__ = ["ScanScale", "ScanScaleParams", "lidar_motion", "match_forward_scale", "point_score"]
+__all__ = ["ScanScale", "ScanScaleParams", "lidar_motion", "match_forward_scale", "point_score", "scan_points"]
 
 COARSE_STEPS = (0.04, 0.03, 0.04)
 """The coarse grid's steps: scale, heading (rad), lateral (m); the fine grid's are a quarter, a
@@ -131,6 +131,20 @@ def point_score(px, py, after, a0, step, motion_x, motion_y, motion_t, max_range
 
 
 @nb.njit(cache=True)
+def scan_points(before, before_angles, after_angles, max_range):
+    """The earlier scan's returns as points (x, y) in its lidar frame (metres; no-returns left
+    out), and the later scan's first bearing and bearing step (radians): what `point_score`
+    takes."""
+    keep = np.zeros(before.shape[0], dtype=np.bool_)
+    for b in range(before.shape[0]):
+        keep[b] = before[b] < max_range
+    r, a = before[keep], before_angles[keep]
+    a0 = after_angles[0]
+    step = (after_angles[-1] - a0) / (after_angles.shape[0] - 1)
+    return r * np.cos(a), r * np.sin(a), a0, step
+
+
+@nb.njit(cache=True)
 def lidar_motion(car_x, car_y, car_t, mount):
     """The later lidar pose in the earlier lidar frame: mount⁻¹ ∘ car ∘ mount."""
     c, s = math.cos(car_t), math.sin(car_t)
@@ -190,13 +204,7 @@ def match_forward_scale(before, before_angles, after, after_angles, odometry, mo
         tolerance (float): metres of score width (fine grid).
         tolerance_per_m (float): extra metres of width per metre of range.
     """
-    keep = np.zeros(before.shape[0], dtype=np.bool_)
-    for b in range(before.shape[0]):
-        keep[b] = before[b] < max_range
-    r, a = before[keep], before_angles[keep]
-    px, py = r * np.cos(a), r * np.sin(a)
-    a0 = after_angles[0]
-    step = (after_angles[-1] - a0) / (after_angles.shape[0] - 1)
+    px, py, a0, step = scan_points(before, before_angles, after_angles, max_range)
     ds, dt, dy = COARSE_STEPS
     ns = int(math.floor((high - low) / ds + 1e-9)) + 1
     nt = 2 * int(math.floor(heading / dt + 1e-9)) + 1

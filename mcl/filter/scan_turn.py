@@ -45,7 +45,7 @@ import numpy as np
 from mcl.filter.angles import wrap_angle
 from mcl.filter.motion_model import twist_to_odometry
 from mcl.filter.scan_continuity import compose, even_subset
-from mcl.filter.scan_scale import lidar_motion, point_score
+from mcl.filter.scan_scale import lidar_motion, point_score, scan_points
 from racecar_sim.settings.validation import check_number
 
 __all__ = ["TurnCheck", "TurnCheckParams", "match_turn"]
@@ -143,13 +143,7 @@ def match_turn(before, before_angles, after, after_angles, odometry, mount, max_
         tolerance (float): metres of score width (fine grid; the coarse grid doubles it).
         tolerance_per_m (float): extra metres of width per metre of range.
     """
-    keep = np.zeros(before.shape[0], dtype=np.bool_)
-    for b in range(before.shape[0]):
-        keep[b] = before[b] < max_range
-    r, a = before[keep], before_angles[keep]
-    px, py = r * np.cos(a), r * np.sin(a)
-    a0 = after_angles[0]
-    step = (after_angles[-1] - a0) / (after_angles.shape[0] - 1)
+    px, py, a0, step = scan_points(before, before_angles, after_angles, max_range)
     turn_step, side_step = 0.02, 0.03
     n_turn = max(1, int(math.floor(turn_range / turn_step + 1e-9)))
     n_side = int(math.floor(lateral / side_step + 1e-9))
