@@ -203,7 +203,7 @@ class AdaptiveParticleFilter(ParticleFilter):
         """`ParticleFilter.correct()` with the current mode's squash and scan spacing (the scan
         also goes to the standstill check and the learned odometry scale, as there)."""
         self._require()
-        self._check_standstill(scan)
+        self._check_scans(scan)
         if self.n_updates > 0:
             self._update_mode()
         use = self.should_correct() or (

@@ -326,7 +326,9 @@ class ParticleFilter(ScanChecks, GlobalRecovery):
     def correct(self, scan: np.ndarray) -> bool:
         """Weigh the particles by a scan (metres) and resample if needed; returns whether it did.
 
-        The steps: skip the scan unless `should_correct()`; add the random particles of
+        The steps: the per-scan checks that need no map
+        ([ScanChecks][mcl.filter.scan_checks.ScanChecks]: a standing car, a missed turn, the
+        scale's scans); skip the scan unless `should_correct()`; add the random particles of
         augmented MCL drawn at the last resampling; `update_weights()` with the sensor model's
         log-likelihoods; fold the scan's per-beam likelihood into `averages`;
         `resample()` when `needs_resampling()`.
@@ -335,7 +337,7 @@ class ParticleFilter(ScanChecks, GlobalRecovery):
         dropped, wrong length or negative ranges rejected with ``ValueError``).
         """
         self._require()
-        self._check_standstill(scan)
+        self._check_scans(scan)
         if not self.should_correct():
             self.n_skipped += 1
             return False

@@ -50,7 +50,7 @@ class ScanChecks(Belief):
             fit = self._scale_fit.at(self.sensor_model, self.map, estimate, scan)
             self.odometry_scale.confirm(estimate, spread, fit)
 
-    def _check_standstill(self, scan: np.ndarray) -> None:
+    def _check_scans(self, scan: np.ndarray) -> None:
         """Give the scan to the standstill check, the turn check and a scale learned from scans
         (before the filter uses it); take back what the filter predicted beyond a car found
         standing; turn the cloud when the turn check says the estimate did not turn."""
