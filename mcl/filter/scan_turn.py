@@ -17,7 +17,7 @@ wheels spin), its sideways
 motion moved by up to ``lateral`` metres and its turn by up to ``turn_range`` radians; the turn
 that best scores the keyframe's points (``beams`` of them) against the newest scan is the scans'
 turn. A match counts only when its score is at least ``min_score`` and the best turn is not on the
-grid's edge. Over the last ``window_s`` seconds of counted matches, the turns of the scans, of the
+grid's edge; a keyframe whose match does not count is left out of all three sums below. Over the last ``window_s`` seconds of counted matches, the turns of the scans, of the
 odometry and of the filter's estimate are compared. When the scans and the odometry agree within
 ``agree`` radians (two sources that need no map), the car turned by more than ``bound`` and the
 estimate by at least ``bound`` less (and differs from the odometry by more than ``bound``), the
@@ -230,11 +230,9 @@ class TurnCheck:
         self.matches += 1
         estimate_turn = float(wrap_angle(heading - self._estimate_heading))
         odometry_turn = float(self._motion[2])
-        if score >= p.min_score:  # NaN never counts
+        if score >= p.min_score:  # NaN never counts; an uncounted keyframe leaves all three sums
             self.counted += 1
             self._history.append((self._clock, float(turn), odometry_turn, estimate_turn))
-        else:
-            self._history.clear()  # a window is judged on counted matches only
         turn = self._judge()
         self._new_keyframe(z, angles, heading + turn)  # the heading the cloud will have
         return turn

@@ -164,6 +164,28 @@ def test_an_estimate_that_mends_its_own_heading_is_left_alone() -> None:
     assert corrections == more == rest == []
 
 
+def test_a_keyframe_that_cannot_be_matched_does_not_restart_the_window() -> None:
+    """The same missed turn with one keyframe's scan blank (no returns: nothing to match) 1.25 s
+    in: the window judges the keyframes that matched, so the correction still comes within
+    2.5 s (a window started again after the blank one would not be full before 3 s)."""
+    check = TurnCheck()
+    car = _free_pose(0)
+    twist = np.array([0.0, 0.0, 0.88])
+    blank = np.full(LIDAR.angles.size, MAX_RANGE)
+    corrections = []
+    for step in range(100):  # 2.5 s
+        car = compose(car, twist_to_odometry(np.array([0.0, 0.0, 0.8]), DT))
+        check.advance(twist, DT)
+        if check.due():
+            scan = blank if 48 <= step < 52 else LIDAR.true_ranges(car)
+            if turn := check.observe(scan, LIDAR.angles, MOUNT, MAX_RANGE, 0.0):
+                corrections.append(turn)
+        else:
+            check.skip_scan()
+    assert check.matches - check.counted >= 1
+    assert corrections, "the blank keyframe delayed the correction past 2.5 s"
+
+
 def test_wheels_that_turn_a_pinned_car_do_not_turn_the_estimate() -> None:
     """The car stands, its wheels report a turn at 0.8 rad/s, the estimate (held by its scans)
     stays: the scans and the odometry disagree, so nothing is corrected."""
