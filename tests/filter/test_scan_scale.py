@@ -14,25 +14,15 @@ from mcl.filter.params import ParticleFilterParams
 from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.scan_continuity import compose
 from mcl.filter.scan_scale import ScanScale, ScanScaleParams, match_forward_scale
-from racecar_sim.env import RacecarEnv
+from tests.filter.loop_scans import DT, ENV, LIDAR, MAX_RANGE, MOUNT, free_pose
 
-ENV = RacecarEnv("basement_loop")
-LIDAR = ENV.lidar
-MOUNT = np.array([ENV.lidar_params.mount_offset, 0.0, 0.0])
-MAX_RANGE = ENV.lidar_params.max_range
-DT = 0.025
 P = ScanScaleParams()
-
-
-def _free_pose(seed: int) -> np.ndarray:
-    ENV.reset(seed=seed)
-    return ENV.pose
 
 
 def _match(seed: int, true_scale: float, omega: float, heading_error: float = 0.0):
     """Two exact scans 0.6 m apart; the odometry reads ``1 / true_scale`` of the forward motion
     and turns ``heading_error`` radians more than the car did."""
-    start = _free_pose(seed)
+    start = free_pose(seed)
     twist = np.array([1.5, 0.0, omega])
     end = start
     for _ in range(16):  # 0.6 m at 1.5 m/s
@@ -78,7 +68,7 @@ def test_the_match_is_a_scale_on_the_grid_or_nothing(seed, true_scale, heading_e
 def test_a_pinned_car_whose_wheels_spin_teaches_nothing() -> None:
     """The scans do not move while the odometry drives 0.6 m: no motion on the grid matches
     (the best lies on its edge), no pair counts and the scale stays the prior."""
-    pose = _free_pose(3)
+    pose = free_pose(3)
     learner = ScanScale(ScanScaleParams(prior_metres=0.0))
     scan = LIDAR.true_ranges(pose)
     learner.observe_scan(scan, LIDAR.angles, MOUNT, MAX_RANGE)
@@ -93,7 +83,7 @@ def test_a_pinned_car_whose_wheels_spin_teaches_nothing() -> None:
 def _learn(params: ScanScaleParams, pairs: int, seed: int = 0, read: float = 0.92) -> ScanScale:
     """``pairs`` pairs of exact scans 0.6 m apart on the bundled loop, the wheels reading
     ``read`` of the forward speed."""
-    here = _free_pose(seed)
+    here = free_pose(seed)
     twist = np.array([1.5, 0.0, 0.2])
     learner = ScanScale(params)
     learner.observe_scan(LIDAR.true_ranges(here), LIDAR.angles, MOUNT, MAX_RANGE)
@@ -139,7 +129,7 @@ def test_the_filter_learns_its_scale_from_its_scans() -> None:
     """A filter whose odometry reads 8 % short, on the bundled loop with exact scans: with
     ``source="scans"`` its scale reaches 1 / 0.92 within 0.03 after 15 m; with the scale off it
     stays 1."""
-    start = _free_pose(0)
+    start = free_pose(0)
 
     def drive(source: str, enabled: bool = True) -> ParticleFilter:
         params = ParticleFilterParams(

@@ -15,19 +15,9 @@ from mcl.filter.params import ParticleFilterParams
 from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.scan_continuity import compose
 from mcl.filter.scan_turn import TurnCheck, TurnCheckParams, match_turn
-from racecar_sim.env import RacecarEnv
+from tests.filter.loop_scans import DT, ENV, LIDAR, MAX_RANGE, MOUNT, free_pose
 
-ENV = RacecarEnv("basement_loop")
-LIDAR = ENV.lidar
-MOUNT = np.array([ENV.lidar_params.mount_offset, 0.0, 0.0])
-MAX_RANGE = ENV.lidar_params.max_range
-DT = 0.025
 P = TurnCheckParams()
-
-
-def _free_pose(seed: int) -> np.ndarray:
-    ENV.reset(seed=seed)
-    return ENV.pose
 
 
 def _drive(start: np.ndarray, twist: np.ndarray, steps: int) -> np.ndarray:
@@ -40,7 +30,7 @@ def _drive(start: np.ndarray, twist: np.ndarray, steps: int) -> np.ndarray:
 def _match(seed: int, omega: float, odometry_turn_error: float, forward_share: float = 1.0):
     """Two exact scans a quarter of a second apart; the odometry turns ``odometry_turn_error``
     radians more than the car did, and reads ``1 / forward_share`` of its forward travel."""
-    start = _free_pose(seed)
+    start = free_pose(seed)
     twist = np.array([1.2, 0.0, omega])
     end = _drive(start, twist, 10)
     odometry = np.array(twist_to_odometry(twist / [forward_share, 1.0, 1.0], 10 * DT))
@@ -70,7 +60,7 @@ def test_two_scans_tell_the_turn_the_odometry_has_wrong() -> None:
 def test_a_pinned_car_turns_as_its_scans_say() -> None:
     """The car stands while its wheels report 1 m/s and a 0.35 rad turn: matched with the
     forward share 0, the turn is the car's (0) within 0.01 rad."""
-    start = _free_pose(3)
+    start = free_pose(3)
     odometry = np.array(twist_to_odometry(np.array([1.0, 0.0, 1.4]), 10 * DT))
     idx = np.unique(np.rint(np.linspace(0, LIDAR.angles.size - 1, P.beams)).astype(np.int64))
     scan = LIDAR.true_ranges(start)
@@ -124,7 +114,7 @@ def test_an_estimate_that_did_not_turn_is_turned_by_what_the_scans_saw(seed) -> 
     estimate stays put: the check asks once for the turn the estimate missed (within 0.1 rad of
     the car's turn over the window), and the estimate ends within 0.2 rad of the car."""
     check = TurnCheck()
-    car = _free_pose(seed)
+    car = free_pose(seed)
     corrections, car, heading = _feed(check, np.array([0.0, 0.0, 0.88]), 3.0, car, 0.8, 0.0, 0.0)
     assert corrections, "no correction asked"
     assert abs(corrections[0] - 0.8 * P.window_s) <= 0.4
@@ -135,7 +125,7 @@ def test_an_estimate_that_did_not_turn_is_turned_by_what_the_scans_saw(seed) -> 
 def test_an_estimate_that_turns_with_the_car_is_left_alone() -> None:
     """The same turn, the estimate turning with the car: no correction."""
     check = TurnCheck()
-    corrections, _, _ = _feed(check, np.array([0.0, 0.0, 0.88]), 4.0, _free_pose(0), 0.8, 0.0, 0.8)
+    corrections, _, _ = _feed(check, np.array([0.0, 0.0, 0.88]), 4.0, free_pose(0), 0.8, 0.0, 0.8)
     assert corrections == [] and check.counted > 5
 
 
@@ -145,19 +135,19 @@ def test_an_estimate_turned_once_and_then_turning_with_the_car_is_turned_once() 
     holds the heading the cloud was given). What stays missed is the turn before the first full
     window (the first keyframe's quarter second and the window's slack: 0.4 rad here)."""
     check = TurnCheck()
-    car = _free_pose(0)
+    car = free_pose(0)
     corrections, car, heading = _feed(check, np.array([0.0, 0.0, 0.88]), 2.5, car, 0.8, 0.0, 0.0)
     assert len(corrections) == 1
     more, car, heading = _feed(check, np.array([0.0, 0.0, 0.88]), 4.0, car, 0.8, heading, 0.8)
     assert more == []
-    assert abs(_wrapped(heading - (car[2] - _free_pose(0)[2]))) <= 0.45
+    assert abs(_wrapped(heading - (car[2] - free_pose(0)[2]))) <= 0.45
 
 
 def test_an_estimate_that_mends_its_own_heading_is_left_alone() -> None:
     """The car drives straight; the estimate starts 0.6 rad off and turns back within half a
     second (its scans mending it): that is no missed turn, and nothing is corrected."""
     check = TurnCheck()
-    car = _free_pose(0)
+    car = free_pose(0)
     corrections, car, heading = _feed(check, np.zeros(3), 1.0, car, 0.0, 0.6, 0.0)
     more, _, _ = _feed(check, np.zeros(3), 0.5, car, 0.0, heading, -1.2)
     rest, _, _ = _feed(check, np.zeros(3), 3.0, car, 0.0, heading - 0.6, 0.0)
@@ -169,7 +159,7 @@ def test_a_keyframe_that_cannot_be_matched_does_not_restart_the_window() -> None
     in: the window judges the keyframes that matched, so the correction still comes within
     2.5 s (a window started again after the blank one would not be full before 3 s)."""
     check = TurnCheck()
-    car = _free_pose(0)
+    car = free_pose(0)
     twist = np.array([0.0, 0.0, 0.88])
     blank = np.full(LIDAR.angles.size, MAX_RANGE)
     corrections = []
@@ -190,7 +180,7 @@ def test_wheels_that_turn_a_pinned_car_do_not_turn_the_estimate() -> None:
     """The car stands, its wheels report a turn at 0.8 rad/s, the estimate (held by its scans)
     stays: the scans and the odometry disagree, so nothing is corrected."""
     check = TurnCheck()
-    corrections, _, _ = _feed(check, np.array([0.0, 0.0, 0.8]), 4.0, _free_pose(0), 0.0, 0.0, 0.0)
+    corrections, _, _ = _feed(check, np.array([0.0, 0.0, 0.8]), 4.0, free_pose(0), 0.0, 0.0, 0.0)
     assert corrections == []
 
 
@@ -198,7 +188,7 @@ def test_the_filter_turns_its_cloud_when_the_check_says_so() -> None:
     """The car turns in place and its odometry says so, but the cloud is put back unturned after
     every predict (as an old map's pull would hold it): by 2 s it lies 1.6 rad behind the car,
     and the filter's own turn check turns it, its estimate then within 0.25 rad of the car."""
-    pose = _free_pose(0)
+    pose = free_pose(0)
     pf = ParticleFilter(ENV.map, n_particles=300, params=ParticleFilterParams(), rng=1)
     pf.initialize(pose, spread=(0.02, 0.02, 0.01))
     twist = np.array([0.0, 0.0, 0.8])

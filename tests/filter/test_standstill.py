@@ -16,18 +16,7 @@ from mcl.filter.params import ParticleFilterParams
 from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.scan_continuity import compose
 from mcl.filter.standstill import Standstill, StandstillParams
-from racecar_sim.env import RacecarEnv
-
-ENV = RacecarEnv("basement_loop")
-LIDAR = ENV.lidar
-MOUNT = np.array([ENV.lidar_params.mount_offset, 0.0, 0.0])
-MAX_RANGE = ENV.lidar_params.max_range
-DT = 0.025
-
-
-def _free_pose(seed: int) -> np.ndarray:
-    ENV.reset(seed=seed)
-    return ENV.pose
+from tests.filter.loop_scans import DT, ENV, LIDAR, MAX_RANGE, MOUNT, free_pose
 
 
 def _run(poses: list[np.ndarray], twist: np.ndarray) -> Standstill:
@@ -44,7 +33,7 @@ def _run(poses: list[np.ndarray], twist: np.ndarray) -> Standstill:
 @given(st.integers(0, 10_000), st.floats(0.5, 2.0), st.floats(-1.0, 1.0))
 def test_a_car_that_drives_as_its_odometry_says_never_stands(seed, speed, omega) -> None:
     twist = np.array([speed, 0.0, omega])
-    poses = [_free_pose(seed)]
+    poses = [free_pose(seed)]
     for _ in range(40):  # 1 s: several comparisons of 0.2 m or 0.2 rad
         poses.append(compose(poses[-1], twist_to_odometry(twist, DT)))
     check = _run(poses, twist)
@@ -53,7 +42,7 @@ def test_a_car_that_drives_as_its_odometry_says_never_stands(seed, speed, omega)
 
 @pytest.mark.parametrize("seed", [0, 3, 7])
 def test_a_pinned_car_stands_after_three_comparisons(seed) -> None:
-    pose = _free_pose(seed)
+    pose = free_pose(seed)
     twist = np.array([1.0, 0.0, -0.5])  # the wheels push on and the steering is turned
     check = Standstill()
     check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE)
@@ -70,7 +59,7 @@ def test_a_pinned_car_stands_after_three_comparisons(seed) -> None:
 
 
 def test_the_check_lets_go_when_the_car_moves_again() -> None:
-    pose = _free_pose(5)
+    pose = free_pose(5)
     twist = np.array([1.0, 0.0, 0.0])
     poses = [pose] * 30 + [compose(pose, twist_to_odometry(twist, DT * k)) for k in range(1, 30)]
     check = Standstill()
@@ -100,7 +89,7 @@ def test_standstill_params_are_checked() -> None:
 
 def _pinned_drive(seed: int, seconds: float) -> RecordedDrive:
     """A car that stands at a free pose for ``seconds`` with its wheels reporting 1 m/s."""
-    pose = _free_pose(seed)
+    pose = free_pose(seed)
     n = int(round(seconds / DT)) + 1
     scan = LIDAR.true_ranges(pose).astype(np.float32)
     odom = np.tile(np.array([1.0, 0.0, 0.3], dtype=np.float32), (n, 1))
@@ -140,7 +129,7 @@ SPINNING = np.array([1.0, 0.0, 0.4])  # the wheels' twist while the car stands
 
 def _standing_filter(still: StandstillParams) -> ParticleFilter:
     """A filter on a car that stands while its wheels spin, once the check has found it."""
-    pose = _free_pose(6)
+    pose = free_pose(6)
     pf = ParticleFilter(ENV.map, 200, params=ParticleFilterParams(standstill=still), rng=4)
     pf.initialize(pose, spread=(0.05, 0.05, 0.02))
     for _ in range(100):
@@ -183,7 +172,7 @@ def test_a_searching_cloud_keeps_its_motion_noise_while_the_car_stands(hold_sear
 
 
 def test_take_back_is_given_once_and_only_when_asked_for() -> None:
-    pose = _free_pose(6)
+    pose = free_pose(6)
     twist = np.array([1.0, 0.0, 0.4])
     for params, wanted in ((StandstillParams(), True), (StandstillParams(take_back=False), False)):
         check = Standstill(params)
@@ -197,7 +186,7 @@ def test_take_back_is_given_once_and_only_when_asked_for() -> None:
 
 
 def test_nothing_is_taken_back_to_an_estimate_from_before_the_cloud_was_replaced() -> None:
-    pose = _free_pose(6)
+    pose = free_pose(6)
     twist = np.array([1.0, 0.0, 0.4])
     check = Standstill()
     check.observe(LIDAR.true_ranges(pose), LIDAR.angles, MOUNT, MAX_RANGE, pose)
@@ -213,7 +202,7 @@ def test_nothing_is_taken_back_to_an_estimate_from_before_the_cloud_was_replaced
 
 
 def test_take_back_returns_the_estimate_where_the_comparisons_began() -> None:
-    pose = _free_pose(8)
+    pose = free_pose(8)
     twist = np.array([1.0, 0.0, -0.5])
     check = Standstill()
     estimate = pose.copy()
@@ -236,7 +225,7 @@ def _pivoting_drive(seed: int, seconds: float, rate: float = 0.12) -> RecordedDr
     """A car pinned at one corner that pivots on the spot at ``rate`` rad/s while its wheels
     report 0.6 m/s backwards and 0.8 rad/s (cluttered seed 18 of the honest world at 18-22 s:
     0.12 rad/s)."""
-    pose = _free_pose(seed)
+    pose = free_pose(seed)
     n = int(round(seconds / DT)) + 1
     truth = np.tile(pose, (n, 1))
     truth[:, 2] = pose[2] + rate * DT * np.arange(n)
