@@ -4,7 +4,10 @@ Workload: the car follows the right wall for 60 s in a world that is not the fil
 Stata floor as edited later, ``basement_fixed_aligned.yaml``, against ``stata_basement.yaml``),
 seeds 0..N-1 (``--seeds``), in three worlds ([WORLDS][mcl.bench.amcl_bench.WORLDS]): the honest
 world (``mit_racecar`` lidar and odometry) with the ``cluttered`` scene and with the ``clean``
-one, and the ideal world (the simulator's own sensor settings, no scene). Each drive is recorded
+one, and the ideal world (the simulator's own sensor settings, no scene); and on request the two
+honest worlds with a kidnap (``cluttered_kidnap``, ``clean_kidnap``: at 10 s the car is carried to
+a random free pose at least 2 m away without telling the filters, the kidnap `racecar-sim
+lost-flag` makes in its kidnap drive of the same seed). Each drive is recorded
 once ([record_drive][mcl.experiments.recorded.record_drive]) and fed to our filter (default
 [LocalizationConfig][mcl.wrappers.localization.LocalizationConfig], through
 [localize_recorded][mcl.experiments.recorded.localize_recorded]) and to amcl twice
@@ -12,8 +15,10 @@ once ([record_drive][mcl.experiments.recorded.record_drive]) and fed to our filt
 alpha_fast 0.1). All three start around the true start pose (standard deviations 0.25 m, 0.25 m,
 0.1 rad).
 
-Per seed: mean position error and the percentage of the time it exceeds 1 m; per world and
-filter: the median of the means and the runs lost (more than 2 % of the time over 1 m). Printed as
+Per seed: mean position error and the percentage of the time it exceeds 1 m (in a kidnap world,
+the seconds from the kidnap until the error is under 0.5 m for 2 s); per world and filter: the
+median of the means and the runs lost (more than 2 % of the time over 1 m), and in the kidnap
+worlds how many kidnapped cars each filter found within 15 s. Printed as
 markdown and written to ``--out`` (``amcl_results.csv``, ``amcl_results.md``; recorded drives are
 kept in ``--out/drives`` and reused when the same drive is asked again; the rows already in
 ``amcl_results.csv`` are kept and a filter runs on a drive only when its row of that world and
@@ -30,6 +35,7 @@ does the same; a rerun cut short continues when called again without ``--amcl-re
 from __future__ import annotations
 
 import csv
+import math
 import statistics
 import time
 from collections.abc import Callable, Sequence
@@ -40,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from mcl.bench import shared_dir
+from mcl.experiments.lost_flag import time_to_find
 from mcl.experiments.recorded import LocalizedRun, RecordedDrive, localize_recorded, record_drive
 from mcl.wrappers.localization import LocalizationConfig
 
@@ -59,23 +66,36 @@ __all__ = [
 
 LOST_SHARE = 0.02
 """A run is lost when its error exceeds 1 m more than this share of the time."""
+KIDNAP_AT = 10.0
+"""Seconds after the reset at which the kidnap worlds' car is carried away (as `lost-flag`'s)."""
+FOUND_WITHIN_S = 15.0
+"""A kidnapped car counts as found when the error is under 0.5 m for ``FOUND_HOLD_S`` within this
+many seconds of the kidnap (the lost flag's target)."""
+FOUND_HOLD_S = 2.0
+"""Seconds the error must stay under 0.5 m for a kidnapped car to count as found (as `lost-flag`)."""
 FILTERS: tuple[str, ...] = ("ours", "amcl", "amcl_recovery")
 """The filters compared: our default filter, amcl with nav2's defaults, amcl with recovery on."""
 
 
 @dataclass(frozen=True)
 class World:
-    """Where the drives happen: the world map (a ``../shared/maps`` file), scene, noise profile."""
+    """Where the drives happen: the world map (a ``../shared/maps`` file), scene, noise profile,
+    and the seconds after the reset at which the car is kidnapped (None: never; the kidnap of
+    `racecar-sim lost-flag`'s drive of the same seed,
+    [record_drive][mcl.experiments.recorded.record_drive]'s ``kidnap_at``)."""
 
     world_map: str
     scene: str | None
     noise_profile: str | None
+    kidnap_at: float | None = None
 
 
 WORLDS: dict[str, World] = {
     "cluttered": World("basement_fixed_aligned.yaml", "cluttered", "mit_racecar"),
     "clean": World("basement_fixed_aligned.yaml", "clean", "mit_racecar"),
     "ideal": World("basement_fixed_aligned.yaml", None, None),
+    "cluttered_kidnap": World("basement_fixed_aligned.yaml", "cluttered", "mit_racecar", KIDNAP_AT),
+    "clean_kidnap": World("basement_fixed_aligned.yaml", "clean", "mit_racecar", KIDNAP_AT),
 }
 """The worlds by name; the filters all hold ``stata_basement.yaml``."""
 FILTER_MAP = "stata_basement.yaml"
@@ -93,13 +113,16 @@ def lost(errors: np.ndarray) -> bool:
     return float(np.mean(np.asarray(errors) > 1.0)) > LOST_SHARE
 
 
-def _row(world: str, seed: int, name: str, run: LocalizedRun, cpu_s: float) -> dict[str, Any]:
+def _row(world: str, seed: int, name: str, run: LocalizedRun, cpu_s: float,
+         drive: RecordedDrive) -> dict[str, Any]:  # fmt: skip
     e = run.position_error
+    at = (drive.settings or {}).get("kidnap_at")
+    found = None if at is None else time_to_find(drive.time, e, at, FOUND_HOLD_S)
     return {
         "world": world, "seed": seed, "filter": name,
         "mean_error_m": float(e.mean()), "p95_error_m": float(np.percentile(e, 95)),
         "max_error_m": float(e.max()), "pct_over_1m": 100.0 * float(np.mean(e > 1.0)),
-        "lost": lost(e), "cpu_s": cpu_s,
+        "lost": lost(e), "cpu_s": cpu_s, "found_s": found,
     }  # fmt: skip
 
 
@@ -111,16 +134,15 @@ def _drive(out: Path, world: str, seed: int, duration: float, maps: Path) -> Rec
     if path.is_file():
         drive = RecordedDrive.load(path)
         s = drive.settings or {}
-        if (s.get("scene"), s.get("noise_profile"), s.get("seed"), s.get("duration")) == (
-            spec.scene,
-            spec.noise_profile,
-            seed,
-            duration,
-        ):
+        made = (s.get("scene"), s.get("noise_profile"), s.get("seed"), s.get("duration"))
+        if made == (spec.scene, spec.noise_profile, seed, duration) and (
+            s.get("kidnap_at") is None
+        ) == (spec.kidnap_at is None):
             return drive
     drive = record_drive(
         str(maps / spec.world_map), filter_map=str(maps / FILTER_MAP), scene=spec.scene,
         noise_profile=spec.noise_profile, driver="wall", seed=seed, duration=duration,
+        kidnap_at=spec.kidnap_at,
     )  # fmt: skip
     drive.save(path)
     return drive
@@ -189,12 +211,13 @@ def run_benchmark(
 
     rows: list[dict[str, Any]] = []
     waiting: list[tuple[str, int, list[str]]] = []
+    drives: dict[tuple[str, int, str], RecordedDrive] = {}  # amcl's runs waiting for their rows
 
     def collect() -> None:
         world, seed, names = waiting.pop(0)
         for name in names:
             run, cpu = peers[name].collect()
-            rows.append(_row(world, seed, name, run, cpu))
+            rows.append(_row(world, seed, name, run, cpu, drives.pop((world, seed, name))))
         _write(out, rows, seeds, duration, worlds, map_name)
         mine = {r["filter"]: r for r in rows if (r["world"], r["seed"]) == (world, seed)}
         echo(f"{world} seed {seed}: " + ", ".join(
@@ -218,10 +241,11 @@ def run_benchmark(
                 names = [n for n in todo if n in params]
                 for name in names:
                     peer(name).submit(calibrated(drive, config), seed, config.filter.init_spread)
+                    drives[world, seed, name] = drive
                 if "ours" in todo:
                     t0 = time.process_time()
                     ours = localize_recorded(drive, config, filter_map, seed)
-                    rows.append(_row(world, seed, "ours", ours, time.process_time() - t0))
+                    rows.append(_row(world, seed, "ours", ours, time.process_time() - t0, drive))
                 waiting.append((world, seed, names))
                 if len(waiting) > 1:  # amcl works on this drive while the next one is recorded
                     collect()
@@ -258,6 +282,8 @@ def read_rows(path: Path) -> list[dict[str, Any]]:
         r["lost"] = r["lost"] == "True"
         for key in ("mean_error_m", "p95_error_m", "max_error_m", "pct_over_1m", "cpu_s"):
             r[key] = float(r[key])
+        found = r.get("found_s") or None  # none for a drive without a kidnap (and older files)
+        r["found_s"] = None if found is None else float(found)
     return rows
 
 
@@ -271,16 +297,26 @@ def _write(out: Path, rows: list[dict[str, Any]], seeds: int, duration: float,
 
 
 def per_seed_md(rows: list[dict[str, Any]], world: str) -> str:
-    """The per-seed table of ``world``: mean error (m) and % of time over 1 m of each filter."""
-    head = "| seed | " + " | ".join(f"{n} mean (m) | {n} > 1 m (%)" for n in FILTERS) + " |"
+    """The per-seed table of ``world``: mean error (m) and % of time over 1 m of each filter; in a
+    kidnap world, mean error and seconds from the kidnap until the car was found ("never")."""
+    kidnap = WORLDS[world].kidnap_at is not None
+    second = "found after (s)" if kidnap else "> 1 m (%)"
+    head = "| seed | " + " | ".join(f"{n} mean (m) | {n} {second}" for n in FILTERS) + " |"
     lines = [head, "|" + "---|" * (1 + 2 * len(FILTERS))]
     by = {(r["seed"], r["filter"]): r for r in rows if r["world"] == world}
     for seed in sorted({s for s, _ in by}):
         cells = []
         for n in FILTERS:
             r = by.get((seed, n))
-            cells += ["–", "–"] if r is None else [f"{r['mean_error_m']:.3f}",
-                                                    f"{r['pct_over_1m']:.1f}"]  # fmt: skip
+            if r is None:
+                cells += ["–", "–"]
+                continue
+            if kidnap:
+                found = r["found_s"]
+                second = "never" if found is None or math.isnan(found) else f"{found:.2f}"
+            else:
+                second = f"{r['pct_over_1m']:.1f}"
+            cells += [f"{r['mean_error_m']:.3f}", second]
         lines.append(f"| {seed} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -305,6 +341,27 @@ def summary_md(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def kidnaps_md(rows: list[dict[str, Any]]) -> str:
+    """Per kidnap world and filter: kidnaps, how many were found within
+    [FOUND_WITHIN_S][mcl.bench.amcl_bench.FOUND_WITHIN_S] (error under 0.5 m for
+    [FOUND_HOLD_S][mcl.bench.amcl_bench.FOUND_HOLD_S]), and the median and longest time to find
+    of those; empty when ``rows`` hold no kidnap world."""
+    lines = [f"| world | filter | kidnaps | found within {FOUND_WITHIN_S:g} s | median time to "
+             "find (s) | longest (s) |", "|---|---|---|---|---|---|"]  # fmt: skip
+    for world in dict.fromkeys(r["world"] for r in rows):
+        if WORLDS[world].kidnap_at is None:
+            continue
+        for n in FILTERS:
+            times = [math.nan if r["found_s"] is None else r["found_s"]
+                     for r in rows if r["world"] == world and r["filter"] == n]  # fmt: skip
+            found = [t for t in times if t <= FOUND_WITHIN_S]  # NaN (never) compares False
+            if not times:
+                continue
+            middle = f"{statistics.median(found):.2f} | {max(found):.2f}" if found else "– | –"
+            lines.append(f"| {world} | {n} | {len(times)} | {len(found)}/{len(times)} | {middle} |")
+    return "\n".join(lines) if len(lines) > 2 else ""
+
+
 def results_md(rows: list[dict[str, Any]], seeds: int, duration: float,
                worlds: Sequence[str] | None = None, map_name: str = FILTER_MAP) -> str:  # fmt: skip
     """The whole report of seeds 0..``seeds``-1 in ``worlds`` (None: all), the filters holding
@@ -325,6 +382,9 @@ def results_md(rows: list[dict[str, Any]], seeds: int, duration: float,
         "",
         summary_md(rows),
     ]
+    kidnaps = kidnaps_md(rows)
+    if kidnaps:
+        parts += ["", f"## Kidnaps (the car carried away at {KIDNAP_AT:g} s)", "", kidnaps]
     for world in dict.fromkeys(r["world"] for r in rows):
         parts += ["", f"## {world}: per seed", "", per_seed_md(rows, world)]
     return "\n".join(parts) + "\n"

@@ -34,7 +34,7 @@ in `add_arguments()`. Every part prints its workload (particles, beams, range, t
 ratios from the same run.
 
     .venv/bin/python scripts/bench_peers.py [--map YAML] [--particles 4000] [--beams 100]
-        [--only rangelibc|spread|f1tenth|race|amcl] [--default-filter] [--seeds 20] [--amcl-worlds cluttered clean ideal] [--amcl-python PY] [--amcl-rerun ours] [--ours-filter KEY=VALUE] [--out DIR] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
+        [--only rangelibc|spread|f1tenth|race|amcl] [--default-filter] [--seeds 20] [--amcl-worlds cluttered clean ideal cluttered_kidnap clean_kidnap] [--amcl-python PY] [--amcl-rerun ours] [--ours-filter KEY=VALUE] [--out DIR] [--spread-particles 4000 10000] [--spread-rounds 8] [--spread-clock wall|cpu] [--global-rounds 3] [--race-cars 2 4 8 16] [--race-max-cars 32] [--f1tenth-python VENV/bin/python --f1tenth-path CHECKOUT]
         [--sim-steps 1000] [--sim-runs 5] [--num-envs 32]
 """
 
@@ -104,7 +104,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, default=20, help="drives per world (amcl part)")
     parser.add_argument(
         "--amcl-worlds", nargs="+", default=["cluttered", "clean", "ideal"],
-        choices=("cluttered", "clean", "ideal"), help="worlds of the amcl part",
+        choices=("cluttered", "clean", "ideal", "cluttered_kidnap", "clean_kidnap"),
+        help="worlds of the amcl part (the _kidnap ones: the car carried away at 10 s)",
     )  # fmt: skip
     parser.add_argument("--amcl-duration", type=float, default=60.0,
                         help="simulated seconds per drive (amcl part)")  # fmt: skip

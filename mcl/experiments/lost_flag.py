@@ -48,6 +48,7 @@ __all__ = [
     "kidnap_times",
     "run_lost_flag",
     "step_scores",
+    "time_to_find",
 ]
 
 BAD_M = 1.0
@@ -168,21 +169,26 @@ def kidnap_times(log: ErrorLog, kidnap_at: float, hold_s: float) -> tuple[float,
     """(seconds from the kidnap to the first lost step, seconds from the kidnap until the error is
     under [RECOVERED_M][mcl.experiments.lost_flag.RECOVERED_M] for ``hold_s`` or to the end);
     NaN for what never happened."""
-    t, err, lost = log.time, log.position_error, np.asarray(log.lost, dtype=np.bool_)
-    after = t > kidnap_at + 1e-9  # the row at kidnap_at is the step before the teleport
-    flagged = np.flatnonzero(after & lost)
+    t, lost = log.time, np.asarray(log.lost, dtype=np.bool_)
+    flagged = np.flatnonzero((t > kidnap_at + 1e-9) & lost)
     to_flag = float(t[flagged[0]] - kidnap_at) if flagged.size else math.nan
-    below = after & (err < RECOVERED_M)
+    return to_flag, time_to_find(t, log.position_error, kidnap_at, hold_s)
+
+
+def time_to_find(time: np.ndarray, error: np.ndarray, kidnap_at: float, hold_s: float) -> float:
+    """Seconds from ``kidnap_at`` until the position error (metres, one per step of ``time``,
+    seconds) is under [RECOVERED_M][mcl.experiments.lost_flag.RECOVERED_M] and stays there for
+    ``hold_s`` seconds or to the end of the drive; NaN when that never happens."""
+    t, err = np.asarray(time, dtype=np.float64), np.asarray(error, dtype=np.float64)
+    # the row at kidnap_at is the step before the teleport
+    idx = np.flatnonzero((t > kidnap_at + 1e-9) & (err < RECOVERED_M))
+    if not idx.size:
+        return math.nan
     # the last step of each run of steps below: a step counts when its run lasts hold_s or ends the log
-    to_recover = math.nan
-    idx = np.flatnonzero(below)
-    if idx.size:
-        breaks = np.flatnonzero(np.diff(idx) > 1)
-        starts, ends = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
-        ok = (t[ends] - t[starts] >= hold_s - 1e-9) | (ends == t.size - 1)
-        if ok.any():
-            to_recover = float(t[starts[np.argmax(ok)]] - kidnap_at)
-    return to_flag, to_recover
+    breaks = np.flatnonzero(np.diff(idx) > 1)
+    starts, ends = np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]
+    ok = (t[ends] - t[starts] >= hold_s - 1e-9) | (ends == t.size - 1)
+    return float(t[starts[np.argmax(ok)]] - kidnap_at) if ok.any() else math.nan
 
 
 def _ratio(a: int, b: int) -> str:

@@ -181,6 +181,7 @@ def record_drive(
     seed: int = 0,
     duration: float = 60.0,
     env: Mapping[str, Any] | None = None,
+    kidnap_at: float | None = None,
 ) -> RecordedDrive:
     """Drive ``world_map`` for ``duration`` simulated seconds and record it.
 
@@ -199,8 +200,15 @@ def record_drive(
         seed: the reset seed (start pose, sensor noise, obstacles).
         duration: simulated seconds.
         env: further [EnvConfig][racecar_sim.settings.config.EnvConfig] settings.
+        kidnap_at: seconds after the reset at which the car is carried to a random free pose at
+            least 2 m away, as `racecar-sim lost-flag` kidnaps it
+            ([KidnapScenario][mcl.experiments.scenarios.KidnapScenario], drawn from the
+            [scenario_rng][mcl.experiments.runs.scenario_rng] of ``seed``: the same kidnap as
+            that command's kidnap drive of this seed); None: no kidnap. The drive's
+            ``settings`` hold ``kidnap_at`` (None without a kidnap) and ``kidnap_to``.
     """
-    from mcl.experiments.runs import make_driver  # runs imports the wrapper; only needed here
+    from mcl.experiments.runs import make_driver, scenario_rng  # imports the wrapper: here only
+    from mcl.experiments.scenarios import KidnapScenario
 
     check_duration("record_drive", duration)
     settings: dict[str, Any] = {"terminate_on_collision": False, **dict(env or {})}
@@ -209,6 +217,8 @@ def record_drive(
     if scene is not None:
         settings["scene"] = scene
     sim = RacecarEnv(_map(str(world_map)), **settings)
+    kidnap = None if kidnap_at is None else KidnapScenario(kidnap_time=kidnap_at)
+    rng = scenario_rng(seed)
     try:
         drive_fn = make_driver(driver, sim, seed)
         obs, info = sim.reset(seed=seed)
@@ -225,7 +235,9 @@ def record_drive(
 
         keep(obs, info, 0.0, True)
         odom.append(np.zeros(3, dtype=np.asarray(obs["odom"]).dtype))
-        for _ in range(n):
+        for k in range(1, n + 1):
+            if kidnap is not None:
+                kidnap.before_step(sim, k, (k - 1) * sim.dt, rng)
             obs, _, terminated, truncated, info = sim.step(drive_fn(obs, info))
             keep(obs, info, float(sim.dt), bool(info.get("new_scan", True)))
             odom.append(np.array(obs["odom"]))
@@ -246,7 +258,9 @@ def record_drive(
             world_map=str(world_map),
             filter_map=None if filter_map is None else str(filter_map),
             settings={"driver": driver, "seed": seed, "duration": duration, "scene": scene,
-                      "noise_profile": noise_profile, "env": _jsonable(dict(env or {}))},
+                      "noise_profile": noise_profile, "env": _jsonable(dict(env or {})),
+                      "kidnap_at": None if kidnap is None or not kidnap.kidnap_to else kidnap.kidnap_time,
+                      "kidnap_to": None if kidnap is None else kidnap.kidnap_to},
         )  # fmt: skip
     finally:
         sim.close()

@@ -45,6 +45,7 @@ __all__ = [
     "RunSpec",
     "make_driver",
     "run_one",
+    "scenario_rng",
 ]
 
 DRIVE_ON: tuple[str, ...] = ("truth", "estimate")
@@ -53,6 +54,13 @@ DRIVE_ON: tuple[str, ...] = ("truth", "estimate")
 _SCENARIO_STREAM = 2  # spawn index of the scenario's stream in the run seed's SeedSequence
 _WAYPOINT_SECONDS = 600.0  # simulated seconds the wall follower may take to close a loop
 _RUN_ENV_DEFAULTS: dict[str, Any] = {"terminate_on_collision": False}
+
+def scenario_rng(seed: int) -> np.random.Generator:
+    """The generator a run with reset seed ``seed`` gives its scenario (e.g. where a kidnap
+    carries the car): a stream of its own, spawned from ``seed``, so the env's and the filter's
+    draws are the same with and without a scenario."""
+    return np.random.default_rng(np.random.SeedSequence(seed).spawn(_SCENARIO_STREAM + 1)[-1])
+
 
 StepDriver = Callable[[Mapping[str, Any], Mapping[str, Any]], np.ndarray]
 """``driver(obs, info) -> action`` as used by `run_one()`."""
@@ -315,9 +323,7 @@ def run_one(
     driver = make_driver(spec.driver, env, spec.seed, spec.drive_on, dict(spec.driver_settings))
     scenario = make_scenario(spec.scenario, **dict(spec.scenario_settings))
     after_step = getattr(scenario, "after_step", None)
-    scenario_rng = np.random.default_rng(
-        np.random.SeedSequence(spec.seed).spawn(_SCENARIO_STREAM + 1)[-1]
-    )
+    rng = scenario_rng(spec.seed)
     filter_grid = grid if spec.filter_map is None else _load_map(spec.filter_map)
     wrapped = LocalizationWrapper(
         env,
@@ -345,7 +351,7 @@ def run_one(
         for k in steps:
             if k % trim_every == 0:
                 release_free_heap()  # pages the allocator keeps but nothing holds (heap.py)
-            scenario.before_step(wrapped, k, (k - 1) * env.dt, scenario_rng)
+            scenario.before_step(wrapped, k, (k - 1) * env.dt, rng)
             obs, _, terminated, truncated, info = wrapped.step(driver(obs, info))
             n_collisions += bool(info["collision"])
             if after_step is not None:

@@ -246,7 +246,7 @@ def test_results_survive_a_restart_and_the_report_covers_the_seeds_asked(tmp_pat
     rows = [
         {"world": w, "seed": s, "filter": f, "mean_error_m": 0.1 * (s + 1), "p95_error_m": 0.5,
          "max_error_m": 1.5, "pct_over_1m": 3.0 * s, "lost": amcl_bench.lost(
-             np.r_[np.zeros(100 - 3 * s), np.full(3 * s, 2.0)]), "cpu_s": 1.0}
+             np.r_[np.zeros(100 - 3 * s), np.full(3 * s, 2.0)]), "cpu_s": 1.0, "found_s": None}
         for w in ("ideal", "cluttered") for s in range(3) for f in amcl_bench.FILTERS
     ]  # fmt: skip
     amcl_bench._write(tmp_path, rows, 3, 60.0, ["ideal", "cluttered"])
@@ -259,6 +259,51 @@ def test_results_survive_a_restart_and_the_report_covers_the_seeds_asked(tmp_pat
     assert "\n| 1 | 0.200 |" in report and "\n| 2 | " not in report  # per-seed rows: 0, 1
 
 
+def test_the_kidnap_worlds_report_how_many_cars_each_filter_found_and_when(tmp_path):
+    # ours finds seeds 0 and 1 (3.0 s, 16.0 s: too late), amcl none; seed 2 found by both at 1 s
+    found = {("ours", 0): 3.0, ("ours", 1): 16.0, ("ours", 2): 1.0, ("amcl", 2): 1.0}
+    rows = [
+        {"world": "clean_kidnap", "seed": s, "filter": f, "mean_error_m": 5.0, "p95_error_m": 9.0,
+         "max_error_m": 9.0, "pct_over_1m": 50.0, "lost": True, "cpu_s": 1.0,
+         "found_s": found.get((f, s), math.nan)}
+        for s in range(3) for f in amcl_bench.FILTERS
+    ] + [{"world": "clean", "seed": 0, "filter": f, "mean_error_m": 0.05, "p95_error_m": 0.1,
+          "max_error_m": 0.2, "pct_over_1m": 0.0, "lost": False, "cpu_s": 1.0, "found_s": None}
+         for f in amcl_bench.FILTERS]  # fmt: skip
+    amcl_bench._write(tmp_path, rows, 3, 30.0, ["clean_kidnap", "clean"])
+    back = amcl_bench.read_rows(tmp_path / "amcl_results.csv")
+    assert [r["found_s"] for r in back if r["world"] == "clean"] == [None] * 3
+    assert math.isnan(next(r["found_s"] for r in back if (r["filter"], r["seed"]) == ("amcl", 0)))
+    report = amcl_bench.results_md(back, 3, 30.0, ["clean_kidnap", "clean"])
+    assert "| clean_kidnap | ours | 3 | 2/3 | 2.00 | 3.00 |" in report  # 1 s and 3 s; 16 s is late
+    assert "| clean_kidnap | amcl | 3 | 1/3 | 1.00 | 1.00 |" in report
+    assert "| clean_kidnap | amcl_recovery | 3 | 0/3 | – | – |" in report
+    assert "| clean | " not in report.split("## Kidnaps")[1].split("##")[0]  # no kidnap there
+    assert "\n| 1 | 5.000 | 16.00 | 5.000 | never | 5.000 | never |" in report
+    assert amcl_bench.kidnaps_md([r for r in back if r["world"] == "clean"]) == ""
+
+
+def test_a_results_file_from_before_the_kidnaps_reads_and_grows(tmp_path):
+    # the columns of a file written before found_s existed: its rows read as drives without a
+    # kidnap, and rows of a kidnap world can be written beside them
+    (tmp_path / "amcl_results.csv").write_text(
+        "world,seed,filter,mean_error_m,p95_error_m,max_error_m,pct_over_1m,lost,cpu_s\n"
+        "clean,0,ours,0.05,0.1,0.2,0.0,False,1.0\n"
+    )
+    old = amcl_bench.read_rows(tmp_path / "amcl_results.csv")
+    assert old[0]["found_s"] is None
+    new = {**old[0], "world": "clean_kidnap", "found_s": 4.5}
+    amcl_bench._write(tmp_path, [*old, new], 1, 30.0, ["clean", "clean_kidnap"])
+    assert [r["found_s"] for r in amcl_bench.read_rows(tmp_path / "amcl_results.csv")] == [None, 4.5]
+
+
+def test_the_command_line_offers_every_world_of_the_benchmark():
+    for world in amcl_bench.WORLDS:
+        assert peers_args(["--amcl-worlds", world]).amcl_worlds == [world]
+    with pytest.raises(SystemExit):
+        peers_args(["--amcl-worlds", "kidnap"])
+
+
 def test_rerun_of_ours_keeps_amcls_rows_and_the_recorded_drive(tmp_path):
     """Rows are kept per world, seed and filter: ``rerun=["ours"]`` or deleting ours' row runs
     ours alone on the drive recorded before; amcl's (planted) rows stay and amcl never starts
@@ -267,7 +312,7 @@ def test_rerun_of_ours_keeps_amcls_rows_and_the_recorded_drive(tmp_path):
     out, no_amcl = tmp_path / "amcl", "/nonexistent/amcl-python"
     planted = [
         {"world": "clean", "seed": 0, "filter": f, "mean_error_m": 7.0, "p95_error_m": 7.0,
-         "max_error_m": 7.0, "pct_over_1m": 100.0, "lost": True, "cpu_s": 1.0}
+         "max_error_m": 7.0, "pct_over_1m": 100.0, "lost": True, "cpu_s": 1.0, "found_s": None}
         for f in amcl_bench.FILTERS
     ]  # fmt: skip
     out.mkdir()
@@ -307,7 +352,7 @@ def test_rows_made_on_one_map_are_never_mixed_with_another_maps(tmp_path):
     no_amcl = "/nonexistent/amcl-python"
     planted = [
         {"world": "clean", "seed": 0, "filter": f, "mean_error_m": 7.0, "p95_error_m": 7.0,
-         "max_error_m": 7.0, "pct_over_1m": 100.0, "lost": True, "cpu_s": 1.0}
+         "max_error_m": 7.0, "pct_over_1m": 100.0, "lost": True, "cpu_s": 1.0, "found_s": None}
         for f in amcl_bench.FILTERS
     ]  # fmt: skip
     default_rows, other_rows = tmp_path / "default", tmp_path / "other"

@@ -116,3 +116,25 @@ def _fields(drive: RecordedDrive) -> dict:
     names = ("time", "dt_steps", "truth", "odom", "fresh", "scans", "beam_angles", "mount_offset",
              "max_range", "dt", "world_map", "filter_map", "settings")  # fmt: skip
     return {n: getattr(drive, n) for n in names}
+
+
+def test_a_recorded_kidnap_is_the_kidnap_of_the_run_with_that_seed(tmp_path):
+    """``record_drive(kidnap_at=...)`` carries the car once, at that time, at least 2 m, to the
+    pose the kidnap scenario of a run with the same seed draws (`racecar-sim lost-flag`'s)."""
+    from mcl.experiments.runs import RunSpec, run_one
+
+    drive = record_drive("basement_loop", seed=3, duration=2.0, kidnap_at=1.0)
+    steps = np.linalg.norm(np.diff(drive.truth[:, :2], axis=0), axis=1)
+    jumps = np.flatnonzero(steps > 1.0)  # the car moves centimetres a step on its own
+    assert jumps.size == 1 and steps[jumps[0]] >= 2.0
+    assert drive.time[jumps[0]] == pytest.approx(1.0, abs=drive.dt)
+    assert drive.settings["kidnap_at"] == pytest.approx(1.0, abs=drive.dt)
+    np.testing.assert_allclose(drive.truth[jumps[0] + 1, :2], drive.settings["kidnap_to"][:2], atol=0.1)
+    spec = RunSpec(map="basement_loop", scenario="kidnap", seed=3, duration=1.5, n_particles=100,
+                   scenario_settings=(("kidnap_time", 1.0),))  # fmt: skip
+    run = run_one(spec, tmp_path / "kidnap.csv")
+    assert run.outcome["kidnap_to"] == drive.settings["kidnap_to"]
+    # without a kidnap the settings say so, and no step jumps
+    plain = record_drive("basement_loop", seed=3, duration=2.0)
+    assert plain.settings["kidnap_at"] is None and plain.settings["kidnap_to"] is None
+    assert np.linalg.norm(np.diff(plain.truth[:, :2], axis=0), axis=1).max() < 1.0

@@ -12,7 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import racecar_sim  # noqa: F401  (registers RacecarSim-v0)
-from mcl.experiments.lost_flag import kidnap_times
+from mcl.experiments.lost_flag import kidnap_times, time_to_find
 from mcl.experiments.scenarios import KidnapScenario
 from mcl.filter.lost import scan_agreement
 from mcl.filter.lost_params import LostParams
@@ -220,6 +220,25 @@ def test_kidnap_times_from_a_log_made_by_hand(tmp_path) -> None:
     to_flag, to_recover = kidnap_times(read_error_log(path), 5.0, hold_s=2.0)
     assert to_flag == pytest.approx(1.0)
     assert to_recover == pytest.approx(4.0)
+
+
+@given(st.integers(10, 300), st.integers(0, 200), st.integers(1, 200), st.integers(0, 300))
+def test_the_car_is_found_where_the_error_stays_under_half_a_metre_for_the_hold(
+    found_at: int, dip_at: int, dip_steps: int, tail: int
+) -> None:
+    # 0.1 s steps, kidnap at step 5; far off until found_at, then close to the end of the log;
+    # between, a dip under 0.5 m of dip_steps steps counts only when it lasts the 2 s hold
+    dt, hold, kidnap = 0.1, 2.0, 5
+    n = found_at + tail + 1
+    t = np.arange(n) * dt
+    err = np.where(np.arange(n) >= found_at, 0.1, 3.0)
+    dip = range(kidnap + 1 + dip_at, min(kidnap + 1 + dip_at + dip_steps, found_at))
+    err[list(dip)] = 0.2
+    expected = found_at * dt - kidnap * dt
+    if len(dip) and (dip.stop - dip.start - 1 >= round(hold / dt) or dip.stop == found_at):
+        expected = dip.start * dt - kidnap * dt  # the dip lasts the hold, or runs into the find
+    assert time_to_find(t, err, kidnap * dt, hold) == pytest.approx(expected)
+    assert math.isnan(time_to_find(t, np.full(n, 3.0), kidnap * dt, hold))
 
 
 # ---------------------------------------------------------------------- the wrappers
