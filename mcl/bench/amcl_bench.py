@@ -376,7 +376,10 @@ def results_md(rows: list[dict[str, Any]], seeds: int, duration: float,
         "start pose (sd 0.25 m, 0.25 m, 0.1 rad). ours: default LocalizationConfig; amcl: nav2 "
         "defaults, beam model (the bindings' only one); amcl_recovery: the same with "
         "recovery_alpha_slow 0.001, recovery_alpha_fast 0.1. cluttered / clean: mit_racecar "
-        "noise profile with that scene; ideal: no profile, no scene.",
+        "noise profile with that scene; ideal: no profile, no scene; cluttered_kidnap / "
+        f"clean_kidnap: as cluttered / clean, the car carried at {KIDNAP_AT:g} s to a random free "
+        "pose 2 m or more away (racecar-sim lost-flag's kidnap of the same seed), found when "
+        f"under 0.5 m for {FOUND_HOLD_S:g} s.",
         "",
         "## Summary",
         "",
