@@ -30,10 +30,10 @@ What the filter can see, measured once per used scan (no truth involved):
 - **A jump**: the scan no longer continues the previous one as the odometry says it should
   ([`mcl.filter.scan_continuity`][mcl.filter.scan_continuity]): fewer than ``jump_below`` of the
   previous scan's points are seen again where they should be, and within ``jump_confirm_s`` the
-  scan fit at the estimate falls under ``clear_above``. The car was carried away (a kidnap); a map
-  out of date does not cause it, as no map is involved, and people or furniture passing close to
-  the lidar cause a dip of the continuity but not of the fit. The flag
-  goes up at once and stays up while the fit says lost, or ``jump_hold_s`` seconds at least.
+  scan fit at the estimate falls under ``clear_above``. The car was carried away (a kidnap); an
+  out-of-date map does not cause it (no map is involved), and people passing close to the lidar
+  dip the continuity, not the fit. The flag goes up at once and stays up while the fit (averaged
+  from the jump on) says lost, or ``jump_hold_s`` seconds at least.
 
 Recovery (``recover``, or ``recover_after_jump`` after a jump): while the fit says lost, the filter is asked
 ([ParticleFilter.request_recovery][mcl.filter.particle_filter.ParticleFilter.request_recovery]) to
@@ -96,7 +96,6 @@ __all__ = ["LostDetector", "scan_agreement"]
 
 _MIN_MISFIT = 0.02
 """The smallest usual misfit the relative test assumes (a perfect record would flag any beam)."""
-
 
 
 class LostDetector:
@@ -357,12 +356,12 @@ class LostDetector:
         )
 
     def _check_jump(self, pf: ParticleFilter, scan: np.ndarray) -> None:
-        """Compare ``scan`` with the previous one (odometry fed since): a jump raises
-        ``jumped``. It falls once ``jump_hold_s`` passed, the fit does not say lost and its
-        average is back within ``jump_found_within`` of the usual fit before the jump (a wrong
-        place that fits a cluttered world fairly is searched on), or after ``jump_search_s``."""
-        p = self.params
-        sm = pf.sensor_model
+        """Compare ``scan`` with the previous one (odometry fed since): a jump raises ``jumped``
+        and starts the fit's average again from this scan's fit. It falls once ``jump_hold_s``
+        passed, the fit does not say lost and its average since is back within
+        ``jump_found_within`` of the usual fit before the jump (a wrong place that fits a
+        cluttered world fairly is searched on), or after ``jump_search_s``."""
+        p, sm = self.params, pf.sensor_model
         z = np.asarray(scan, dtype=np.float64).reshape(-1)
         if self._scans is None:
             mount = sm.lidar_poses(np.zeros((1, 3)))[0]
@@ -380,6 +379,8 @@ class LostDetector:
                 self._found_fit = usual - p.jump_found_within
             self.jumped = True
             self.jumps += 1
+            if math.isfinite(self.fit):  # the average speaks of where the car was carried to
+                self.smoothed_fit = self.fit
             self.confirmations.restart()
             self._raise_below = p.raise_below
             pf.moved_elsewhere()  # its window holds the jump: nothing to learn from

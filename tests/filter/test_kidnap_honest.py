@@ -7,9 +7,9 @@ out-of-date ``stata_basement.yaml``, the ``mit_racecar`` noise) of `racecar-sim 
   resamples plainly settles on a place that fits the scan well under the car's usual fit and,
   undecided, would track it on; started again, it finds the car; keeping its rival places, it
   finds the car without starting again;
-- cluttered kidnap seed 14: the car's place fits the scans (0.91 of the beams), but a search
-  that resamples plainly never holds a pose near it (its first scans gather it on look-alikes);
-  keeping its places and tempering its scans, it finds the car;
+- cluttered kidnap seed 2: a search that resamples plainly settles on places that fit worse
+  than the filter's and starts again, four times; keeping its places and tempering its scans, it
+  settles on the car's place at once;
 - clean kidnap seed 7: the car stands after the kidnap, and the search's weight hops between the
   car's place and one 15 m away every 0.6-1 s; settled for half a second, the search is compared
   with the filter before it hops, and the filter takes the car's place;
@@ -103,9 +103,11 @@ def test_without_the_restart_a_plain_search_tracks_the_look_alike_on(tmp_path) -
     assert math.isnan(_recovered_after(tmp_path, {"lost": {**never, **PLAIN_SEARCH}}, "cluttered", 5))
 
 
-def test_a_search_that_keeps_its_places_finds_the_car_a_plain_one_never_draws_near(tmp_path) -> None:
-    assert _recovered_after(tmp_path, None, "cluttered", 14) <= 15.0  # 9.5 s where measured (5.7 s settled 1 s)
-    assert math.isnan(_recovered_after(tmp_path, {"lost": PLAIN_SEARCH}, "cluttered", 14))
+def test_a_search_that_keeps_its_places_finds_the_car_sooner_than_a_plain_one(tmp_path) -> None:
+    # found 2.2 s after the kidnap where measured; resampling plainly, 14.1 s after (the four
+    # searches before settled on places that fit worse)
+    assert _recovered_after(tmp_path, None, "cluttered", 2) <= 5.0
+    assert not _recovered_after(tmp_path, {"lost": PLAIN_SEARCH}, "cluttered", 2) <= 10.0  # NaN too
 
 
 def test_a_search_compared_after_half_a_second_finds_a_car_it_would_hop_away_from(tmp_path) -> None:
@@ -160,3 +162,16 @@ def test_a_confirmed_place_is_judged_by_its_own_fit(tmp_path) -> None:
     found = log.time > 12.0
     assert float(np.max(log.position_error[found])) < 0.5
     assert not np.any(np.asarray(log.lost, dtype=np.bool_)[found])
+
+
+def test_the_flag_stays_up_over_a_kidnapped_car_until_a_place_fits(tmp_path) -> None:
+    # cluttered kidnap 14: the car usually explains 0.71 of the beams; at the kidnap the fit at
+    # the estimate falls to 0.24. Had its average carried on from before the jump (0.96), it would
+    # have been back over the bar the found car must reach (0.61) 0.27 s after the jump, and the
+    # flag would have come down over an estimate 38 m off; restarted at the jump, it speaks only
+    # of the place the car was carried to, and the flag stays up while no place fits
+    log = _kidnap_log(tmp_path, None, "cluttered", 14, after_kidnap=4.0)
+    after = (log.time > 10.1) & (log.time < 14.0)
+    far = after & (log.position_error > 5.0)
+    assert far.sum() > 100  # the search has not found the car yet
+    assert np.asarray(log.lost, dtype=np.bool_)[far].all()
