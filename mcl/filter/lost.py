@@ -30,10 +30,9 @@ What the filter can see, measured once per used scan (no truth involved):
 - **A jump**: the scan no longer continues the previous one as the odometry says it should
   ([`mcl.filter.scan_continuity`][mcl.filter.scan_continuity]): fewer than ``jump_below`` of the
   previous scan's points are seen again where they should be, and within ``jump_confirm_s`` the
-  scan fit at the estimate falls under ``clear_above``. The car was carried away (a kidnap); an
-  out-of-date map does not cause it (no map is involved), and people passing close to the lidar
-  dip the continuity, not the fit. The flag goes up at once and stays up while the fit (averaged
-  from the jump on) says lost, or ``jump_hold_s`` seconds at least.
+  scan fit at the estimate falls under ``clear_above``: a kidnap (no map involved; people close to
+  the lidar dip the continuity, not the fit). The flag goes up at once and stays up while the fit
+  (averaged from the jump on) says lost, or ``jump_hold_s`` seconds at least.
 
 Recovery (``recover``, or ``recover_after_jump`` after a jump): while the fit says lost, the filter is asked
 ([ParticleFilter.request_recovery][mcl.filter.particle_filter.ParticleFilter.request_recovery]) to
