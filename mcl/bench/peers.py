@@ -263,6 +263,12 @@ def amcl_part(args: argparse.Namespace) -> int:
     from mcl.wrappers.localization import as_localization_config, dotted_settings
 
     print("== localization vs nav2 amcl, the same recorded drives ==")
+    kidnaps = [w for w in args.amcl_worlds if amcl_bench.WORLDS[w].kidnap_at is not None]
+    if kidnaps and not args.amcl_duration > amcl_bench.KIDNAP_AT:
+        print(f"racecar-sim bench peers: --amcl-duration {args.amcl_duration:g}: the kidnap "
+              f"worlds ({', '.join(kidnaps)}) carry the car away at {amcl_bench.KIDNAP_AT:g} s; "
+              "give more seconds than that", file=sys.stderr)  # fmt: skip
+        return 2
     try:
         config = as_localization_config(dotted_settings(args.ours_filter))
     except (TypeError, ValueError) as exc:

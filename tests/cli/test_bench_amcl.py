@@ -304,6 +304,16 @@ def test_the_command_line_offers_every_world_of_the_benchmark():
         peers_args(["--amcl-worlds", "kidnap"])
 
 
+def test_a_drive_too_short_for_the_kidnap_is_refused_naming_the_flag(tmp_path, capsys):
+    out = tmp_path / "amcl"
+    args = ["--only", "amcl", "--out", str(out), "--amcl-worlds", "clean", "clean_kidnap",
+            "--amcl-duration", "10"]  # fmt: skip
+    assert peers.amcl_part(peers_args(args)) == 2
+    err = capsys.readouterr().err
+    assert "--amcl-duration 10" in err and "clean_kidnap" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
 def test_rerun_of_ours_keeps_amcls_rows_and_the_recorded_drive(tmp_path):
     """Rows are kept per world, seed and filter: ``rerun=["ours"]`` or deleting ours' row runs
     ours alone on the drive recorded before; amcl's (planted) rows stay and amcl never starts
