@@ -69,9 +69,10 @@ def _cumulative(weights: np.ndarray) -> np.ndarray:
 
 
 def _pick(cdf: np.ndarray, pointers: np.ndarray) -> np.ndarray:
-    """Index of the first bin whose cumulative weight exceeds each pointer in [0, 1)."""
+    """Index of the first bin whose cumulative weight exceeds each pointer in [0, 1), at most the
+    first bin that reaches the end (a pointer that rounds up to 1 draws no empty bin)."""
     idx = np.searchsorted(cdf, pointers, side="right")
-    return np.minimum(idx, cdf.size - 1)
+    return np.minimum(idx, np.searchsorted(cdf, cdf[-1]))
 
 
 def _count(weights: np.ndarray, n: int | None) -> int:

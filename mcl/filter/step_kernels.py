@@ -308,13 +308,14 @@ def exp_shifted_into(values, shift, out):
 @nb.njit(cache=True)
 def systematic_pick(cdf, offset, n):
     """(n,) int64 indexes: for pointers ``(offset + k) / n`` the first bin whose cumulative
-    weight ``cdf`` (ascending, ending at 1) exceeds the pointer, at most ``len(cdf) - 1``.
+    weight ``cdf`` (ascending, ending at 1) exceeds the pointer, at most the first bin that
+    reaches the end (the last with weight: a pointer that rounds up to 1 draws no empty bin).
 
     The pointers are ascending, so one merge over both is enough (what ``np.searchsorted(cdf,
     pointers, side="right")`` answers, without its binary searches).
     """
     out = np.empty(n, dtype=np.int64)
-    last = cdf.shape[0] - 1
+    last = np.searchsorted(cdf, cdf[cdf.shape[0] - 1])  # the first bin at the end
     j = 0
     for k in range(n):
         ptr = (offset + k) / n
@@ -430,12 +431,15 @@ def systematic_resample(particles, weights, offset, n):
         while e < n and pointers[e] < c:
             e += 1
         starts[e] += 1
+    top = m - 1  # the last bin with weight: a pointer rounded up to 1 draws no empty bin
+    while top > 0 and cdf[top - 1] >= 1.0:
+        top -= 1
     idx = np.empty(n, dtype=np.int64)
     drawn = np.empty((n, 3))
     below = 0
     for k in range(n):
         below += starts[k]
-        j = min(below, m - 1)
+        j = min(below, top)
         idx[k] = j
         drawn[k, 0] = particles[j, 0]
         drawn[k, 1] = particles[j, 1]

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
@@ -47,16 +47,19 @@ def test_wrap_is_wrap_angle_bit_for_bit(angles):
     offset=st.floats(0, 1, exclude_max=True),
     n=st.integers(1, 80),
 )
+@example(w=np.array([1.0, 0.0]), offset=0.9999999999999998, n=3)  # the last pointer rounds up to 1
 def test_systematic_pick_is_searchsorted(w, offset, n):
     """The merge gives what a binary search per pointer gives, including zero-weight bins (never
-    drawn) and pointers past the last bin (clipped)."""
+    drawn) and pointers that round up to the end (clipped to the last bin with weight)."""
     if w.sum() <= 0:
         w[0] = 1.0
     cdf = np.cumsum(w / w.sum())
     cdf /= cdf[-1]
     pointers = (offset + np.arange(n)) / n
-    want = np.minimum(np.searchsorted(cdf, pointers, side="right"), cdf.size - 1)
-    assert np.array_equal(systematic_pick(cdf, offset, n), want)
+    want = np.minimum(np.searchsorted(cdf, pointers, side="right"), np.searchsorted(cdf, 1.0))
+    got = systematic_pick(cdf, offset, n)
+    assert np.array_equal(got, want)
+    assert (w[got] > 0).all()
 
 
 @settings(max_examples=50, deadline=None)
@@ -234,6 +237,8 @@ def test_pose_moments_are_the_plain_loop_bit_for_bit(p, copies, raw, wrapped):
     offset=st.floats(0, 1, exclude_max=True),
     n=st.integers(1, 90),
 )
+# the last pointer, (offset + 2) / 3, rounds up to 1: clipped to the last bin, it drew the empty one
+@example(counts=np.array([1, 0]), offset=0.9999999999999998, n=3)
 def test_systematic_resample_is_numpy_systematic(counts, offset, n):
     """Integer weights, whose sums are exact in any order: the same indexes as numpy's
     cumulative sum and binary search, and the particles copied from them."""
@@ -244,7 +249,7 @@ def test_systematic_resample_is_numpy_systematic(counts, offset, n):
     cdf = np.cumsum(w / w.sum())
     cdf /= cdf[-1]
     pointers = (offset + np.arange(n)) / n
-    want = np.minimum(np.searchsorted(cdf, pointers, side="right"), cdf.size - 1)
+    want = np.minimum(np.searchsorted(cdf, pointers, side="right"), np.searchsorted(cdf, 1.0))
     idx, drawn = systematic_resample(particles, w, offset, n)
     assert np.array_equal(idx, want)
     assert np.array_equal(drawn, particles[want])
