@@ -210,14 +210,13 @@ def run_benchmark(
         return peers[name]
 
     rows: list[dict[str, Any]] = []
-    waiting: list[tuple[str, int, list[str]]] = []
-    drives: dict[tuple[str, int, str], RecordedDrive] = {}  # amcl's runs waiting for their rows
+    waiting: list[tuple[str, int, list[str], RecordedDrive]] = []
 
     def collect() -> None:
-        world, seed, names = waiting.pop(0)
+        world, seed, names, drive = waiting.pop(0)
         for name in names:
             run, cpu = peers[name].collect()
-            rows.append(_row(world, seed, name, run, cpu, drives.pop((world, seed, name))))
+            rows.append(_row(world, seed, name, run, cpu, drive))
         _write(out, rows, seeds, duration, worlds, map_name)
         mine = {r["filter"]: r for r in rows if (r["world"], r["seed"]) == (world, seed)}
         echo(f"{world} seed {seed}: " + ", ".join(
@@ -241,12 +240,11 @@ def run_benchmark(
                 names = [n for n in todo if n in params]
                 for name in names:
                     peer(name).submit(calibrated(drive, config), seed, config.filter.init_spread)
-                    drives[world, seed, name] = drive
                 if "ours" in todo:
                     t0 = time.process_time()
                     ours = localize_recorded(drive, config, filter_map, seed)
                     rows.append(_row(world, seed, "ours", ours, time.process_time() - t0, drive))
-                waiting.append((world, seed, names))
+                waiting.append((world, seed, names, drive))
                 if len(waiting) > 1:  # amcl works on this drive while the next one is recorded
                     collect()
         while waiting:
