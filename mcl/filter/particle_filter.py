@@ -221,12 +221,13 @@ class ParticleFilter(ScanChecks, GlobalRecovery):
         self.standstill.advance(scale.scaled(twist), dt)  # as the filter would move
         if self.standstill.slipping:
             twist = self.standstill.scaled(twist)
-        scale.observe(twist, dt)
-        self.turn_check.advance(scale.scaled(twist), dt)
+        scale.observe(twist, dt)  # accounts the raw twist; the scale changes only with a scan
+        moved = scale.scaled(twist)
+        self.turn_check.advance(moved, dt)
         still = self.standstill.params
         if still.hold_still and self.standstill.standing and (still.hold_searching or not self.searching):
             return  # a car that stands: nothing moved, no motion to be unsure of
-        self.move(twist_to_odometry(scale.scaled(twist).tolist(), dt))
+        self.move(twist_to_odometry(moved.tolist(), dt))
 
     def move(self, odometry: np.ndarray) -> None:
         """Move the particles by a car-frame displacement [dx, dy, dtheta] (metres, radians)."""
