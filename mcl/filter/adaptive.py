@@ -110,7 +110,9 @@ class AdaptiveParticleFilter(ParticleFilter):
     """A particle filter that searches, then tracks (module docstring).
 
     Takes the arguments of [`ParticleFilter`][mcl.filter.particle_filter.ParticleFilter] plus ``adaptive``
-    (`AdaptiveParams`). The given ``params`` describe the tracking filter's resampling,
+    (`AdaptiveParams`). Its `correct()` is the plain filter's with the current mode's squash and
+    scan spacing (the scan also goes to the standstill check and the learned odometry scale, and a
+    recovery burst is weighed and shrunk back, as there). The given ``params`` describe the tracking filter's resampling,
     KLD-sampling (its ``max_particles`` bounds the search too) and augmented MCL; the sensor
     model's ``squash_exponent`` is the tracking squash.
 
@@ -199,33 +201,24 @@ class AdaptiveParticleFilter(ParticleFilter):
             self._set_mode(False)
 
     # ------------------------------------------------------------------ update
-    def correct(self, scan: np.ndarray) -> bool:
-        """`ParticleFilter.correct()` with the current mode's squash and scan spacing (the scan
-        also goes to the standstill check and the learned odometry scale, as there)."""
-        self._require()
-        self._check_scans(scan)
+    def _takes_scan(self) -> bool:
+        """Decide the mode from the cloud, then whether this scan is used: every scan while
+        tracking; while searching one per ``search_min_distance`` / ``search_min_angle`` of
+        motion, or after ``search_max_skipped`` skipped ones (module docstring)."""
         if self.n_updates > 0:
             self._update_mode()
         use = self.should_correct() or (
             not self.tracking and self._skipped_in_row >= self.adaptive.search_max_skipped
         )
-        if not use:
-            self.n_skipped += 1
-            self._skipped_in_row += 1
-            return False
-        self._skipped_in_row = 0
-        n_beams = self.sensor_model.observe(scan)[1].size  # checks the scan before any change
-        self._moved = [0.0, 0.0]
-        self.last_injected = 0
-        self._join_pending_random()
+        self._skipped_in_row = 0 if use else self._skipped_in_row + 1
+        return use
+
+    def _scan_log_likelihoods(self, scan: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """The scan's log-likelihoods at the current mode's squash (`squash`), the wide search
+        hit while the cloud searches; the same array weighs the cloud and feeds the averages."""
         squash = self.squash
         factor = squash / float(self.sensor_model.params.squash_exponent)
-        self.update_weights(
+        log_likelihood = (
             self.sensor_model.log_evaluate(self.particles, scan, self.is_searching()) * factor
         )
-        self.averages.update(self.last_log_mean_likelihood, int(n_beams), squash)
-        resampled = self.needs_resampling()
-        if resampled:
-            self.resample()
-        self._confirm_scale(scan)
-        return resampled
+        return log_likelihood, log_likelihood, squash

@@ -339,7 +339,7 @@ class ParticleFilter(ScanChecks, GlobalRecovery):
         """
         self._require()
         self._check_scans(scan)
-        if not self.should_correct():
+        if not self._takes_scan():
             self.n_skipped += 1
             return False
         n_beams = self.sensor_model.observe(scan)[1].size  # checks the scan before any change
@@ -347,9 +347,8 @@ class ParticleFilter(ScanChecks, GlobalRecovery):
         shrink_to, self._shrink_to = self._shrink_to, None
         self._before_burst = None if shrink_to is None else (*self._require(), shrink_to)
         self._join_pending_random()
-        self.searching = self.is_searching()
         # averages (augmented MCL) follow the model's own; weights: search hit or beam bound
-        own, weighing = self.sensor_model.weigh(self.particles, scan, self.searching)
+        own, weighing, squash = self._scan_log_likelihoods(scan)
         if weighing is own:
             self.update_weights(own)
         else:
@@ -363,13 +362,26 @@ class ParticleFilter(ScanChecks, GlobalRecovery):
             self.resample(None if self.params.kld.enabled else shrink_to)
             self._confirm_scale(scan)
             return True
-        squash = float(self.sensor_model.params.squash_exponent)
         self.averages.update(self.last_log_mean_likelihood, int(n_beams), squash)
         resampled = self.needs_resampling()
         if resampled:
             self.resample()
         self._confirm_scale(scan)
         return resampled
+
+    def _takes_scan(self) -> bool:
+        """Whether `correct()` weighs the scan it was given (else it counts it skipped):
+        `should_correct()`."""
+        return self.should_correct()
+
+    def _scan_log_likelihoods(self, scan: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """(own, weighing, squash) for `correct()`: the (N,) log-likelihoods the averages
+        follow and those the cloud is weighed by
+        ([SensorModel.weigh][mcl.filter.sensor_model.SensorModel.weigh], the search hit while
+        `is_searching()`), and the squash exponent they were computed with."""
+        self.searching = self.is_searching()
+        own, weighing = self.sensor_model.weigh(self.particles, scan, self.searching)
+        return own, weighing, float(self.sensor_model.params.squash_exponent)
 
     def update(self, twist: np.ndarray, dt: float, scan: np.ndarray | None) -> np.ndarray:
         """``predict``, then ``correct`` when a scan is given, then return ``estimate()``."""

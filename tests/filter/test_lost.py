@@ -341,6 +341,32 @@ def test_a_local_burst_joins_the_next_correction_and_shrinks_back_or_is_undone()
     assert pf.n_particles == 500 and np.hypot(*(pf.estimate()[:2] - wrong[:2])) < 0.1
 
 
+def test_the_adaptive_filter_weighs_a_burst_shrinks_back_and_can_undo_it() -> None:
+    """The searching-then-tracking filter of the replays corrects as the plain one does: a burst
+    joins, the cloud is resampled back to its count, and the lost flag can take it back."""
+    from mcl.filter.adaptive import AdaptiveParams, AdaptiveParticleFilter
+    from mcl.filter.sensor_model import SensorModel
+
+    env = RacecarEnv("basement_loop", terminate_on_collision=False)
+    obs, info = env.reset(seed=1)
+    scan = np.asarray(obs["scan"], dtype=np.float64)
+    wrong = np.asarray(info["pose"], dtype=np.float64) + np.array([1.0, -0.6, 0.3])
+    pf = AdaptiveParticleFilter(
+        env.map, 500, sensor_model=SensorModel(env.map), rng=7, adaptive=AdaptiveParams()
+    )
+    pf.initialize(wrong, (0.02, 0.02, 0.01))
+    pf.correct(scan)
+    pf.correct(scan)  # the mode is decided before each scan after the first: a tight cloud tracks
+    assert pf.tracking and pf.n_particles == 500
+    pf.request_local_burst(3000, 1.5, 0.3)
+    pf.correct(scan)
+    assert pf.n_particles == 500  # weighed with the cloud, then resampled back to its count
+    prior = pf.burst_prior
+    assert prior is not None and prior[0].shape[0] == 500
+    pf.undo_burst()
+    assert pf.n_particles == 500 and np.hypot(*(pf.estimate()[:2] - wrong[:2])) < 0.1
+
+
 def test_local_bursts_find_a_car_the_cloud_lost_nearby_without_any_jump() -> None:
     """The cloud is moved 1.7 m and 0.5 rad off (no jump of the scans: the car itself does not
     move): the fit falls under local_below and bursts around the estimate find the car; with
