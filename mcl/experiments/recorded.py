@@ -12,8 +12,7 @@ code as [LocalizationWrapper][mcl.wrappers.single.LocalizationWrapper]
 flag's [LostDetector][mcl.filter.lost.LostDetector] advanced by it,
 ``mcl.wrappers.localization.correct_with_scan`` on a fresh scan, the detector observing it and
 asking for its recovery): with the same seed it gives the online run's estimates and lost flags
-bit for bit. A peer filter (nav2's amcl,
-``mcl.bench.peer_amcl``) gets the very same drives.
+bit for bit. A peer filter (nav2's amcl, ``mcl.bench.peer_amcl``) gets the very same drives.
 
 The drive does not depend on the filter: the wall follower steers by the scan and pure pursuit by
 the true pose, so recording without a filter drives the trajectory of the localized run.
@@ -103,10 +102,8 @@ class RecordedDrive:
         for name, shape in (("dt_steps", (n,)), ("truth", (n, 3)), ("odom", (n, 3)),
                             ("fresh", (n,))):  # fmt: skip
             if np.shape(getattr(self, name)) != shape:
-                raise ValueError(
-                    f"RecordedDrive.{name} has shape {np.shape(getattr(self, name))}, "
-                    f"expected {shape}"
-                )
+                got = np.shape(getattr(self, name))
+                raise ValueError(f"RecordedDrive.{name} has shape {got}, expected {shape}")
         n_fresh = int(np.count_nonzero(self.fresh))
         if np.shape(self.scans) != (n_fresh, len(self.beam_angles)):
             raise ValueError(
@@ -200,8 +197,8 @@ def record_drive(
         seed: the reset seed (start pose, sensor noise, obstacles).
         duration: simulated seconds.
         env: further [EnvConfig][racecar_sim.settings.config.EnvConfig] settings.
-        kidnap_at: seconds after the reset at which the car is carried to a random free pose at
-            least 2 m away, as `racecar-sim lost-flag` kidnaps it
+        kidnap_at: seconds after the reset (more than 0, less than ``duration``) at which the
+            car is carried to a random free pose at least 2 m away, as `racecar-sim lost-flag` kidnaps it
             ([KidnapScenario][mcl.experiments.scenarios.KidnapScenario], drawn from the
             [scenario_rng][mcl.experiments.runs.scenario_rng] of ``seed``: the same kidnap as
             that command's kidnap drive of this seed); None: no kidnap. The drive's
@@ -211,6 +208,8 @@ def record_drive(
     from mcl.experiments.scenarios import KidnapScenario
 
     check_duration("record_drive", duration)
+    if kidnap_at is not None and check_duration("record_drive", kidnap_at, "kidnap_at") >= duration:
+        raise ValueError(f"record_drive.kidnap_at = {kidnap_at} s must be under duration = {duration} s")
     settings: dict[str, Any] = {"terminate_on_collision": False, **dict(env or {})}
     if noise_profile is not None:
         settings["noise_profile"] = noise_profile

@@ -4,6 +4,8 @@ unchanged."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -138,3 +140,9 @@ def test_a_recorded_kidnap_is_the_kidnap_of_the_run_with_that_seed(tmp_path):
     plain = record_drive("basement_loop", seed=3, duration=2.0)
     assert plain.settings["kidnap_at"] is None and plain.settings["kidnap_to"] is None
     assert np.linalg.norm(np.diff(plain.truth[:, :2], axis=0), axis=1).max() < 1.0
+
+
+@pytest.mark.parametrize("kidnap_at", [-1.0, 0.0, math.nan, 2.0, 5.0])
+def test_a_kidnap_outside_the_drive_is_refused_naming_kidnap_at(kidnap_at: float) -> None:
+    with pytest.raises(ValueError, match=r"record_drive\.kidnap_at"):
+        record_drive("basement_loop", seed=3, duration=2.0, kidnap_at=kidnap_at)
