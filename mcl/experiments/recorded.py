@@ -198,8 +198,8 @@ def record_drive(
         duration: simulated seconds.
         env: further [EnvConfig][racecar_sim.settings.config.EnvConfig] settings.
         kidnap_at: seconds after the reset (more than 0, less than ``duration``) at which the
-            car is carried to a random free pose at least 2 m away, as `racecar-sim lost-flag` kidnaps it
-            ([KidnapScenario][mcl.experiments.scenarios.KidnapScenario], drawn from the
+            car is carried to a random free pose at least 2 m away, as `racecar-sim lost-flag`
+            kidnaps it ([KidnapScenario][mcl.experiments.scenarios.KidnapScenario], drawn from the
             [scenario_rng][mcl.experiments.runs.scenario_rng] of ``seed``: the same kidnap as
             that command's kidnap drive of this seed); None: no kidnap. The drive's
             ``settings`` hold ``kidnap_at`` (None without a kidnap) and ``kidnap_to``.

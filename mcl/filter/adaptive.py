@@ -112,9 +112,9 @@ class AdaptiveParticleFilter(ParticleFilter):
     Takes the arguments of [`ParticleFilter`][mcl.filter.particle_filter.ParticleFilter] plus ``adaptive``
     (`AdaptiveParams`). Its `correct()` is the plain filter's with the current mode's squash and
     scan spacing (the scan also goes to the standstill check and the learned odometry scale, and a
-    recovery burst is weighed and shrunk back, as there). The given ``params`` describe the tracking filter's resampling,
-    KLD-sampling (its ``max_particles`` bounds the search too) and augmented MCL; the sensor
-    model's ``squash_exponent`` is the tracking squash.
+    recovery burst is weighed and shrunk back, as there). The given ``params`` describe the
+    tracking filter's resampling, KLD-sampling (its ``max_particles`` bounds the search too) and
+    augmented MCL; the sensor model's ``squash_exponent`` is the tracking squash.
 
     Attributes:
         tracking: True once the cloud has converged (see the module docstring).
