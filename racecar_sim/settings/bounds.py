@@ -149,10 +149,10 @@ def check(
     table: dict[str, Bound] | None = None,
 ) -> float | int:
     """``value`` checked against ``table[key or name]`` (default table `BOUNDS`); the
-    message names ``owner.name``.
+    message names ``owner.name`` and the bound's unit.
 
     Raises:
-        ValueError: one line, ``"owner.name = value must be a number in [low, high]"``.
+        ValueError: one line, ``"owner.name = value must be a number in [low, high] unit"``.
     """
     b = (BOUNDS if table is None else table)[key or name]
     return check_number(
@@ -165,6 +165,7 @@ def check(
         high_open=b.high_open,
         integer=b.integer,
         allow_inf=b.allow_inf,
+        unit=b.unit,
     )
 
 

@@ -122,6 +122,7 @@ def check_number(
     high_open: bool = False,
     integer: bool = False,
     allow_inf: bool = False,
+    unit: str = "",
 ) -> float | int:
     """``value`` as a float (or int with ``integer``) if it is a finite number in the range.
 
@@ -132,9 +133,10 @@ def check_number(
         low, high: the bounds; ``low_open`` / ``high_open`` exclude them.
         integer: require a whole number.
         allow_inf: accept +-inf (within the bounds), e.g. "no limit".
+        unit: the bounds' unit, named after them in the message (e.g. ``"m"``; empty: none).
 
     Raises:
-        ValueError: ``"Owner.name = value must be <what>"``.
+        ValueError: ``"Owner.name = value must be <what>"``, e.g. ``"a number in [0, 10] m"``.
     """
     field = f"{owner}.{name}" if owner else name
     kind = "an integer" if integer else "a number"
@@ -143,6 +145,8 @@ def check_number(
         need = f"a positive {'integer' if integer else 'number'}"
     else:
         need = f"{kind} {what}"
+    if unit:
+        need = f"{need} ({unit})" if what == "positive" else f"{need} {unit}"
     ok_type = isinstance(value, int | float) and not isinstance(value, bool)
     shown = short(value)
     if integer:

@@ -29,7 +29,7 @@ def test_yaml_sets_the_casters_sort_extent(tmp_path, room) -> None:
 @pytest.mark.parametrize("bad", [-1.0, math.nan, "wide", True, None])
 def test_a_bad_extent_is_one_line_naming_the_setting(bad) -> None:
     with pytest.raises(
-        ValueError, match=r"^SensorModelParams\.lut_sort_extent = .* must be a number >= 0$"
+        ValueError, match=r"^SensorModelParams\.lut_sort_extent = .* must be a number >= 0 m$"
     ):
         SensorModelParams(lut_sort_extent=bad)
 

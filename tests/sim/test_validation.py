@@ -58,9 +58,9 @@ def test_integers_must_be_whole() -> None:
 
 
 def test_env_settings_name_the_env_keyword_not_the_inner_class() -> None:
-    with pytest.raises(ValueError, match=r"^lidar_rate = 'abc' must be a number in \[0.1, 1000\]$"):
+    with pytest.raises(ValueError, match=r"^lidar_rate = 'abc' must be a number in \[0.1, 1000\] Hz$"):
         EnvConfig(lidar_rate="abc")
-    with pytest.raises(ValueError, match=r"^n_beams = 0 must be an integer in \[1, 10000\]$"):
+    with pytest.raises(ValueError, match=r"^n_beams = 0 must be an integer in \[1, 10000\] beams$"):
         EnvConfig(n_beams=0)
     with pytest.raises(ValueError, match=r"^LidarParams.p_max = 2.0 must be a number in \[0, 1\]$"):
         LidarParams(p_max=2.0)
