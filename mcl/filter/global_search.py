@@ -44,6 +44,7 @@ import math
 import numpy as np
 
 from mcl.filter.angles import wrap_angle
+from mcl.filter.lost_params import LostParams
 from mcl.filter.particle_filter import ParticleFilter
 from mcl.filter.place_keeping import PlaceKeeping
 from mcl.filter.uncertainty import largest_position_sd
@@ -148,6 +149,19 @@ class GlobalSearch:
         self.fit = self.fit_gap = self.loglik_gap = math.nan
         self.converged_for = 0.0
         self.adoptions = 0
+
+    @classmethod
+    def from_params(cls, p: LostParams) -> GlobalSearch:
+        """The search filter the lost flag's settings ``p`` describe (their ``search_*`` fields;
+        a burst's ``burst_accept`` is the adoption margin)."""
+        places = None
+        if p.search_place_draws > 0:
+            places = PlaceKeeping(cell_m=p.search_place_m, headings=p.search_place_headings,
+                                  draws=p.search_place_draws)  # fmt: skip
+        return cls(p.search_converged_sd, adopt_margin=p.burst_accept, adopt_after_s=p.search_adopt_s,
+                   inject_share=p.search_inject_share, adopt_loglik=p.search_adopt_loglik,
+                   draw_density=p.search_draw_density, draw_max=p.search_draw_max, places=places,
+                   scan_exponent=p.search_scan_exponent)  # fmt: skip
 
     @property
     def running(self) -> bool:

@@ -62,7 +62,8 @@ share of beams; the car's own place explains them more closely), and it starts a
 when it settled on a worse place, or on the filter's place while the flag is up, and, while the
 flag is up, when it stayed ``search_restart_s`` undecided on a place fitting
 ``search_restart_misfit`` under the car's usual fit (a look-alike); on the filter's place with
-the flag down it stops. After a jump, ``search_confirmations`` searches in a row that settle on
+the flag down it stops, or, within ``jump_search_s`` of a jump (``search_watch``), runs on
+watching its other places. After a jump, ``search_confirmations`` searches in a row that settle on
 the filter's own place (each from a new uniform draw, none settling in between on another place
 that fits as well) find the car while the fit does not say lost (its average at least
 ``raise_below``): where the car was carried to a place the old map explains less well than the
@@ -85,7 +86,6 @@ from mcl.filter.confirmations import SearchConfirmations
 from mcl.filter.global_search import GlobalSearch
 from mcl.filter.lost_params import LostParams
 from mcl.filter.particle_filter import ParticleFilter
-from mcl.filter.place_keeping import PlaceKeeping
 from mcl.filter.scan_continuity import ScanContinuity, scan_bearings
 from mcl.filter.scan_fit import ScanFit, scan_agreement
 from mcl.filter.step_kernels import pose_moments
@@ -147,17 +147,7 @@ class LostDetector:
         self._scan_fit = ScanFit(self.params.beams, self.params.fit_tolerance, self.params.skip_short)
         self._lidar_range: float | None = None  # metres the lidar sees (observe's argument)
         self._odometry_fed = False
-        p = self.params
-        self.search = GlobalSearch(p.search_converged_sd, adopt_margin=p.burst_accept,
-                                   adopt_after_s=p.search_adopt_s,
-                                   inject_share=p.search_inject_share,
-                                   adopt_loglik=p.search_adopt_loglik,
-                                   draw_density=p.search_draw_density,
-                                   draw_max=p.search_draw_max,
-                                   places=None if p.search_place_draws <= 0 else PlaceKeeping(
-                                       cell_m=p.search_place_m, headings=p.search_place_headings,
-                                       draws=p.search_place_draws),
-                                   scan_exponent=p.search_scan_exponent)  # fmt: skip
+        self.search = GlobalSearch.from_params(self.params)
 
     def restart(self) -> None:
         """Forget the history (a new belief: a reset or a new start)."""
@@ -288,7 +278,8 @@ class LostDetector:
         """One scan of the search filter; returns whether ``pf`` took its cloud (its fit, or
         after a jump its log-likelihood, beat the filter's: module docstring). The search ends
         ``jump_search_s`` after it started, once it settles on the filter's place while the
-        flag is down, or once it confirms that place after a jump (``search_confirmations``);
+        flag is down, or once it confirms that place after a jump (``search_confirmations``),
+        unless it watches on (``search_watch``, within ``jump_search_s`` of the jump);
         it starts again after an adoption, when it settles on the filter's place
         while the flag is up, when it settles on a place that fits worse than the filter's, and
         when it stays undecided on a look-alike (``search_restart_misfit``)."""
@@ -300,12 +291,14 @@ class LostDetector:
         if search.filter is None or search.converged_for <= 0.0:
             return False
         if search.settled() and search.agrees_with(estimate):
+            # after a jump it may watch on: the place the fit found may be a look-alike
+            watch = self.params.search_watch and self._since_jump < self.params.jump_search_s
             if self.jumped and self.lost and self._confirmed():
-                search.stop()
-                return False
-            if self.lost:
+                if not watch:
+                    search.stop()
+            elif self.lost:
                 search.start(pf)
-            else:
+            elif not watch:
                 search.stop()
             return False
         found = search.filter.estimate()

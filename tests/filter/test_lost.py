@@ -68,6 +68,8 @@ DT = 0.025  # the env's default step
         ("search_confirmations", 2.5),
         ("search_confirmations", True),
         ("confirmed_bar", 1),
+        ("search_watch", 1),
+        ("search_watch", None),
         ("confirmed_bar", "yes"),
         ("raise_continuous", 0),
         ("raise_continuous", None),
