@@ -131,8 +131,8 @@ class LostParams:
             (3: 1.2-1.9 %; docs/recovery.md).
         search_watch: within ``jump_search_s`` of a jump the search filter runs on once it has
             settled on the filter's place with the flag down (or confirmed it), keeping its
-            other places, instead of ending: a place found by the fit can be a look-alike the
-            drive refutes later (a corridor driven the wrong way round). On 40 honest kidnaps
+            other places, instead of ending: a place a burst found can be a look-alike that
+            the drive refutes seconds later (cluttered kidnap 3: 17 m off). On 40 honest kidnaps
             in three draws of the filter (2026-12-07): found within 15 s 33, 34 and 31 (false:
             33, 34 and 29), the false alarms within 0.2 of a point (docs/recovery.md).
         confirmed_bar: once the searches confirmed a car found after a jump, judge its place by
