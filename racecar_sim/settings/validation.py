@@ -146,7 +146,7 @@ def check_number(
     else:
         need = f"{kind} {what}"
     if unit:
-        need = f"{need} ({unit})" if what == "positive" else f"{need} {unit}"
+        need = f"{need} {unit}"
     ok_type = isinstance(value, int | float) and not isinstance(value, bool)
     shown = short(value)
     if integer:
