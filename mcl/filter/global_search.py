@@ -241,6 +241,12 @@ class GlobalSearch:
         turn = abs(float(wrap_angle(mine[2] - float(estimate[2]))))
         return math.dist(mine[:2], estimate[:2]) <= self.agree_m and turn <= self.agree_rad
 
+    def rival(self, estimate: np.ndarray) -> bool:
+        """Whether the search has settled on another place than ``estimate`` (farther than
+        ``agree_m`` or ``agree_rad``) whose averaged fit is at least the filter's (`fit_gap`
+        above 0): the scans do not tell the two places apart, or favour the search's."""
+        return self.settled() and not self.agrees_with(estimate) and self.fit_gap > 0.0
+
     def compare(
         self, search_fit: float, filter_fit: float, dt: float, loglik_gap: float = math.nan
     ) -> int:

@@ -33,6 +33,8 @@ What the filter can see, measured once per used scan (no truth involved):
   scan fit at the estimate falls under ``clear_above``: a kidnap (no map involved; people close to
   the lidar dip the continuity, not the fit). The flag goes up at once and stays up while the fit
   (averaged from the jump on) says lost, or ``jump_hold_s`` seconds at least.
+- **A rival** (``search_rival``): within ``jump_search_s`` of a jump, the search filter (below)
+  settled on another place that fits at least as well as the filter's.
 
 Recovery (``recover``, or ``recover_after_jump`` after a jump): while the fit says lost, the filter is asked
 ([ParticleFilter.request_recovery][mcl.filter.particle_filter.ParticleFilter.request_recovery]) to
@@ -113,7 +115,9 @@ class LostDetector:
             before the second scan; [`mcl.filter.scan_continuity`][mcl.filter.scan_continuity]).
         jumped: a jump was seen and the filter has not found the car again since.
         jumps: jumps seen since the restart.
-        lost: the flag: ``fit_lost``, a spread cloud, or ``jumped``.
+        lost: the flag: ``raised`` or ``rival``.
+        raised: ``fit_lost``, a spread cloud, or ``jumped`` (what the recovery answers).
+        rival: after a jump, the search settled on another place fitting as well.
         search: the search filter run after a jump
             ([GlobalSearch][mcl.filter.global_search.GlobalSearch]).
         confirmations: the searches in a row that settled on the filter's place since the jump
@@ -130,7 +134,7 @@ class LostDetector:
         self.continuity = math.nan
         self.jumped = False
         self.jumps = 0
-        self.lost = False
+        self.lost = self.raised = self.rival = False
         self._since_scan = 0.0  # seconds of driving since the last scan observed
         self._low_for = 0.0  # seconds the averaged fit has said lost without the flag up
         self._reference_age = 0.0  # seconds of driving folded into reference_fit
@@ -243,13 +247,13 @@ class LostDetector:
                 self._low_for = 0.0
         cov = pf.covariance()
         self.position_sd = largest_position_sd(cov)
-        was_lost = self.lost
-        self.lost = self.fit_lost or self.position_sd > p.max_position_sd or self.jumped
+        was_raised = self.raised
+        self.raised = self.fit_lost or self.position_sd > p.max_position_sd or self.jumped
         if (
             p.search_filter
             and p.search_on_lost
-            and self.lost
-            and not was_lost
+            and self.raised
+            and not was_raised
             and not self.search.running
         ):
             self.search.start(pf)  # the next scan weighs it
@@ -272,6 +276,9 @@ class LostDetector:
             pf.request_local_burst(p.local_particles, p.local_sd, p.local_heading_sd)
             self._since_local = 0.0
             self._local_burst = True
+        search = self.search  # a rival place the scans do not refute, after a jump
+        self.rival = p.search_rival and self._since_jump < p.jump_search_s and search.rival(estimate)
+        self.lost = self.raised or self.rival
         return self.lost
 
     def _search(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> bool:
@@ -293,10 +300,10 @@ class LostDetector:
         if search.settled() and search.agrees_with(estimate):
             # after a jump it may watch on: the place the fit found may be a look-alike
             watch = self.params.search_watch and self._since_jump < self.params.jump_search_s
-            if self.jumped and self.lost and self._confirmed():
+            if self.jumped and self.raised and self._confirmed():
                 if not watch:
                     search.stop()
-            elif self.lost:
+            elif self.raised:
                 search.start(pf)
             elif not watch:
                 search.stop()
@@ -342,7 +349,7 @@ class LostDetector:
         usual fit."""
         p, search = self.params, self.search
         return (
-            self.lost
+            self.raised
             and search.converged_for >= p.search_restart_s
             and search.fit < self.reference_fit - p.search_restart_misfit
         )

@@ -105,6 +105,24 @@ def test_a_search_agrees_within_a_metre_and_half_a_radian(room, sensor) -> None:
     assert search.agrees_with(TRUTH + np.array([0.0, 0.0, 2 * math.pi - 0.2]))  # wrapped: 0.2 rad
 
 
+def test_a_rival_is_another_settled_place_that_fits_at_least_as_well(room, sensor) -> None:
+    search = GlobalSearch(agree_m=1.0, agree_rad=0.5, adopt_after_s=1.0)
+    assert not search.rival(ELSEWHERE)  # no search runs
+    search.start(_pf(room, sensor, ELSEWHERE))
+    search.filter.initialize(TRUTH, (0.01, 0.01, 0.01))
+    search.fit_gap = 0.02  # fits a little better than the filter's place
+    assert not search.rival(ELSEWHERE)  # not settled yet
+    search.converged_for = 1.0
+    assert search.rival(ELSEWHERE)
+    assert not search.rival(TRUTH + np.array([0.5, 0.0, 0.1]))  # the filter's own place
+    search.fit_gap = 0.0
+    assert not search.rival(ELSEWHERE)  # the gap must be above 0
+    search.fit_gap = -0.05
+    assert not search.rival(ELSEWHERE)  # fits worse
+    search.fit_gap = math.nan
+    assert not search.rival(ELSEWHERE)  # not compared yet
+
+
 def test_a_search_whose_weight_hops_to_another_place_counts_as_converged_anew(room, sensor) -> None:
     pf = _pf(room, sensor, TRUTH)
     lidar, rng = Lidar(room), np.random.default_rng(3)
