@@ -241,6 +241,11 @@ class GlobalSearch:
         turn = abs(float(wrap_angle(mine[2] - float(estimate[2]))))
         return math.dist(mine[:2], estimate[:2]) <= self.agree_m and turn <= self.agree_rad
 
+    def stuck(self, after_s: float, fit_under: float) -> bool:
+        """Whether the search has stayed converged ``after_s`` seconds on one place whose
+        averaged fit (`fit`, a fraction of beams) lies under ``fit_under`` (a look-alike)."""
+        return self.converged_for >= after_s and self.fit < fit_under
+
     def rival(self, estimate: np.ndarray) -> bool:
         """Whether the search has settled on another place than ``estimate`` (farther than
         ``agree_m`` or ``agree_rad``) whose averaged fit is at least the filter's (`fit_gap`

@@ -321,7 +321,9 @@ class LostDetector:
             self.confirmations.settled_elsewhere(verdict)
         if verdict > 0:
             search.adopt(pf)
-        if verdict != 0 or self._look_alike():
+        # the flag up, undecided for search_restart_s on a place fitting well under the usual fit
+        look_alike = self.raised and search.stuck(p.search_restart_s, self.reference_fit - p.search_restart_misfit)
+        if verdict != 0 or look_alike:
             search.start(pf)
         return verdict > 0
 
@@ -342,17 +344,6 @@ class LostDetector:
             self.reference_fit = self.smoothed_fit
             self._reference_age = 0.0
         return True
-
-    def _look_alike(self) -> bool:
-        """Whether, the flag up, the undecided search has stayed converged ``search_restart_s``
-        seconds on a place whose averaged fit lies ``search_restart_misfit`` under the car's
-        usual fit."""
-        p, search = self.params, self.search
-        return (
-            self.raised
-            and search.converged_for >= p.search_restart_s
-            and search.fit < self.reference_fit - p.search_restart_misfit
-        )
 
     def _check_jump(self, pf: ParticleFilter, scan: np.ndarray) -> None:
         """Compare ``scan`` with the previous one (odometry fed since): a jump raises ``jumped``

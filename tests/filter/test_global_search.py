@@ -105,6 +105,17 @@ def test_a_search_agrees_within_a_metre_and_half_a_radian(room, sensor) -> None:
     assert search.agrees_with(TRUTH + np.array([0.0, 0.0, 2 * math.pi - 0.2]))  # wrapped: 0.2 rad
 
 
+def test_a_search_is_stuck_once_converged_long_enough_on_a_place_fitting_under_the_bar() -> None:
+    search = GlobalSearch()
+    search.converged_for, search.fit = 2.9, 0.6
+    assert not search.stuck(3.0, 0.75)  # not long enough
+    search.converged_for = 3.0
+    assert search.stuck(3.0, 0.75)
+    assert not search.stuck(3.0, 0.6)  # at the bar is not under it
+    search.fit = math.nan  # not compared yet
+    assert not search.stuck(3.0, 0.75)
+
+
 def test_a_rival_is_another_settled_place_that_fits_at_least_as_well(room, sensor) -> None:
     search = GlobalSearch(agree_m=1.0, agree_rad=0.5, adopt_after_s=1.0)
     assert not search.rival(ELSEWHERE)  # no search runs
