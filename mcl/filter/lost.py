@@ -34,7 +34,8 @@ What the filter can see, measured once per used scan (no truth involved):
   the lidar dip the continuity, not the fit). The flag goes up at once and stays up while the fit
   (averaged from the jump on) says lost, or ``jump_hold_s`` seconds at least.
 - **A rival** (``search_rival``): within ``jump_search_s`` of a jump, the search filter (below)
-  settled on another place that fits at least as well as the filter's.
+  settled on another place that fits at least as well as the filter's. A car that stands (the
+  filter holds its cloud still) is not flagged by the fit alone (``standing_holds``).
 
 Recovery (``recover``, or ``recover_after_jump`` after a jump): while the fit says lost, the filter is asked
 ([ParticleFilter.request_recovery][mcl.filter.particle_filter.ParticleFilter.request_recovery]) to
@@ -115,7 +116,8 @@ class LostDetector:
             before the second scan; [`mcl.filter.scan_continuity`][mcl.filter.scan_continuity]).
         jumped: a jump was seen and the filter has not found the car again since.
         jumps: jumps seen since the restart.
-        lost: the flag: ``raised`` or ``rival``.
+        lost: the flag: ``raised`` (a fit's only after it said lost while the car moved for
+            ``raise_after_s``: ``standing_holds``) or ``rival``.
         raised: ``fit_lost``, a spread cloud, or ``jumped`` (what the recovery answers).
         rival: after a jump, the search settled on another place fitting as well.
         search: the search filter run after a jump
@@ -135,6 +137,7 @@ class LostDetector:
         self.jumped = False
         self.jumps = 0
         self.lost = self.raised = self.rival = False
+        self._low_moving = 0.0  # seconds the fit was under the bar (or lost) while the car moved
         self._since_scan = 0.0  # seconds of driving since the last scan observed
         self._low_for = 0.0  # seconds the averaged fit has said lost without the flag up
         self._reference_age = 0.0  # seconds of driving folded into reference_fit
@@ -245,6 +248,9 @@ class LostDetector:
                 self._raise_below = p.raise_below
             if self.fit_lost:
                 self._low_for = 0.0
+            # the same time under the bar, counted only while the car moves (the cloud can drift)
+            moving = 0.0 if pf.standstill.standing else since_scan
+            self._low_moving = self._low_moving + moving if self.fit_lost or self._low_for > 0.0 else 0.0
         cov = pf.covariance()
         self.position_sd = largest_position_sd(cov)
         was_raised = self.raised
@@ -278,7 +284,9 @@ class LostDetector:
             self._local_burst = True
         search = self.search  # a rival place the scans do not refute, after a jump
         self.rival = p.search_rival and self._since_jump < p.jump_search_s and search.rival(estimate)
-        self.lost = self.raised or self.rival
+        held = p.standing_holds and self._low_moving < p.raise_after_s  # the car stood meanwhile
+        held = held and not self.jumped and self.position_sd <= p.max_position_sd
+        self.lost = (self.raised and not held) or self.rival
         return self.lost
 
     def _search(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> bool:

@@ -38,6 +38,12 @@ class LostParams:
             0.85, one more found within 15 s; in the third one (clean kidnap 0, lost either
             way, flagged on fewer of its lost steps): the clean recall 0.176 -> 0.170
             (docs/recovery.md).
+        standing_holds: the fit's time under the bar counts towards the reported ``lost`` only
+            while the car moves (the filter's standstill check does not say it stands, its cloud
+            held still): a held cloud cannot drift from where the car stopped, and a car pinned
+            where the old map is wrong round it would otherwise be flagged for as long as it
+            stands. Not after a jump, nor for a spread cloud; the recovery the fit asks for runs
+            as before, so no estimate changes (docs/recovery.md).
         clear_above: the flag goes down when the averaged fit rises above this fraction
             (at least ``raise_below``: hysteresis).
         misfit_ratio: the flag also goes up when the averaged misfit exceeds this many times
@@ -218,6 +224,7 @@ class LostParams:
     search_rival: bool = True
     confirmed_bar: bool = True
     raise_continuous: bool = True
+    standing_holds: bool = True
     search_draw_density: float = 0.0
     search_draw_max: int = 100_000
     search_place_draws: float = 4.0
@@ -241,6 +248,7 @@ class LostParams:
             "search_rival",
             "confirmed_bar",
             "raise_continuous",
+            "standing_holds",
         ):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(
