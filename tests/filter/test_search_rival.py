@@ -16,17 +16,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mcl.experiments.recorded import RecordedDrive, localize_recorded, record_drive
-from tests.skips import need_shared
+from mcl.experiments.recorded import RecordedDrive, localize_recorded
+from tests.honest_world import honest_drive
 
 KIDNAP_AT = 10.0
 
 
 @pytest.fixture(scope="module")
 def kidnap_drive() -> RecordedDrive:
-    world, old = need_shared("maps/basement_fixed_aligned.yaml", "maps/stata_basement.yaml")
-    return record_drive(world, filter_map=old, scene="clean", noise_profile="mit_racecar",
-                        driver="wall", seed=0, duration=30.0, kidnap_at=KIDNAP_AT)  # fmt: skip
+    return honest_drive("clean", seed=0, duration=30.0, kidnap_at=KIDNAP_AT)
 
 
 def _flagged_seconds(drive: RecordedDrive, settings: dict | None) -> tuple[float, float]:

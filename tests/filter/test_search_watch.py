@@ -16,17 +16,15 @@ import math
 import pytest
 
 from mcl.experiments.lost_flag import time_to_find
-from mcl.experiments.recorded import RecordedDrive, localize_recorded, record_drive
-from tests.skips import need_shared
+from mcl.experiments.recorded import RecordedDrive, localize_recorded
+from tests.honest_world import honest_drive
 
 KIDNAP_AT = 10.0
 
 
 @pytest.fixture(scope="module")
 def kidnap_drive() -> RecordedDrive:
-    world, old = need_shared("maps/basement_fixed_aligned.yaml", "maps/stata_basement.yaml")
-    return record_drive(world, filter_map=old, scene="cluttered", noise_profile="mit_racecar",
-                        driver="wall", seed=3, duration=30.0, kidnap_at=KIDNAP_AT)  # fmt: skip
+    return honest_drive("cluttered", seed=3, duration=30.0, kidnap_at=KIDNAP_AT)
 
 
 def _found_after(drive: RecordedDrive, settings: dict | None) -> float:

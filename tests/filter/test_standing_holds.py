@@ -14,15 +14,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mcl.experiments.recorded import RecordedDrive, localize_recorded, record_drive
-from tests.skips import need_shared
+from mcl.experiments.recorded import RecordedDrive, localize_recorded
+from tests.honest_world import honest_drive
 
 
 @pytest.fixture(scope="module")
 def pinned_drive() -> RecordedDrive:
-    world, old = need_shared("maps/basement_fixed_aligned.yaml", "maps/stata_basement.yaml")
-    return record_drive(world, filter_map=old, scene="cluttered", noise_profile="mit_racecar",
-                        driver="wall", seed=31, duration=15.0)  # fmt: skip
+    return honest_drive("cluttered", seed=31, duration=15.0)
 
 
 @pytest.fixture(scope="module")
