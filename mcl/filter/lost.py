@@ -116,8 +116,8 @@ class LostDetector:
             before the second scan; [`mcl.filter.scan_continuity`][mcl.filter.scan_continuity]).
         jumped: a jump was seen and the filter has not found the car again since.
         jumps: jumps seen since the restart.
-        lost: the flag: ``raised`` (a fit's only after it said lost while the car moved for
-            ``raise_after_s``: ``standing_holds``) or ``rival``.
+        lost: the flag reported: ``raised`` or ``rival`` (with ``standing_holds``, a raise by
+            the fit alone shows once the fit has said lost over ``raise_after_s`` of moving).
         raised: ``fit_lost``, a spread cloud, or ``jumped`` (what the recovery answers).
         rival: after a jump, the search settled on another place fitting as well.
         search: the search filter run after a jump
@@ -284,9 +284,9 @@ class LostDetector:
             self._local_burst = True
         search = self.search  # a rival place the scans do not refute, after a jump
         self.rival = p.search_rival and self._since_jump < p.jump_search_s and search.rival(estimate)
-        held = p.standing_holds and self._low_moving < p.raise_after_s  # the car stood meanwhile
-        held = held and not self.jumped and self.position_sd <= p.max_position_sd
-        self.lost = (self.raised and not held) or self.rival
+        stood = p.standing_holds and self._low_moving < p.raise_after_s  # said lost while standing
+        by_fit_alone = not self.jumped and self.position_sd <= p.max_position_sd
+        self.lost = (self.raised and not (stood and by_fit_alone)) or self.rival
         return self.lost
 
     def _search(self, pf: ParticleFilter, estimate: np.ndarray, scan: np.ndarray) -> bool:
